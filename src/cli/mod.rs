@@ -1,0 +1,175 @@
+//! The command-line front end: argument types and the commands. Each
+//! command returns a [`CliError`] whose exit code tells bad input (2) from
+//! other failures (1).
+
+mod compare_cmd;
+mod render_cmd;
+
+use std::path::PathBuf;
+
+use clap::{Args, Parser, Subcommand};
+
+pub use compare_cmd::compare;
+pub use render_cmd::{load_scene, render};
+
+use crate::render::{AreaLightModel, Sampling};
+
+#[derive(Debug, Parser)]
+#[command(name = "penumbra", version, about = "Phong ray tracer with a rectangular area light: viewer and CLI")]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Option<Command>,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Open the interactive viewer (the default).
+    View(ViewArgs),
+    /// Render a scene to a PNG or EXR file.
+    Render(RenderArgs),
+    /// Compare two images (PNG or EXR): RMSE, PSNR, largest difference.
+    Compare(CompareArgs),
+}
+
+#[derive(Debug, Args, Default)]
+pub struct ViewArgs {
+    /// Scene file (JSON); the built-in seed room if omitted.
+    pub scene: Option<PathBuf>,
+    /// Log UI frame times and render latencies to stderr.
+    #[arg(long)]
+    pub log_timings: bool,
+}
+
+/// Overrides of a scene's settings.
+#[derive(Debug, Args, Default, Clone)]
+pub struct SceneOverrides {
+    /// Image width in pixels.
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=16384))]
+    pub width: Option<u32>,
+    /// Image height in pixels.
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=16384))]
+    pub height: Option<u32>,
+    /// Shadow rays per hit point.
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=4096))]
+    pub shadow_rays: Option<u32>,
+    /// Placement of shadow-ray points on the light.
+    #[arg(long, value_enum)]
+    pub sampling: Option<SamplingArg>,
+    /// Most surface hits along one camera path (1 = no reflections).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=16))]
+    pub depth: Option<u32>,
+    /// Area-light model.
+    #[arg(long, value_enum)]
+    pub model: Option<ModelArg>,
+    /// Random seed.
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Multipliers of the ambient, diffuse and specular terms, e.g. 1,0,0.
+    #[arg(long, value_parser = parse_terms)]
+    pub terms: Option<[f64; 3]>,
+}
+
+#[derive(Debug, Args)]
+pub struct RenderArgs {
+    /// Scene file (JSON); the built-in seed room if omitted.
+    pub scene: Option<PathBuf>,
+    /// Output image: .png (sRGB 8-bit) or .exr (linear f32).
+    #[arg(short, long)]
+    pub output: PathBuf,
+    #[command(flatten)]
+    pub overrides: SceneOverrides,
+    /// Worker threads (default: all cores).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1024))]
+    pub threads: Option<u32>,
+    /// Trace every shadow ray, skipping nothing (to measure what skipping
+    /// saves; the image is the same).
+    #[arg(long)]
+    pub no_skip: bool,
+    /// Render progressively (preview and intermediate passes), as the
+    /// viewer does; the image is the same.
+    #[arg(long)]
+    pub progressive: bool,
+}
+
+#[derive(Debug, Args)]
+pub struct CompareArgs {
+    pub a: PathBuf,
+    pub b: PathBuf,
+    /// Write a false-colour difference image (PNG).
+    #[arg(long)]
+    pub diff: Option<PathBuf>,
+}
+
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+pub enum SamplingArg {
+    Grid,
+    Random,
+    Mixed,
+    Stratified,
+}
+
+impl From<SamplingArg> for Sampling {
+    fn from(s: SamplingArg) -> Sampling {
+        match s {
+            SamplingArg::Grid => Sampling::Grid,
+            SamplingArg::Random => Sampling::Random,
+            SamplingArg::Mixed => Sampling::Mixed,
+            SamplingArg::Stratified => Sampling::Stratified,
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+pub enum ModelArg {
+    Sampled,
+    NearestPoint,
+}
+
+impl From<ModelArg> for AreaLightModel {
+    fn from(m: ModelArg) -> AreaLightModel {
+        match m {
+            ModelArg::Sampled => AreaLightModel::Sampled,
+            ModelArg::NearestPoint => AreaLightModel::NearestPoint,
+        }
+    }
+}
+
+fn parse_terms(s: &str) -> Result<[f64; 3], String> {
+    let parts: Vec<&str> = s.split(',').collect();
+    if parts.len() != 3 {
+        return Err("expected three comma-separated numbers: ambient,diffuse,specular".into());
+    }
+    let mut out = [0.0; 3];
+    for (o, p) in out.iter_mut().zip(parts) {
+        let v: f64 = p.trim().parse().map_err(|_| format!("{p:?} is not a number"))?;
+        if !(v.is_finite() && v >= 0.0) {
+            return Err(format!("{p} is out of range, expected a number >= 0"));
+        }
+        *o = v;
+    }
+    Ok(out)
+}
+
+/// A failed command: the message for stderr and the exit code.
+#[derive(Debug)]
+pub struct CliError {
+    pub code: i32,
+    pub message: String,
+}
+
+impl CliError {
+    /// Bad input (scene, arguments, image sizes): exit code 2.
+    pub fn input(message: impl ToString) -> CliError {
+        CliError {
+            code: 2,
+            message: message.to_string(),
+        }
+    }
+    /// Anything else (I/O, interrupted): exit code 1.
+    pub fn other(message: impl ToString) -> CliError {
+        CliError {
+            code: 1,
+            message: message.to_string(),
+        }
+    }
+}

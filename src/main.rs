@@ -1,0 +1,18 @@
+//! `penumbra`: parses the command line and hands over to the viewer or a
+//! command.
+
+use clap::Parser;
+use penumbra::cli::{self, Cli, Command, CliError};
+
+fn main() {
+    let cli = Cli::parse();
+    let result = match cli.command.unwrap_or(Command::View(Default::default())) {
+        Command::View(args) => penumbra::app::run(&args).map_err(CliError::input),
+        Command::Render(args) => cli::render(&args),
+        Command::Compare(args) => cli::compare(&args),
+    };
+    if let Err(e) = result {
+        eprintln!("penumbra: {}", e.message);
+        std::process::exit(e.code);
+    }
+}

@@ -1,0 +1,256 @@
+//! Bounding volume hierarchy over the bounded objects, built with the
+//! surface area heuristic over binned centroids. Infinite planes stay
+//! outside it (they have no bounds) and are tested on their own.
+
+use glam::DVec3;
+
+use super::{Aabb, Ray};
+
+#[derive(Debug, Clone)]
+struct Node {
+    bounds: Aabb,
+    /// Leaf: first index into `items`; inner: index of the left child (the
+    /// right one follows it).
+    first: u32,
+    /// Number of items in a leaf; 0 for an inner node.
+    count: u32,
+}
+
+#[derive(Debug, Clone, Default)]
+pub struct Bvh {
+    nodes: Vec<Node>,
+    /// Object ids in leaf order.
+    items: Vec<u32>,
+}
+
+const BINS: usize = 16;
+const MAX_LEAF: usize = 4;
+/// Relative cost of visiting a node against testing one primitive.
+const TRAVERSAL_COST: f64 = 1.0;
+
+impl Bvh {
+    /// Builds a BVH over `(object id, bounds)` pairs.
+    pub fn build(objects: &[(u32, Aabb)]) -> Bvh {
+        let mut bvh = Bvh {
+            nodes: Vec::with_capacity(2 * objects.len().max(1)),
+            items: objects.iter().map(|o| o.0).collect(),
+        };
+        if objects.is_empty() {
+            return bvh;
+        }
+        let bounds: Vec<Aabb> = objects.iter().map(|o| o.1).collect();
+        let mut order: Vec<usize> = (0..objects.len()).collect();
+        bvh.nodes.push(Node {
+            bounds: Aabb::EMPTY,
+            first: 0,
+            count: 0,
+        });
+        bvh.split(0, &mut order, 0, &bounds);
+        bvh.items = order.iter().map(|&i| objects[i].0).collect();
+        bvh
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.nodes.is_empty()
+    }
+
+    /// Bounds of everything inside.
+    pub fn bounds(&self) -> Aabb {
+        self.nodes.first().map_or(Aabb::EMPTY, |n| n.bounds)
+    }
+
+    fn split(&mut self, node: usize, order: &mut [usize], first: usize, bounds: &[Aabb]) {
+        let node_bounds = order.iter().fold(Aabb::EMPTY, |b, &i| b.union(bounds[i]));
+        self.nodes[node].bounds = node_bounds;
+        let leaf = |bvh: &mut Bvh| {
+            bvh.nodes[node].first = first as u32;
+            bvh.nodes[node].count = order.len() as u32;
+        };
+        if order.len() <= MAX_LEAF {
+            return leaf(self);
+        }
+        let centroids = order
+            .iter()
+            .fold(Aabb::EMPTY, |b, &i| b.grow(bounds[i].centre()));
+        let ext = centroids.extent();
+        let axis = if ext.x >= ext.y && ext.x >= ext.z {
+            0
+        } else if ext.y >= ext.z {
+            1
+        } else {
+            2
+        };
+        if ext[axis] <= 0.0 {
+            return leaf(self);
+        }
+        let bin_of = |i: usize| {
+            let c = bounds[i].centre()[axis];
+            (((c - centroids.min[axis]) / ext[axis] * BINS as f64) as usize).min(BINS - 1)
+        };
+        let mut bin_bounds = [Aabb::EMPTY; BINS];
+        let mut bin_count = [0usize; BINS];
+        for &i in order.iter() {
+            let b = bin_of(i);
+            bin_bounds[b] = bin_bounds[b].union(bounds[i]);
+            bin_count[b] += 1;
+        }
+        // Sweep from the right to get the cost of every split plane.
+        let mut right_area = [0.0; BINS];
+        let mut acc = Aabb::EMPTY;
+        let mut count = 0;
+        let mut right_count = [0usize; BINS];
+        for b in (1..BINS).rev() {
+            acc = acc.union(bin_bounds[b]);
+            count += bin_count[b];
+            right_area[b] = acc.surface_area();
+            right_count[b] = count;
+        }
+        let mut best = (f64::INFINITY, 0);
+        let mut acc = Aabb::EMPTY;
+        let mut count = 0;
+        for b in 0..BINS - 1 {
+            acc = acc.union(bin_bounds[b]);
+            count += bin_count[b];
+            if count == 0 || right_count[b + 1] == 0 {
+                continue;
+            }
+            let cost = acc.surface_area() * count as f64 + right_area[b + 1] * right_count[b + 1] as f64;
+            if cost < best.0 {
+                best = (cost, b);
+            }
+        }
+        let leaf_cost = node_bounds.surface_area() * order.len() as f64;
+        let split_cost = TRAVERSAL_COST * node_bounds.surface_area() + best.0;
+        if best.0.is_infinite() || (split_cost >= leaf_cost && order.len() <= 2 * MAX_LEAF) {
+            return leaf(self);
+        }
+        let mut mid = 0;
+        for k in 0..order.len() {
+            if bin_of(order[k]) <= best.1 {
+                order.swap(k, mid);
+                mid += 1;
+            }
+        }
+        let left = self.nodes.len();
+        let empty = Node {
+            bounds: Aabb::EMPTY,
+            first: 0,
+            count: 0,
+        };
+        self.nodes.push(empty.clone());
+        self.nodes.push(empty);
+        self.nodes[node].first = left as u32;
+        self.nodes[node].count = 0;
+        let (lo, hi) = order.split_at_mut(mid);
+        self.split(left, lo, first, bounds);
+        self.split(left + 1, hi, first + mid, bounds);
+    }
+
+    /// Closest hit: `hit(object, t_max)` returns the object's nearest t below
+    /// t_max; nodes are visited near child first and pruned by the best t.
+    pub fn closest(&self, ray: &Ray, mut t_max: f64, mut hit: impl FnMut(u32, f64) -> Option<f64>) -> Option<(u32, f64)> {
+        if self.nodes.is_empty() {
+            return None;
+        }
+        let inv = ray.dir.recip();
+        let mut best = None;
+        let mut stack = [0u32; 64];
+        let mut sp = 0;
+        let mut node = 0usize;
+        if !self.nodes[0].bounds.hit(ray, inv, t_max) {
+            return None;
+        }
+        loop {
+            let n = &self.nodes[node];
+            if n.count > 0 {
+                for &obj in &self.items[n.first as usize..(n.first + n.count) as usize] {
+                    if let Some(t) = hit(obj, t_max) {
+                        t_max = t;
+                        best = Some((obj, t));
+                    }
+                }
+            } else {
+                let (l, r) = (n.first as usize, n.first as usize + 1);
+                let dl = entry(&self.nodes[l].bounds, ray, inv, t_max);
+                let dr = entry(&self.nodes[r].bounds, ray, inv, t_max);
+                match (dl, dr) {
+                    (Some(a), Some(b)) => {
+                        let (near, far) = if a <= b { (l, r) } else { (r, l) };
+                        stack[sp] = far as u32;
+                        sp += 1;
+                        node = near;
+                        continue;
+                    }
+                    (Some(_), None) => {
+                        node = l;
+                        continue;
+                    }
+                    (None, Some(_)) => {
+                        node = r;
+                        continue;
+                    }
+                    (None, None) => {}
+                }
+            }
+            // Pop the next far child that a closer hit has not pruned since.
+            loop {
+                if sp == 0 {
+                    return best;
+                }
+                sp -= 1;
+                node = stack[sp] as usize;
+                if entry(&self.nodes[node].bounds, ray, inv, t_max).is_some() {
+                    break;
+                }
+            }
+        }
+    }
+
+    /// Calls `visit` for every object whose leaf bounds pass `overlaps`,
+    /// pruning subtrees whose bounds fail it.
+    pub fn for_each_overlapping(&self, overlaps: impl Fn(&Aabb) -> bool, mut visit: impl FnMut(u32)) {
+        if self.nodes.is_empty() {
+            return;
+        }
+        let mut stack = [0u32; 64];
+        let mut sp = 1;
+        while sp > 0 {
+            sp -= 1;
+            let n = &self.nodes[stack[sp] as usize];
+            if !overlaps(&n.bounds) {
+                continue;
+            }
+            if n.count > 0 {
+                for &obj in &self.items[n.first as usize..(n.first + n.count) as usize] {
+                    visit(obj);
+                }
+            } else {
+                stack[sp] = n.first;
+                stack[sp + 1] = n.first + 1;
+                sp += 2;
+            }
+        }
+    }
+
+    /// Depth of the deepest leaf (for tests and statistics).
+    pub fn depth(&self) -> usize {
+        fn walk(b: &Bvh, n: usize) -> usize {
+            let node = &b.nodes[n];
+            if node.count > 0 {
+                1
+            } else {
+                1 + walk(b, node.first as usize).max(walk(b, node.first as usize + 1))
+            }
+        }
+        if self.nodes.is_empty() { 0 } else { walk(self, 0) }
+    }
+}
+
+#[inline]
+fn entry(b: &Aabb, ray: &Ray, inv: DVec3, t_max: f64) -> Option<f64> {
+    let t0 = (b.min - ray.origin) * inv;
+    let t1 = (b.max - ray.origin) * inv;
+    let near = t0.min(t1).max_element().max(0.0);
+    let far = t0.max(t1).min_element().min(t_max);
+    (near <= far).then_some(near)
+}

@@ -1,0 +1,98 @@
+use glam::DVec3;
+
+use super::{Aabb, Ray, SurfacePoint};
+
+/// The `box` object: an axis-aligned box rotated about the y axis through
+/// its centre, then translated. Intersections run in the box's own frame.
+#[derive(Debug, Clone)]
+pub struct Cuboid {
+    /// World position of the box's centre.
+    pub centre: DVec3,
+    /// Half the box's size along its own axes.
+    pub half: DVec3,
+    /// cos and sin of the rotation about y.
+    pub cos: f64,
+    pub sin: f64,
+}
+
+impl Cuboid {
+    pub fn new(min: DVec3, max: DVec3, rotate_y_deg: f64, translate: DVec3) -> Self {
+        let (sin, cos) = rotate_y_deg.to_radians().sin_cos();
+        Cuboid {
+            centre: (min + max) * 0.5 + translate,
+            half: (max - min) * 0.5,
+            cos,
+            sin,
+        }
+    }
+
+    /// World → box frame, for directions.
+    #[inline]
+    pub fn to_local(&self, v: DVec3) -> DVec3 {
+        DVec3::new(v.x * self.cos - v.z * self.sin, v.y, v.x * self.sin + v.z * self.cos)
+    }
+
+    /// Box frame → world, for directions.
+    #[inline]
+    pub fn to_world(&self, v: DVec3) -> DVec3 {
+        DVec3::new(v.x * self.cos + v.z * self.sin, v.y, -v.x * self.sin + v.z * self.cos)
+    }
+
+    /// Entry and exit distances of the ray's line through the slabs.
+    #[inline]
+    fn slabs(&self, ray: &Ray) -> (f64, f64) {
+        let o = self.to_local(ray.origin - self.centre);
+        let inv = self.to_local(ray.dir).recip();
+        let t0 = (-self.half - o) * inv;
+        let t1 = (self.half - o) * inv;
+        // f64::min/max drop a NaN (0·∞ for a ray in a face's plane).
+        (t0.min(t1).max_element(), t0.max(t1).min_element())
+    }
+
+    #[inline]
+    pub fn intersect(&self, ray: &Ray, t_max: f64) -> Option<f64> {
+        let (near, far) = self.slabs(ray);
+        if near > far {
+            return None;
+        }
+        if near > 0.0 && near < t_max {
+            Some(near)
+        } else if far > 0.0 && far < t_max {
+            Some(far)
+        } else {
+            None
+        }
+    }
+
+    pub fn surface(&self, ray: &Ray, t: f64) -> SurfacePoint {
+        let mut local = self.to_local(ray.at(t) - self.centre);
+        // The face is the axis where the point is relatively closest to the
+        // slab; snap it onto the face exactly.
+        let rel = local.abs() / self.half.max(DVec3::splat(f64::MIN_POSITIVE));
+        let axis = if rel.x >= rel.y && rel.x >= rel.z {
+            0
+        } else if rel.y >= rel.z {
+            1
+        } else {
+            2
+        };
+        let sign = if local[axis] >= 0.0 { 1.0 } else { -1.0 };
+        local[axis] = sign * self.half[axis];
+        let mut n = DVec3::ZERO;
+        n[axis] = sign;
+        SurfacePoint {
+            point: self.centre + self.to_world(local),
+            normal: self.to_world(n),
+        }
+    }
+
+    pub fn bounds(&self) -> Aabb {
+        let h = self.half;
+        let ext = DVec3::new(
+            (h.x * self.cos).abs() + (h.z * self.sin).abs(),
+            h.y,
+            (h.x * self.sin).abs() + (h.z * self.cos).abs(),
+        );
+        Aabb::new(self.centre - ext, self.centre + ext).padded()
+    }
+}

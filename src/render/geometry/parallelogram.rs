@@ -1,0 +1,104 @@
+use glam::{DVec2, DVec3};
+
+use super::{Aabb, Ray, SurfacePoint};
+
+/// A parallelogram `corner + a·edge_u + b·edge_v`, (a, b) ∈ [0,1]²: the
+/// `rect` object and the shape of the area light.
+#[derive(Debug, Clone)]
+pub struct Parallelogram {
+    pub corner: DVec3,
+    pub edge_u: DVec3,
+    pub edge_v: DVec3,
+    /// Unit normal along `edge_u × edge_v`.
+    pub normal: DVec3,
+    /// Rows of the pseudo-inverse of [edge_u edge_v]: `(x - corner) · dual_u`
+    /// is the least-squares `a` of x (exact for points in the plane).
+    pub dual_u: DVec3,
+    pub dual_v: DVec3,
+}
+
+impl Parallelogram {
+    pub fn new(corner: DVec3, edge_u: DVec3, edge_v: DVec3) -> Self {
+        // Work with unit-scaled edges so that neither tiny nor huge lights
+        // under/overflow in the Gram determinant.
+        let (lu, lv) = (edge_u.length(), edge_v.length());
+        let (eu, ev) = (edge_u / lu, edge_v / lv);
+        let uv = eu.dot(ev);
+        let det = 1.0 - uv * uv;
+        let dual_u = (eu - ev * uv) / (det * lu);
+        let dual_v = (ev - eu * uv) / (det * lv);
+        Parallelogram {
+            corner,
+            edge_u,
+            edge_v,
+            normal: eu.cross(ev).normalize(),
+            dual_u,
+            dual_v,
+        }
+    }
+
+    /// Least-squares (a, b) coordinates of a point (exact in the plane).
+    #[inline]
+    pub fn uv(&self, p: DVec3) -> DVec2 {
+        let d = p - self.corner;
+        DVec2::new(d.dot(self.dual_u), d.dot(self.dual_v))
+    }
+
+    /// (a, b) of a direction (a point at infinity): the rate at which a
+    /// point moving along it changes its coordinates.
+    #[inline]
+    pub fn uv_of_direction(&self, d: DVec3) -> DVec2 {
+        DVec2::new(d.dot(self.dual_u), d.dot(self.dual_v))
+    }
+
+    #[inline]
+    pub fn point(&self, uv: DVec2) -> DVec3 {
+        self.corner + self.edge_u * uv.x + self.edge_v * uv.y
+    }
+
+    pub fn corners(&self) -> [DVec3; 4] {
+        [
+            self.corner,
+            self.corner + self.edge_u,
+            self.corner + self.edge_u + self.edge_v,
+            self.corner + self.edge_v,
+        ]
+    }
+
+    pub fn centre(&self) -> DVec3 {
+        self.corner + (self.edge_u + self.edge_v) * 0.5
+    }
+
+    pub fn area(&self) -> f64 {
+        self.edge_u.cross(self.edge_v).length()
+    }
+
+    /// Signed distance of a point from the plane, positive on the normal's
+    /// side.
+    #[inline]
+    pub fn signed_distance(&self, p: DVec3) -> f64 {
+        self.normal.dot(p - self.corner)
+    }
+
+    #[inline]
+    pub fn intersect(&self, ray: &Ray, t_max: f64) -> Option<f64> {
+        let t = -self.signed_distance(ray.origin) / self.normal.dot(ray.dir);
+        if !(t > 0.0 && t < t_max) {
+            return None;
+        }
+        let uv = self.uv(ray.at(t));
+        (uv.x >= 0.0 && uv.x <= 1.0 && uv.y >= 0.0 && uv.y <= 1.0).then_some(t)
+    }
+
+    pub fn surface(&self, ray: &Ray, t: f64) -> SurfacePoint {
+        let p = ray.at(t);
+        SurfacePoint {
+            point: p - self.normal * self.signed_distance(p),
+            normal: self.normal,
+        }
+    }
+
+    pub fn bounds(&self) -> Aabb {
+        Aabb::from_points(&self.corners()).padded()
+    }
+}

@@ -1,0 +1,43 @@
+use glam::DVec3;
+
+use super::{Ray, SurfacePoint};
+
+/// Infinite plane `normal · x = offset`.
+#[derive(Debug, Clone)]
+pub struct Plane {
+    /// Unit normal.
+    pub normal: DVec3,
+    pub offset: f64,
+}
+
+impl Plane {
+    pub fn new(point: DVec3, normal: DVec3) -> Self {
+        let normal = super::super::math::normalize_robust(normal);
+        Plane {
+            normal,
+            offset: normal.dot(point),
+        }
+    }
+
+    /// Signed distance of a point from the plane.
+    #[inline]
+    pub fn signed_distance(&self, p: DVec3) -> f64 {
+        self.normal.dot(p) - self.offset
+    }
+
+    #[inline]
+    pub fn intersect(&self, ray: &Ray, t_max: f64) -> Option<f64> {
+        let denom = self.normal.dot(ray.dir);
+        // A ray parallel to the plane never meets it (0/0 or x/0 below).
+        let t = -self.signed_distance(ray.origin) / denom;
+        (t > 0.0 && t < t_max).then_some(t)
+    }
+
+    pub fn surface(&self, ray: &Ray, t: f64) -> SurfacePoint {
+        let p = ray.at(t);
+        SurfacePoint {
+            point: p - self.normal * self.signed_distance(p),
+            normal: self.normal,
+        }
+    }
+}

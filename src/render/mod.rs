@@ -1,0 +1,29 @@
+//! The rendering core: scene, geometry, camera, light, sampling, shading,
+//! tracer, progressive tiles and film/output. It knows nothing of the UI.
+
+pub mod camera;
+pub mod compare;
+pub mod error;
+pub mod film;
+pub mod geometry;
+pub mod light;
+pub mod math;
+pub mod occlusion;
+pub mod output;
+pub mod progressive;
+pub mod rng;
+pub mod sampling;
+pub mod scene;
+pub mod scene_file;
+pub mod shading;
+pub mod stats;
+pub mod tracer;
+
+pub use error::{ImageError, SceneError};
+pub use film::Film;
+pub use progressive::{
+    CancelToken, Cancelled, Pass, RenderOptions, RenderReport, TileRect, TileUpdate, pass_plan, render, render_image,
+};
+pub use scene::{RenderSettings, Scene};
+pub use scene_file::{AreaLightModel, Sampling, SceneDesc};
+pub use stats::RayStats;

@@ -1,0 +1,361 @@
+//! Shadow rays: which of a hit point's light points are visible.
+//!
+//! All shadow rays of one hit point share their origin, so they are handled
+//! together, in f32, in coordinates relative to the hit point: that keeps
+//! them precise for a room far from the world origin, and lets the compiler
+//! vectorize the per-ray loops (structure of arrays, no branches).
+//!
+//! A ray from hit point p to light point y is blocked by an object met at
+//! t ∈ (0, 1) on p + t (y − p). A light point behind the surface
+//! (N·(y − p) ≤ 0) counts as blocked by the surface itself. The surface's
+//! own object is otherwise left out: every primitive is convex or flat, so a
+//! ray leaving it on the outer side can never meet it again — exact, with no
+//! epsilon. Hit from inside (the normal was flipped), the object is kept and
+//! only its exit point counts.
+//!
+//! Work is skipped where the answer is known (when `settings.skip`):
+//! - objects whose bounds miss the pyramid spanned by p and the light
+//!   rectangle can block nothing; planes with the whole light on p's side
+//!   neither. With no candidate left, every facing point is visible.
+//! - if one convex candidate, lying wholly between p and the light's plane,
+//!   blocks the rays to all four light corners, it blocks every ray to the
+//!   light (the directions that meet a convex body form a convex cone).
+//!
+//! Both only decide what is also what tracing would find, so the image is
+//! the same with skipping on or off.
+
+use glam::{DVec3, Vec3};
+
+use super::geometry::{Aabb, Shape};
+use super::scene::Scene;
+use super::stats::RayStats;
+
+/// Per-thread buffers for one hit point's light points, reused from hit to
+/// hit so that the hot loop never allocates.
+#[derive(Debug, Default)]
+pub struct ShadowBuffers {
+    /// Light points in the light's (a, b) coordinates.
+    pub a: Vec<f32>,
+    pub b: Vec<f32>,
+    /// Unnormalized directions from the hit point to the light points.
+    pub dx: Vec<f32>,
+    pub dy: Vec<f32>,
+    pub dz: Vec<f32>,
+    /// 1 where the light point is visible, 0 where it is blocked.
+    pub vis: Vec<f32>,
+    occluders: Vec<Candidate>,
+}
+
+/// A possible occluder of one hit point.
+#[derive(Debug, Clone, Copy)]
+struct Candidate {
+    occ: Occluder,
+    /// Convex and wholly between the hit point's side and the light's plane:
+    /// may decide the umbra test.
+    umbra_test: bool,
+}
+
+impl ShadowBuffers {
+    pub fn with_capacity(points: usize) -> ShadowBuffers {
+        let v = || vec![0.0; points];
+        ShadowBuffers {
+            a: v(),
+            b: v(),
+            dx: v(),
+            dy: v(),
+            dz: v(),
+            vis: v(),
+            occluders: Vec::with_capacity(16),
+        }
+    }
+
+    pub fn ensure(&mut self, points: usize) {
+        if self.vis.len() < points {
+            *self = ShadowBuffers::with_capacity(points);
+        }
+    }
+}
+
+/// An object as seen from one hit point, in f32 relative to it.
+#[derive(Debug, Clone, Copy)]
+enum Occluder {
+    /// `oc`: centre − p; `c2`: |p − c|² − r² (0 when hit from inside: p is
+    /// on the sphere).
+    Sphere { oc: Vec3, c2: f32, inside: bool },
+    /// `origin`: p in the box's frame; `cos`, `sin`: its rotation about y.
+    Cuboid { origin: Vec3, half: Vec3, cos: f32, sin: f32 },
+    /// `to_corner`: corner − p; `dual_*`: rows of the pseudo-inverse of the
+    /// edges; `dist`: normal · (corner − p).
+    Rect { to_corner: Vec3, normal: Vec3, dual_u: Vec3, dual_v: Vec3, dist: f32 },
+    /// `dist`: signed distance of p from the plane.
+    Plane { normal: Vec3, dist: f32 },
+}
+
+impl Occluder {
+    fn new(shape: &Shape, p: DVec3, inside: bool) -> Occluder {
+        match shape {
+            Shape::Sphere(s) => {
+                let oc = s.centre - p;
+                let c2 = if inside { 0.0 } else { oc.length_squared() - s.radius * s.radius };
+                Occluder::Sphere {
+                    oc: oc.as_vec3(),
+                    c2: c2 as f32,
+                    inside,
+                }
+            }
+            Shape::Cuboid(c) => Occluder::Cuboid {
+                origin: c.to_local(p - c.centre).as_vec3(),
+                half: c.half.as_vec3(),
+                cos: c.cos as f32,
+                sin: c.sin as f32,
+            },
+            Shape::Parallelogram(r) => {
+                let to_corner = r.corner - p;
+                Occluder::Rect {
+                    to_corner: to_corner.as_vec3(),
+                    normal: r.normal.as_vec3(),
+                    dual_u: r.dual_u.as_vec3(),
+                    dual_v: r.dual_v.as_vec3(),
+                    dist: r.normal.dot(to_corner) as f32,
+                }
+            }
+            Shape::Plane(pl) => Occluder::Plane {
+                normal: pl.normal.as_vec3(),
+                dist: pl.signed_distance(p) as f32,
+            },
+        }
+    }
+
+    /// Clears `vis[j]` for every ray that this occluder blocks.
+    fn block(&self, dx: &[f32], dy: &[f32], dz: &[f32], vis: &mut [f32]) {
+        let n = vis.len();
+        let (dx, dy, dz) = (&dx[..n], &dy[..n], &dz[..n]);
+        match *self {
+            Occluder::Sphere { oc, c2, inside } => {
+                for j in 0..n {
+                    let (x, y, z) = (dx[j], dy[j], dz[j]);
+                    let a = x * x + y * y + z * z;
+                    let b = oc.x * x + oc.y * y + oc.z * z;
+                    let disc = b * b - a * c2;
+                    // Roots t = (b ± √disc) / a. Outside: the near root, in
+                    // (0, 1) iff b > 0 and b − a < √disc. Inside: the exit,
+                    // b + √disc < a.
+                    let blocked = if inside {
+                        b + disc.max(0.0).sqrt() < a
+                    } else {
+                        let s = b - a;
+                        disc >= 0.0 && b > 0.0 && (s < 0.0 || s * s < disc)
+                    };
+                    vis[j] = if blocked { 0.0 } else { vis[j] };
+                }
+            }
+            Occluder::Cuboid {
+                origin,
+                half,
+                cos,
+                sin,
+            } => {
+                let (lo, hi) = (-half - origin, half - origin);
+                for j in 0..n {
+                    let (x, y, z) = (dx[j], dy[j], dz[j]);
+                    let (lx, lz) = (x * cos - z * sin, x * sin + z * cos);
+                    let (ix, iy, iz) = (1.0 / lx, 1.0 / y, 1.0 / lz);
+                    let (ax, bx) = (lo.x * ix, hi.x * ix);
+                    let (ay, by) = (lo.y * iy, hi.y * iy);
+                    let (az, bz) = (lo.z * iz, hi.z * iz);
+                    // f32::min/max drop the NaN of 0·∞ (a ray in a face's
+                    // plane), treating that slab as not limiting.
+                    let near = ax.min(bx).max(ay.min(by)).max(az.min(bz)).max(0.0);
+                    let far = ax.max(bx).min(ay.max(by)).min(az.max(bz)).min(1.0);
+                    vis[j] = if near < far { 0.0 } else { vis[j] };
+                }
+            }
+            Occluder::Rect {
+                to_corner,
+                normal,
+                dual_u,
+                dual_v,
+                dist,
+            } => {
+                for j in 0..n {
+                    let d = Vec3::new(dx[j], dy[j], dz[j]);
+                    let t = dist / normal.dot(d);
+                    let q = d * t - to_corner;
+                    let (a, b) = (q.dot(dual_u), q.dot(dual_v));
+                    let blocked = t > 0.0 && t < 1.0 && (0.0..=1.0).contains(&a) && (0.0..=1.0).contains(&b);
+                    vis[j] = if blocked { 0.0 } else { vis[j] };
+                }
+            }
+            Occluder::Plane { normal, dist } => {
+                for j in 0..n {
+                    let end = dist + normal.x * dx[j] + normal.y * dy[j] + normal.z * dz[j];
+                    vis[j] = if dist * end < 0.0 { 0.0 } else { vis[j] };
+                }
+            }
+        }
+    }
+
+    /// Whether this occluder blocks the single ray `d`.
+    fn blocks(&self, d: Vec3) -> bool {
+        let mut v = [1.0];
+        self.block(&[d.x], &[d.y], &[d.z], &mut v);
+        v[0] == 0.0
+    }
+}
+
+/// The pyramid spanned by a hit point and the light rectangle, as five
+/// planes `n · x <= d` (four sides and the light's plane), for culling.
+struct ShadowPyramid {
+    planes: [(DVec3, f64); 5],
+    bounds: Aabb,
+}
+
+impl ShadowPyramid {
+    fn new(p: DVec3, corners: &[DVec3; 4], light_normal: DVec3, light_centre: DVec3) -> ShadowPyramid {
+        let mut planes = [(DVec3::ZERO, 0.0); 5];
+        for i in 0..4 {
+            let mut n = (corners[i] - p).cross(corners[(i + 1) % 4] - p);
+            if n.dot(light_centre - p) > 0.0 {
+                n = -n;
+            }
+            planes[i] = (n, n.dot(p));
+        }
+        planes[4] = (-light_normal, -light_normal.dot(corners[0]));
+        ShadowPyramid {
+            planes,
+            bounds: Aabb::from_points(corners).grow(p),
+        }
+    }
+
+    /// Conservative: false only if the box certainly misses the pyramid.
+    fn may_overlap(&self, b: &Aabb) -> bool {
+        if b.min.cmpgt(self.bounds.max).any() || b.max.cmplt(self.bounds.min).any() {
+            return false;
+        }
+        self.planes.iter().all(|&(n, d)| {
+            // The box corner furthest against the normal.
+            let x = DVec3::select(n.cmpge(DVec3::ZERO), b.min, b.max);
+            n.dot(x) <= d
+        })
+    }
+}
+
+/// One hit point whose shadow rays are to be traced.
+pub struct ShadowQuery {
+    /// The hit point (on the surface).
+    pub point: DVec3,
+    /// Unit normal facing the incoming ray.
+    pub normal: DVec3,
+    /// The hit object.
+    pub object: u32,
+    /// Whether the object was hit from inside.
+    pub inside: bool,
+}
+
+/// Fills `buf.dx/dy/dz` from `buf.a/b` and `buf.vis` with each point's
+/// visibility (1 or 0), for the first `count` points.
+pub fn visibility(scene: &Scene, q: &ShadowQuery, count: usize, buf: &mut ShadowBuffers, stats: &mut RayStats) {
+    let light = &scene.light.shape;
+    let to_corner = (light.corner - q.point).as_vec3();
+    let (eu, ev) = (light.edge_u.as_vec3(), light.edge_v.as_vec3());
+    let n = q.normal.as_vec3();
+    let mut facing = 0u64;
+    {
+        let (a, b) = (&buf.a[..count], &buf.b[..count]);
+        let (dx, dy, dz) = (&mut buf.dx[..count], &mut buf.dy[..count], &mut buf.dz[..count]);
+        let vis = &mut buf.vis[..count];
+        for j in 0..count {
+            let d = to_corner + eu * a[j] + ev * b[j];
+            dx[j] = d.x;
+            dy[j] = d.y;
+            dz[j] = d.z;
+            vis[j] = if n.dot(d) > 0.0 { 1.0 } else { 0.0 };
+        }
+        for v in vis.iter() {
+            facing += *v as u64;
+        }
+    }
+    stats.shadow_backfacing += count as u64 - facing;
+    if facing == 0 {
+        return;
+    }
+    if !scene.settings.shadows {
+        stats.shadow_disabled += facing;
+        return;
+    }
+
+    // Candidate occluders.
+    let skip = scene.settings.skip;
+    let corners = light.corners();
+    let pyramid = ShadowPyramid::new(q.point, &corners, light.normal, light.centre());
+    buf.occluders.clear();
+    {
+        let occluders = &mut buf.occluders;
+        let mut consider = |i: u32, bounds: Option<Aabb>| {
+            let inside = i == q.object && q.inside;
+            if i == q.object && !inside {
+                return;
+            }
+            let shape = &scene.objects[i as usize].shape;
+            if skip {
+                if let Shape::Plane(pl) = shape {
+                    // A plane blocks only if some light point lies on its
+                    // other side from p.
+                    let sp = pl.signed_distance(q.point);
+                    if corners.iter().all(|c| pl.signed_distance(*c) * sp > 0.0) {
+                        return;
+                    }
+                }
+                if bounds.is_some_and(|b| !pyramid.may_overlap(&b)) {
+                    return;
+                }
+            }
+            let umbra_test = !inside
+                && match bounds {
+                    // Planes block a light point iff it lies on their other
+                    // side: all four corners there means the whole light.
+                    None => true,
+                    Some(b) => {
+                        let x = DVec3::select(light.normal.cmpge(DVec3::ZERO), b.min, b.max);
+                        light.signed_distance(x) > 0.0
+                    }
+                };
+            occluders.push(Candidate {
+                occ: Occluder::new(shape, q.point, inside),
+                umbra_test,
+            });
+        };
+        for &i in scene.unbounded.iter().chain(&scene.bounded) {
+            consider(i, scene.objects[i as usize].shape.bounds());
+        }
+        let overlaps = |b: &Aabb| !skip || pyramid.may_overlap(b);
+        scene.bvh.for_each_overlapping(overlaps, |i| {
+            consider(i, scene.objects[i as usize].shape.bounds())
+        });
+    }
+    if buf.occluders.is_empty() {
+        stats.shadow_unoccluded += facing;
+        return;
+    }
+
+    if skip {
+        // Umbra: one convex occluder between p and the light's plane that
+        // blocks all four corner rays blocks the whole light.
+        let corner_dirs = corners.map(|c| (c - q.point).as_vec3());
+        let umbra = buf
+            .occluders
+            .iter()
+            .any(|c| c.umbra_test && corner_dirs.iter().all(|d| c.occ.blocks(*d)));
+        if umbra {
+            buf.vis[..count].fill(0.0);
+            stats.shadow_umbra += facing;
+            return;
+        }
+    }
+
+    stats.shadow += facing;
+    let vis = &mut buf.vis[..count];
+    for c in &buf.occluders {
+        c.occ.block(&buf.dx, &buf.dy, &buf.dz, vis);
+    }
+}

@@ -1,0 +1,662 @@
+//! The scene file, as written on disk (format version 1, see
+//! `shared/scene-format.md`): plain serde structs that round-trip through
+//! JSON, plus the parser and validator that turn any problem into a
+//! [`SceneError`] naming the field's JSON path.
+//!
+//! These structs are also what the viewer edits: a change is made here and
+//! the runtime [`crate::render::Scene`] is rebuilt from it, so there is one
+//! road from a control to the renderer and "save scene" writes exactly what
+//! is rendered.
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+use serde_json::Value;
+
+use super::error::SceneError;
+
+/// The scene files this build reads.
+pub const FORMAT_VERSION: u32 = 1;
+
+/// Limits that protect the machine from absurd input (documented in the
+/// README); the format's own ranges are checked as well.
+pub mod limits {
+    /// Largest scene file read, in bytes.
+    pub const MAX_FILE_BYTES: u64 = 64 << 20;
+    /// Most objects in one scene.
+    pub const MAX_OBJECTS: usize = 1_000_000;
+    /// Most materials in one scene.
+    pub const MAX_MATERIALS: usize = 100_000;
+    /// Largest absolute coordinate or length, in world units.
+    pub const MAX_COORD: f64 = 1e9;
+    /// Largest colour component, term multiplier or light intensity.
+    pub const MAX_COLOUR: f64 = 1e6;
+    /// Largest shininess exponent.
+    pub const MAX_SHININESS: f64 = 1e6;
+    /// Largest image side, in pixels (the format's own limit).
+    pub const MAX_SIDE: u32 = 16384;
+    /// Most shadow rays traced for one image, counted as
+    /// pixels × shadow points per hit × max_depth (about an hour of work).
+    pub const MAX_SHADOW_WORK: u64 = 1 << 41;
+}
+
+pub type Vec3Desc = [f64; 3];
+
+/// A whole scene file.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SceneDesc {
+    pub format: u32,
+    pub camera: CameraDesc,
+    pub render: RenderDesc,
+    pub light: LightDesc,
+    pub materials: BTreeMap<String, MaterialDesc>,
+    pub objects: Vec<ObjectDesc>,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CameraDesc {
+    pub position: Vec3Desc,
+    pub look_at: Vec3Desc,
+    pub up: Vec3Desc,
+    pub fov_y_deg: f64,
+    pub width: u32,
+    pub height: u32,
+}
+
+/// How shadow-ray points are placed on the light.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum Sampling {
+    /// n×n cell centres, n = ⌊√shadow_rays⌋ (the report's systematic rays).
+    #[default]
+    Grid,
+    /// `shadow_rays` uniform random points.
+    Random,
+    /// The grid plus as many random points again.
+    Mixed,
+    /// One jittered point in each of the n×n grid cells.
+    Stratified,
+}
+
+impl Sampling {
+    pub const ALL: [Sampling; 4] = [
+        Sampling::Grid,
+        Sampling::Random,
+        Sampling::Mixed,
+        Sampling::Stratified,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Sampling::Grid => "grid",
+            Sampling::Random => "random",
+            Sampling::Mixed => "mixed",
+            Sampling::Stratified => "stratified",
+        }
+    }
+}
+
+/// How the diffuse and specular terms see the area light.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum AreaLightModel {
+    /// Phong terms averaged over the shadow-ray points, each weighted by its
+    /// visibility.
+    #[default]
+    Sampled,
+    /// The report's method: one "optimal" light point for diffuse and one
+    /// for specular, scaled by the fraction of unblocked shadow rays.
+    NearestPoint,
+}
+
+impl AreaLightModel {
+    pub const ALL: [AreaLightModel; 2] = [AreaLightModel::Sampled, AreaLightModel::NearestPoint];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            AreaLightModel::Sampled => "sampled",
+            AreaLightModel::NearestPoint => "nearest_point",
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TermsDesc {
+    #[serde(default = "one")]
+    pub ambient: f64,
+    #[serde(default = "one")]
+    pub diffuse: f64,
+    #[serde(default = "one")]
+    pub specular: f64,
+}
+
+impl Default for TermsDesc {
+    fn default() -> Self {
+        TermsDesc {
+            ambient: 1.0,
+            diffuse: 1.0,
+            specular: 1.0,
+        }
+    }
+}
+
+fn one() -> f64 {
+    1.0
+}
+fn default_shadow_rays() -> u32 {
+    64
+}
+fn default_max_depth() -> u32 {
+    4
+}
+fn default_seed() -> u64 {
+    1
+}
+fn yes() -> bool {
+    true
+}
+fn is_true(b: &bool) -> bool {
+    *b
+}
+
+/// The `render` section: every field optional.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RenderDesc {
+    #[serde(default = "default_shadow_rays")]
+    pub shadow_rays: u32,
+    #[serde(default)]
+    pub sampling: Sampling,
+    #[serde(default = "default_max_depth")]
+    pub max_depth: u32,
+    #[serde(default = "default_seed")]
+    pub seed: u64,
+    #[serde(default)]
+    pub area_light_model: AreaLightModel,
+    #[serde(default)]
+    pub terms: TermsDesc,
+    #[serde(default)]
+    pub background: Vec3Desc,
+    /// Extension: `false` treats every shadow ray as unblocked (the
+    /// viewer's "shadows" toggle). Omitted when true.
+    #[serde(default = "yes", skip_serializing_if = "is_true")]
+    pub shadows: bool,
+    /// Extension: one shininess for every material (the viewer's global
+    /// override). Omitted when unset.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub shininess_override: Option<f64>,
+}
+
+impl Default for RenderDesc {
+    fn default() -> Self {
+        RenderDesc {
+            shadow_rays: default_shadow_rays(),
+            sampling: Sampling::default(),
+            max_depth: default_max_depth(),
+            seed: default_seed(),
+            area_light_model: AreaLightModel::default(),
+            terms: TermsDesc::default(),
+            background: [0.0; 3],
+            shadows: true,
+            shininess_override: None,
+        }
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LightDesc {
+    pub corner: Vec3Desc,
+    pub edge_u: Vec3Desc,
+    pub edge_v: Vec3Desc,
+    pub ambient: Vec3Desc,
+    pub diffuse: Vec3Desc,
+    pub specular: Vec3Desc,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MaterialDesc {
+    pub ambient: Vec3Desc,
+    pub diffuse: Vec3Desc,
+    pub specular: Vec3Desc,
+    pub shininess: f64,
+    pub reflectivity: f64,
+}
+
+/// One object of the `objects` list; `type` selects the variant.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(tag = "type", rename_all = "snake_case")]
+pub enum ObjectDesc {
+    Plane(PlaneDesc),
+    Rect(RectDesc),
+    Box(BoxDesc),
+    Sphere(SphereDesc),
+}
+
+impl ObjectDesc {
+    pub fn material(&self) -> &str {
+        match self {
+            ObjectDesc::Plane(o) => &o.material,
+            ObjectDesc::Rect(o) => &o.material,
+            ObjectDesc::Box(o) => &o.material,
+            ObjectDesc::Sphere(o) => &o.material,
+        }
+    }
+
+    pub fn kind(&self) -> &'static str {
+        match self {
+            ObjectDesc::Plane(_) => "plane",
+            ObjectDesc::Rect(_) => "rect",
+            ObjectDesc::Box(_) => "box",
+            ObjectDesc::Sphere(_) => "sphere",
+        }
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PlaneDesc {
+    pub point: Vec3Desc,
+    pub normal: Vec3Desc,
+    pub material: String,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RectDesc {
+    pub corner: Vec3Desc,
+    pub edge_u: Vec3Desc,
+    pub edge_v: Vec3Desc,
+    pub material: String,
+}
+
+fn is_zero(x: &f64) -> bool {
+    *x == 0.0
+}
+fn is_origin(v: &Vec3Desc) -> bool {
+    *v == [0.0; 3]
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BoxDesc {
+    pub min: Vec3Desc,
+    pub max: Vec3Desc,
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub rotate_y_deg: f64,
+    #[serde(default, skip_serializing_if = "is_origin")]
+    pub translate: Vec3Desc,
+    pub material: String,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SphereDesc {
+    pub center: Vec3Desc,
+    pub radius: f64,
+    pub material: String,
+}
+
+/// The top level as parsed; objects stay JSON values until their `type`
+/// is known, so that errors inside them keep their full path.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawScene {
+    format: u32,
+    camera: CameraDesc,
+    #[serde(default)]
+    render: RenderDesc,
+    light: LightDesc,
+    materials: BTreeMap<String, MaterialDesc>,
+    objects: Vec<Value>,
+}
+
+fn path_error<E: std::fmt::Display>(prefix: &str, err: serde_path_to_error::Error<E>) -> SceneError {
+    let inner = err.path().to_string();
+    let path = match (prefix.is_empty(), inner == ".") {
+        (_, true) => prefix.to_string(),
+        (true, false) => inner,
+        (false, false) if inner.starts_with('[') => format!("{prefix}{inner}"),
+        (false, false) => format!("{prefix}.{inner}"),
+    };
+    SceneError::new(path, err.into_inner().to_string())
+}
+
+fn parse_object(index: usize, value: Value) -> Result<ObjectDesc, SceneError> {
+    let path = format!("objects[{index}]");
+    let Value::Object(mut map) = value else {
+        return Err(SceneError::new(path, "expected an object with a \"type\" field"));
+    };
+    let kind = match map.remove("type") {
+        Some(Value::String(s)) => s,
+        Some(_) => return Err(SceneError::new(format!("{path}.type"), "expected a string")),
+        None => {
+            return Err(SceneError::new(
+                path,
+                "missing field `type` (one of plane, rect, box, sphere)",
+            ));
+        }
+    };
+    let body = Value::Object(map);
+    fn variant<T: serde::de::DeserializeOwned>(path: &str, body: Value) -> Result<T, SceneError> {
+        serde_path_to_error::deserialize(body).map_err(|e| path_error(path, e))
+    }
+    Ok(match kind.as_str() {
+        "plane" => ObjectDesc::Plane(variant(&path, body)?),
+        "rect" => ObjectDesc::Rect(variant(&path, body)?),
+        "box" => ObjectDesc::Box(variant(&path, body)?),
+        "sphere" => ObjectDesc::Sphere(variant(&path, body)?),
+        other => {
+            return Err(SceneError::new(
+                format!("{path}.type"),
+                format!("unknown object type {other:?}, expected one of plane, rect, box, sphere"),
+            ));
+        }
+    })
+}
+
+impl SceneDesc {
+    /// Parses and validates a scene from JSON text.
+    pub fn from_json(text: &str) -> Result<SceneDesc, SceneError> {
+        let mut de = serde_json::Deserializer::from_str(text);
+        let raw: RawScene = serde_path_to_error::deserialize(&mut de).map_err(|e| path_error("", e))?;
+        de.end().map_err(|e| SceneError::new("", e.to_string()))?;
+        if raw.objects.len() > limits::MAX_OBJECTS {
+            return Err(SceneError::new(
+                "objects",
+                format!("{} objects, at most {} are allowed", raw.objects.len(), limits::MAX_OBJECTS),
+            ));
+        }
+        let objects = raw
+            .objects
+            .into_iter()
+            .enumerate()
+            .map(|(i, v)| parse_object(i, v))
+            .collect::<Result<Vec<_>, _>>()?;
+        let desc = SceneDesc {
+            format: raw.format,
+            camera: raw.camera,
+            render: raw.render,
+            light: raw.light,
+            materials: raw.materials,
+            objects,
+        };
+        desc.validate()?;
+        Ok(desc)
+    }
+
+    /// Reads, parses and validates a scene file; errors name the file.
+    pub fn load(path: &Path) -> Result<SceneDesc, SceneError> {
+        let fail = |msg: String| SceneError::new("", msg).in_file(path);
+        let meta = std::fs::metadata(path).map_err(|e| fail(format!("cannot read: {e}")))?;
+        if meta.len() > limits::MAX_FILE_BYTES {
+            return Err(fail(format!(
+                "file is {} bytes, at most {} are read",
+                meta.len(),
+                limits::MAX_FILE_BYTES
+            )));
+        }
+        let bytes = std::fs::read(path).map_err(|e| fail(format!("cannot read: {e}")))?;
+        let text = String::from_utf8(bytes).map_err(|_| fail("not UTF-8 text".into()))?;
+        SceneDesc::from_json(&text).map_err(|e| e.in_file(path))
+    }
+
+    /// Pretty JSON that [`SceneDesc::from_json`] reads back to an equal scene.
+    pub fn to_json(&self) -> String {
+        serde_json::to_string_pretty(self).expect("scene descriptions always serialize")
+    }
+
+    /// Checks every range and cross-reference of the format.
+    pub fn validate(&self) -> Result<(), SceneError> {
+        use limits::*;
+        if self.format != FORMAT_VERSION {
+            return Err(SceneError::new(
+                "format",
+                format!("unsupported format {}, expected {FORMAT_VERSION}", self.format),
+            ));
+        }
+        let c = &self.camera;
+        point("camera.position", c.position)?;
+        point("camera.look_at", c.look_at)?;
+        direction("camera.up", c.up)?;
+        if !(c.fov_y_deg > 0.0 && c.fov_y_deg < 180.0) {
+            return Err(SceneError::new(
+                "camera.fov_y_deg",
+                format!("{} is out of range, expected degrees in (0, 180)", c.fov_y_deg),
+            ));
+        }
+        for (name, v) in [("width", c.width), ("height", c.height)] {
+            if !(1..=MAX_SIDE).contains(&v) {
+                return Err(SceneError::new(
+                    format!("camera.{name}"),
+                    format!("{v} is out of range, expected 1..={MAX_SIDE} pixels"),
+                ));
+            }
+        }
+        let view = sub(c.look_at, c.position);
+        if norm(view) <= 1e-12 * (norm(c.position) + norm(c.look_at)).max(f64::MIN_POSITIVE) {
+            return Err(SceneError::new(
+                "camera.look_at",
+                "equals camera.position: the view direction is undefined",
+            ));
+        }
+        if sin_angle(view, c.up) < 1e-9 {
+            return Err(SceneError::new(
+                "camera.up",
+                "is parallel to the view direction (look_at - position): the image's orientation is undefined",
+            ));
+        }
+
+        let r = &self.render;
+        if !(1..=4096).contains(&r.shadow_rays) {
+            return Err(SceneError::new(
+                "render.shadow_rays",
+                format!("{} is out of range, expected 1..=4096", r.shadow_rays),
+            ));
+        }
+        if !(1..=16).contains(&r.max_depth) {
+            return Err(SceneError::new(
+                "render.max_depth",
+                format!("{} is out of range, expected 1..=16", r.max_depth),
+            ));
+        }
+        for (name, v) in [
+            ("ambient", r.terms.ambient),
+            ("diffuse", r.terms.diffuse),
+            ("specular", r.terms.specular),
+        ] {
+            scalar(&format!("render.terms.{name}"), v, 0.0, MAX_COLOUR)?;
+        }
+        colour("render.background", r.background)?;
+        if let Some(s) = r.shininess_override {
+            positive("render.shininess_override", s, MAX_SHININESS)?;
+        }
+        let pixels = c.width as u64 * c.height as u64;
+        let points = super::sampling::points_per_hit(r.sampling, r.shadow_rays) as u64;
+        let work = pixels * points * r.max_depth as u64;
+        if work > MAX_SHADOW_WORK {
+            return Err(SceneError::new(
+                "render.shadow_rays",
+                format!(
+                    "{}×{} pixels × {points} shadow points × depth {} = {work} shadow rays exceeds the limit of {MAX_SHADOW_WORK}",
+                    c.width, c.height, r.max_depth
+                ),
+            ));
+        }
+
+        let l = &self.light;
+        point("light.corner", l.corner)?;
+        parallelogram("light", l.edge_u, l.edge_v)?;
+        colour("light.ambient", l.ambient)?;
+        colour("light.diffuse", l.diffuse)?;
+        colour("light.specular", l.specular)?;
+
+        if self.materials.len() > MAX_MATERIALS {
+            return Err(SceneError::new(
+                "materials",
+                format!("{} materials, at most {MAX_MATERIALS} are allowed", self.materials.len()),
+            ));
+        }
+        for (name, m) in &self.materials {
+            let p = format!("materials.{name}");
+            colour(&format!("{p}.ambient"), m.ambient)?;
+            colour(&format!("{p}.diffuse"), m.diffuse)?;
+            colour(&format!("{p}.specular"), m.specular)?;
+            positive(&format!("{p}.shininess"), m.shininess, MAX_SHININESS)?;
+            scalar(&format!("{p}.reflectivity"), m.reflectivity, 0.0, 1.0)?;
+        }
+
+        if self.objects.len() > MAX_OBJECTS {
+            return Err(SceneError::new(
+                "objects",
+                format!("{} objects, at most {MAX_OBJECTS} are allowed", self.objects.len()),
+            ));
+        }
+        for (i, o) in self.objects.iter().enumerate() {
+            let p = format!("objects[{i}]");
+            if !self.materials.contains_key(o.material()) {
+                let known: Vec<&str> = self.materials.keys().map(String::as_str).take(20).collect();
+                return Err(SceneError::new(
+                    format!("{p}.material"),
+                    format!("unknown material {:?}, expected one of: {}", o.material(), known.join(", ")),
+                ));
+            }
+            match o {
+                ObjectDesc::Plane(pl) => {
+                    point(&format!("{p}.point"), pl.point)?;
+                    direction(&format!("{p}.normal"), pl.normal)?;
+                }
+                ObjectDesc::Rect(rc) => {
+                    point(&format!("{p}.corner"), rc.corner)?;
+                    parallelogram(&p, rc.edge_u, rc.edge_v)?;
+                }
+                ObjectDesc::Box(b) => {
+                    point(&format!("{p}.min"), b.min)?;
+                    point(&format!("{p}.max"), b.max)?;
+                    for axis in 0..3 {
+                        if b.min[axis] > b.max[axis] {
+                            return Err(SceneError::new(
+                                format!("{p}.min[{axis}]"),
+                                format!(
+                                    "min {} is greater than max {}: expected min <= max on every axis",
+                                    b.min[axis], b.max[axis]
+                                ),
+                            ));
+                        }
+                    }
+                    scalar(&format!("{p}.rotate_y_deg"), b.rotate_y_deg, -1e6, 1e6)?;
+                    point(&format!("{p}.translate"), b.translate)?;
+                }
+                ObjectDesc::Sphere(s) => {
+                    point(&format!("{p}.center"), s.center)?;
+                    positive(&format!("{p}.radius"), s.radius, MAX_COORD)?;
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+fn sub(a: Vec3Desc, b: Vec3Desc) -> Vec3Desc {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+fn cross(a: Vec3Desc, b: Vec3Desc) -> Vec3Desc {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+fn norm(a: Vec3Desc) -> f64 {
+    // hypot-style: no overflow or underflow for any finite input.
+    let m = a.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    if m == 0.0 {
+        return 0.0;
+    }
+    let s = [a[0] / m, a[1] / m, a[2] / m];
+    m * (s[0] * s[0] + s[1] * s[1] + s[2] * s[2]).sqrt()
+}
+/// Sine of the angle between two non-zero vectors (scale-free).
+fn sin_angle(a: Vec3Desc, b: Vec3Desc) -> f64 {
+    let (na, nb) = (norm(a), norm(b));
+    if na == 0.0 || nb == 0.0 {
+        return 0.0;
+    }
+    let a = [a[0] / na, a[1] / na, a[2] / na];
+    let b = [b[0] / nb, b[1] / nb, b[2] / nb];
+    norm(cross(a, b))
+}
+
+fn scalar(path: &str, v: f64, lo: f64, hi: f64) -> Result<(), SceneError> {
+    if v.is_finite() && v >= lo && v <= hi {
+        Ok(())
+    } else {
+        Err(SceneError::new(
+            path,
+            format!("{v} is out of range, expected a number in [{lo}, {hi}]"),
+        ))
+    }
+}
+
+fn positive(path: &str, v: f64, hi: f64) -> Result<(), SceneError> {
+    if v.is_finite() && v > 0.0 && v <= hi {
+        Ok(())
+    } else {
+        Err(SceneError::new(
+            path,
+            format!("{v} is out of range, expected a number > 0 and <= {hi}"),
+        ))
+    }
+}
+
+fn point(path: &str, v: Vec3Desc) -> Result<(), SceneError> {
+    for (i, x) in v.iter().enumerate() {
+        if !(x.is_finite() && x.abs() <= limits::MAX_COORD) {
+            return Err(SceneError::new(
+                format!("{path}[{i}]"),
+                format!("{x} is out of range, expected a coordinate within ±{:e}", limits::MAX_COORD),
+            ));
+        }
+    }
+    Ok(())
+}
+
+fn direction(path: &str, v: Vec3Desc) -> Result<(), SceneError> {
+    point(path, v)?;
+    if norm(v) == 0.0 {
+        return Err(SceneError::new(path, "is the zero vector, expected a non-zero direction"));
+    }
+    Ok(())
+}
+
+fn colour(path: &str, v: Vec3Desc) -> Result<(), SceneError> {
+    for (i, x) in v.iter().enumerate() {
+        scalar(&format!("{path}[{i}]"), *x, 0.0, limits::MAX_COLOUR)?;
+    }
+    Ok(())
+}
+
+/// A parallelogram (light or rect): edges non-zero and not parallel.
+fn parallelogram(path: &str, u: Vec3Desc, v: Vec3Desc) -> Result<(), SceneError> {
+    let pu = format!("{path}.edge_u");
+    let pv = format!("{path}.edge_v");
+    point(&pu, u)?;
+    point(&pv, v)?;
+    if norm(u) == 0.0 {
+        return Err(SceneError::new(pu, "is the zero vector: the area is zero"));
+    }
+    if norm(v) == 0.0 {
+        return Err(SceneError::new(pv, "is the zero vector: the area is zero"));
+    }
+    if sin_angle(u, v) < 1e-9 {
+        return Err(SceneError::new(
+            pv,
+            "is parallel to edge_u: the area is zero, expected two independent edges",
+        ));
+    }
+    Ok(())
+}

@@ -2,7 +2,7 @@
 //! command.
 
 use clap::Parser;
-use penumbra::cli::{self, Cli, Command, CliError};
+use penumbra::cli::{self, Cli, CliError, Command};
 
 fn main() {
     let cli = Cli::parse();

@@ -15,7 +15,11 @@ pub use render_cmd::{load_scene, render};
 use crate::render::{AreaLightModel, Sampling};
 
 #[derive(Debug, Parser)]
-#[command(name = "penumbra", version, about = "Phong ray tracer with a rectangular area light: viewer and CLI")]
+#[command(
+    name = "penumbra",
+    version,
+    about = "Phong ray tracer with a rectangular area light: viewer and CLI"
+)]
 pub struct Cli {
     #[command(subcommand)]
     pub command: Option<Command>,
@@ -141,7 +145,10 @@ fn parse_terms(s: &str) -> Result<[f64; 3], String> {
     }
     let mut out = [0.0; 3];
     for (o, p) in out.iter_mut().zip(parts) {
-        let v: f64 = p.trim().parse().map_err(|_| format!("{p:?} is not a number"))?;
+        let v: f64 = p
+            .trim()
+            .parse()
+            .map_err(|_| format!("{p:?} is not a number"))?;
         if !(v.is_finite() && v >= 0.0) {
             return Err(format!("{p} is out of range, expected a number >= 0"));
         }

@@ -11,7 +11,9 @@ use crate::render::{CancelToken, RenderOptions, RenderReport, Scene, SceneDesc, 
 pub fn load_scene(path: Option<&Path>, overrides: &SceneOverrides) -> Result<Scene, CliError> {
     let mut desc = match path {
         Some(p) => SceneDesc::load(p).map_err(CliError::input)?,
-        None => SceneDesc::from_json(crate::render::scene::SEED_ROOM_JSON).map_err(CliError::input)?,
+        None => {
+            SceneDesc::from_json(crate::render::scene::SEED_ROOM_JSON).map_err(CliError::input)?
+        }
     };
     let o = overrides;
     if let Some(w) = o.width {
@@ -67,7 +69,12 @@ pub fn render(args: &RenderArgs) -> Result<(), CliError> {
         ..RenderOptions::default()
     };
     let bar = std::io::stderr().is_terminal().then(|| {
-        let tiles = crate::render::progressive::tiles(scene.camera.width, scene.camera.height, options.tile_size).len();
+        let tiles = crate::render::progressive::tiles(
+            scene.camera.width,
+            scene.camera.height,
+            options.tile_size,
+        )
+        .len();
         let bar = ProgressBar::new(tiles as u64);
         bar.set_style(
             ProgressStyle::with_template("{spinner} {msg} [{bar:40}] {pos}/{len} tiles, {elapsed}")

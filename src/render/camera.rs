@@ -21,7 +21,9 @@ impl Camera {
     pub fn new(desc: &CameraDesc) -> Camera {
         let origin = DVec3::from(desc.position);
         let forward = super::math::normalize_robust(DVec3::from(desc.look_at) - origin);
-        let right = forward.cross(super::math::normalize_robust(DVec3::from(desc.up))).normalize();
+        let right = forward
+            .cross(super::math::normalize_robust(DVec3::from(desc.up)))
+            .normalize();
         let up = right.cross(forward);
         let half_h = (desc.fov_y_deg.to_radians() * 0.5).tan();
         let half_w = half_h * desc.width as f64 / desc.height as f64;
@@ -40,7 +42,10 @@ impl Camera {
     pub fn ray(&self, x: f64, y: f64) -> Ray {
         let sx = 2.0 * x / self.width as f64 - 1.0;
         let sy = 1.0 - 2.0 * y / self.height as f64;
-        Ray::new(self.origin, (self.forward + self.right * sx + self.up * sy).normalize())
+        Ray::new(
+            self.origin,
+            (self.forward + self.right * sx + self.up * sy).normalize(),
+        )
     }
 
     pub fn pixel_ray(&self, px: u32, py: u32) -> Ray {

@@ -55,7 +55,10 @@ pub fn compare(a: &Film, b: &Film) -> Result<Comparison, SizeMismatch> {
         rmse,
         psnr: 20.0 * (1.0 / rmse).log10(),
         max_diff,
-        max_at: ((max_index % a.width as usize) as u32, (max_index / a.width as usize) as u32),
+        max_at: (
+            (max_index % a.width as usize) as u32,
+            (max_index / a.width as usize) as u32,
+        ),
     })
 }
 

@@ -78,7 +78,11 @@ pub fn encode_channel(x: f32) -> u8 {
 /// A linear RGB pixel to 8-bit sRGB.
 #[inline]
 pub fn encode_srgb8(p: Vec3) -> [u8; 3] {
-    [encode_channel(p.x), encode_channel(p.y), encode_channel(p.z)]
+    [
+        encode_channel(p.x),
+        encode_channel(p.y),
+        encode_channel(p.z),
+    ]
 }
 
 /// An 8-bit sRGB code to its linear value.

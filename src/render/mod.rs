@@ -22,7 +22,8 @@ pub mod tracer;
 pub use error::{ImageError, SceneError};
 pub use film::Film;
 pub use progressive::{
-    CancelToken, Cancelled, Pass, RenderOptions, RenderReport, TileRect, TileUpdate, pass_plan, render, render_image,
+    CancelToken, Cancelled, Pass, RenderOptions, RenderReport, TileRect, TileUpdate, pass_plan,
+    render, render_image,
 };
 pub use scene::{RenderSettings, Scene};
 pub use scene_file::{AreaLightModel, Sampling, SceneDesc};

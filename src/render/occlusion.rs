@@ -83,10 +83,21 @@ enum Occluder {
     /// on the sphere).
     Sphere { oc: Vec3, c2: f32, inside: bool },
     /// `origin`: p in the box's frame; `cos`, `sin`: its rotation about y.
-    Cuboid { origin: Vec3, half: Vec3, cos: f32, sin: f32 },
+    Cuboid {
+        origin: Vec3,
+        half: Vec3,
+        cos: f32,
+        sin: f32,
+    },
     /// `to_corner`: corner − p; `dual_*`: rows of the pseudo-inverse of the
     /// edges; `dist`: normal · (corner − p).
-    Rect { to_corner: Vec3, normal: Vec3, dual_u: Vec3, dual_v: Vec3, dist: f32 },
+    Rect {
+        to_corner: Vec3,
+        normal: Vec3,
+        dual_u: Vec3,
+        dual_v: Vec3,
+        dist: f32,
+    },
     /// `dist`: signed distance of p from the plane.
     Plane { normal: Vec3, dist: f32 },
 }
@@ -96,7 +107,11 @@ impl Occluder {
         match shape {
             Shape::Sphere(s) => {
                 let oc = s.centre - p;
-                let c2 = if inside { 0.0 } else { oc.length_squared() - s.radius * s.radius };
+                let c2 = if inside {
+                    0.0
+                } else {
+                    oc.length_squared() - s.radius * s.radius
+                };
                 Occluder::Sphere {
                     oc: oc.as_vec3(),
                     c2: c2 as f32,
@@ -182,7 +197,8 @@ impl Occluder {
                     let t = dist / normal.dot(d);
                     let q = d * t - to_corner;
                     let (a, b) = (q.dot(dual_u), q.dot(dual_v));
-                    let blocked = t > 0.0 && t < 1.0 && (0.0..=1.0).contains(&a) && (0.0..=1.0).contains(&b);
+                    let blocked =
+                        t > 0.0 && t < 1.0 && (0.0..=1.0).contains(&a) && (0.0..=1.0).contains(&b);
                     vis[j] = if blocked { 0.0 } else { vis[j] };
                 }
             }
@@ -211,7 +227,12 @@ struct ShadowPyramid {
 }
 
 impl ShadowPyramid {
-    fn new(p: DVec3, corners: &[DVec3; 4], light_normal: DVec3, light_centre: DVec3) -> ShadowPyramid {
+    fn new(
+        p: DVec3,
+        corners: &[DVec3; 4],
+        light_normal: DVec3,
+        light_centre: DVec3,
+    ) -> ShadowPyramid {
         let mut planes = [(DVec3::ZERO, 0.0); 5];
         for i in 0..4 {
             let mut n = (corners[i] - p).cross(corners[(i + 1) % 4] - p);
@@ -254,7 +275,13 @@ pub struct ShadowQuery {
 
 /// Fills `buf.dx/dy/dz` from `buf.a/b` and `buf.vis` with each point's
 /// visibility (1 or 0), for the first `count` points.
-pub fn visibility(scene: &Scene, q: &ShadowQuery, count: usize, buf: &mut ShadowBuffers, stats: &mut RayStats) {
+pub fn visibility(
+    scene: &Scene,
+    q: &ShadowQuery,
+    count: usize,
+    buf: &mut ShadowBuffers,
+    stats: &mut RayStats,
+) {
     let light = &scene.light.shape;
     let to_corner = (light.corner - q.point).as_vec3();
     let (eu, ev) = (light.edge_u.as_vec3(), light.edge_v.as_vec3());
@@ -262,7 +289,11 @@ pub fn visibility(scene: &Scene, q: &ShadowQuery, count: usize, buf: &mut Shadow
     let mut facing = 0u64;
     {
         let (a, b) = (&buf.a[..count], &buf.b[..count]);
-        let (dx, dy, dz) = (&mut buf.dx[..count], &mut buf.dy[..count], &mut buf.dz[..count]);
+        let (dx, dy, dz) = (
+            &mut buf.dx[..count],
+            &mut buf.dy[..count],
+            &mut buf.dz[..count],
+        );
         let vis = &mut buf.vis[..count];
         for j in 0..count {
             let d = to_corner + eu * a[j] + ev * b[j];

@@ -22,10 +22,17 @@ pub enum FileKind {
 
 impl FileKind {
     pub fn of(path: &Path) -> Result<FileKind, ImageError> {
-        match path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
+        match path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase)
+            .as_deref()
+        {
             Some("png") => Ok(FileKind::Png),
             Some("exr") => Ok(FileKind::Exr),
-            _ => Err(ImageError::Format { path: path.to_owned() }),
+            _ => Err(ImageError::Format {
+                path: path.to_owned(),
+            }),
         }
     }
 }
@@ -62,9 +69,11 @@ pub fn write_film(film: &Film, path: &Path) -> Result<(), ImageError> {
         FileKind::Png => write_rgb8(path, film.width, film.height, &film.to_srgb8()),
         FileKind::Exr => {
             let data: Vec<f32> = film.pixels.iter().flat_map(|p| p.to_array()).collect();
-            let img = image::Rgb32FImage::from_raw(film.width, film.height, data).expect("buffer matches size");
+            let img = image::Rgb32FImage::from_raw(film.width, film.height, data)
+                .expect("buffer matches size");
             write_atomic(path, |w| {
-                img.write_to(w, ImageFormat::OpenExr).map_err(|e| e.to_string())
+                img.write_to(w, ImageFormat::OpenExr)
+                    .map_err(|e| e.to_string())
             })
         }
     }
@@ -73,10 +82,14 @@ pub fn write_film(film: &Film, path: &Path) -> Result<(), ImageError> {
 /// Writes 8-bit sRGB RGB data as a PNG.
 pub fn write_rgb8(path: &Path, width: u32, height: u32, rgb: &[u8]) -> Result<(), ImageError> {
     if FileKind::of(path)? != FileKind::Png {
-        return Err(ImageError::Format { path: path.to_owned() });
+        return Err(ImageError::Format {
+            path: path.to_owned(),
+        });
     }
     let img = image::RgbImage::from_raw(width, height, rgb.to_vec()).expect("buffer matches size");
-    write_atomic(path, |w| img.write_to(w, ImageFormat::Png).map_err(|e| e.to_string()))
+    write_atomic(path, |w| {
+        img.write_to(w, ImageFormat::Png).map_err(|e| e.to_string())
+    })
 }
 
 /// Reads a PNG (decoded from sRGB to linear) or EXR (linear) image.
@@ -97,9 +110,23 @@ pub fn read_film(path: &Path) -> Result<Film, ImageError> {
         FileKind::Png => img
             .into_rgb8()
             .pixels()
-            .map(|p| Vec3::new(decode_channel(p[0]), decode_channel(p[1]), decode_channel(p[2])))
+            .map(|p| {
+                Vec3::new(
+                    decode_channel(p[0]),
+                    decode_channel(p[1]),
+                    decode_channel(p[2]),
+                )
+            })
             .collect(),
-        FileKind::Exr => img.into_rgb32f().pixels().map(|p| Vec3::new(p[0], p[1], p[2])).collect(),
+        FileKind::Exr => img
+            .into_rgb32f()
+            .pixels()
+            .map(|p| Vec3::new(p[0], p[1], p[2]))
+            .collect(),
     };
-    Ok(Film { width, height, pixels })
+    Ok(Film {
+        width,
+        height,
+        pixels,
+    })
 }

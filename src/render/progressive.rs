@@ -73,7 +73,10 @@ pub fn pass_plan(shadow_rays: u32) -> Vec<Pass> {
         shadow_rays: shadow_rays.min(4),
         block: PREVIEW_BLOCK,
     }];
-    plan.extend(counts.into_iter().map(|shadow_rays| Pass { shadow_rays, block: 1 }));
+    plan.extend(counts.into_iter().map(|shadow_rays| Pass {
+        shadow_rays,
+        block: 1,
+    }));
     plan
 }
 
@@ -159,9 +162,14 @@ pub fn tiles(width: u32, height: u32, size: u32) -> Vec<TileRect> {
 
 /// Renders the scene without progress reports (one pass, all threads).
 pub fn render_image(scene: &Scene) -> Film {
-    render(scene, &RenderOptions::default(), &CancelToken::new(), &|_| {})
-        .expect("an uncancellable render finishes")
-        .film
+    render(
+        scene,
+        &RenderOptions::default(),
+        &CancelToken::new(),
+        &|_| {},
+    )
+    .expect("an uncancellable render finishes")
+    .film
 }
 
 /// Renders the scene, calling `on_tile` from the worker threads with every
@@ -201,7 +209,10 @@ fn render_in_pool(
             block: 1,
         }]
     };
-    let tile_size = options.tile_size.max(PREVIEW_BLOCK).next_multiple_of(PREVIEW_BLOCK);
+    let tile_size = options
+        .tile_size
+        .max(PREVIEW_BLOCK)
+        .next_multiple_of(PREVIEW_BLOCK);
     let tiles = tiles(width, height, tile_size);
     let film = Mutex::new(Film::new(width, height));
     let mut total = RayStats::default();

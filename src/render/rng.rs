@@ -28,7 +28,9 @@ impl Rng {
     pub fn for_vertex(seed: u64, x: u32, y: u32, depth: u32) -> Rng {
         let key = mix(seed ^ GOLDEN)
             ^ mix(((x as u64) << 32 | y as u64).wrapping_add(GOLDEN))
-            ^ mix((depth as u64).wrapping_mul(GOLDEN).wrapping_add(0x632B_E59B_D9B4_E019));
+            ^ mix((depth as u64)
+                .wrapping_mul(GOLDEN)
+                .wrapping_add(0x632B_E59B_D9B4_E019));
         Rng::new(key)
     }
 

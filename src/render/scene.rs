@@ -104,13 +104,20 @@ impl Scene {
             .iter()
             .map(|o| {
                 let shape = match o {
-                    ObjectDesc::Plane(p) => Shape::Plane(Plane::new(p.point.into(), p.normal.into())),
-                    ObjectDesc::Rect(r) => {
-                        Shape::Parallelogram(Parallelogram::new(r.corner.into(), r.edge_u.into(), r.edge_v.into()))
+                    ObjectDesc::Plane(p) => {
+                        Shape::Plane(Plane::new(p.point.into(), p.normal.into()))
                     }
-                    ObjectDesc::Box(b) => {
-                        Shape::Cuboid(Cuboid::new(b.min.into(), b.max.into(), b.rotate_y_deg, b.translate.into()))
-                    }
+                    ObjectDesc::Rect(r) => Shape::Parallelogram(Parallelogram::new(
+                        r.corner.into(),
+                        r.edge_u.into(),
+                        r.edge_v.into(),
+                    )),
+                    ObjectDesc::Box(b) => Shape::Cuboid(Cuboid::new(
+                        b.min.into(),
+                        b.max.into(),
+                        b.rotate_y_deg,
+                        b.translate.into(),
+                    )),
                     ObjectDesc::Sphere(s) => Shape::Sphere(Sphere {
                         centre: s.center.into(),
                         radius: s.radius,
@@ -135,9 +142,14 @@ impl Scene {
         let camera = Camera::new(&desc.camera);
         let finite = with_bounds
             .iter()
-            .fold(Aabb::from_points(&light.shape.corners()), |b, o| b.union(o.1))
+            .fold(Aabb::from_points(&light.shape.corners()), |b, o| {
+                b.union(o.1)
+            })
             .grow(camera.origin);
-        let scale = finite.extent().max_element().max(finite.min.abs().max(finite.max.abs()).max_element());
+        let scale = finite
+            .extent()
+            .max_element()
+            .max(finite.min.abs().max(finite.max.abs()).max_element());
         let (bounded, bvh) = if with_bounds.len() > BVH_THRESHOLD {
             (Vec::new(), Bvh::build(&with_bounds))
         } else {
@@ -150,7 +162,11 @@ impl Scene {
             max_depth: r.max_depth,
             seed: r.seed,
             model: r.area_light_model,
-            terms: Vec3::new(r.terms.ambient as f32, r.terms.diffuse as f32, r.terms.specular as f32),
+            terms: Vec3::new(
+                r.terms.ambient as f32,
+                r.terms.diffuse as f32,
+                r.terms.specular as f32,
+            ),
             background: DVec3::from(r.background).as_vec3(),
             shadows: r.shadows,
             skip: true,
@@ -199,10 +215,9 @@ impl Scene {
                 t_max = t;
             }
         }
-        if let Some((i, t)) = self
-            .bvh
-            .closest(ray, t_max, |i, t_max| self.objects[i as usize].shape.intersect(ray, t_max))
-        {
+        if let Some((i, t)) = self.bvh.closest(ray, t_max, |i, t_max| {
+            self.objects[i as usize].shape.intersect(ray, t_max)
+        }) {
             best = Some((HitTarget::Object(i), t));
         }
         best

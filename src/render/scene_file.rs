@@ -315,7 +315,10 @@ struct RawScene {
     objects: Vec<Value>,
 }
 
-fn path_error<E: std::fmt::Display>(prefix: &str, err: serde_path_to_error::Error<E>) -> SceneError {
+fn path_error<E: std::fmt::Display>(
+    prefix: &str,
+    err: serde_path_to_error::Error<E>,
+) -> SceneError {
     let inner = err.path().to_string();
     let path = match (prefix.is_empty(), inner == ".") {
         (_, true) => prefix.to_string(),
@@ -329,7 +332,10 @@ fn path_error<E: std::fmt::Display>(prefix: &str, err: serde_path_to_error::Erro
 fn parse_object(index: usize, value: Value) -> Result<ObjectDesc, SceneError> {
     let path = format!("objects[{index}]");
     let Value::Object(mut map) = value else {
-        return Err(SceneError::new(path, "expected an object with a \"type\" field"));
+        return Err(SceneError::new(
+            path,
+            "expected an object with a \"type\" field",
+        ));
     };
     let kind = match map.remove("type") {
         Some(Value::String(s)) => s,
@@ -363,12 +369,17 @@ impl SceneDesc {
     /// Parses and validates a scene from JSON text.
     pub fn from_json(text: &str) -> Result<SceneDesc, SceneError> {
         let mut de = serde_json::Deserializer::from_str(text);
-        let raw: RawScene = serde_path_to_error::deserialize(&mut de).map_err(|e| path_error("", e))?;
+        let raw: RawScene =
+            serde_path_to_error::deserialize(&mut de).map_err(|e| path_error("", e))?;
         de.end().map_err(|e| SceneError::new("", e.to_string()))?;
         if raw.objects.len() > limits::MAX_OBJECTS {
             return Err(SceneError::new(
                 "objects",
-                format!("{} objects, at most {} are allowed", raw.objects.len(), limits::MAX_OBJECTS),
+                format!(
+                    "{} objects, at most {} are allowed",
+                    raw.objects.len(),
+                    limits::MAX_OBJECTS
+                ),
             ));
         }
         let objects = raw
@@ -416,7 +427,10 @@ impl SceneDesc {
         if self.format != FORMAT_VERSION {
             return Err(SceneError::new(
                 "format",
-                format!("unsupported format {}, expected {FORMAT_VERSION}", self.format),
+                format!(
+                    "unsupported format {}, expected {FORMAT_VERSION}",
+                    self.format
+                ),
             ));
         }
         let c = &self.camera;
@@ -426,7 +440,10 @@ impl SceneDesc {
         if !(c.fov_y_deg > 0.0 && c.fov_y_deg < 180.0) {
             return Err(SceneError::new(
                 "camera.fov_y_deg",
-                format!("{} is out of range, expected degrees in (0, 180)", c.fov_y_deg),
+                format!(
+                    "{} is out of range, expected degrees in (0, 180)",
+                    c.fov_y_deg
+                ),
             ));
         }
         for (name, v) in [("width", c.width), ("height", c.height)] {
@@ -498,7 +515,10 @@ impl SceneDesc {
         if self.materials.len() > MAX_MATERIALS {
             return Err(SceneError::new(
                 "materials",
-                format!("{} materials, at most {MAX_MATERIALS} are allowed", self.materials.len()),
+                format!(
+                    "{} materials, at most {MAX_MATERIALS} are allowed",
+                    self.materials.len()
+                ),
             ));
         }
         for (name, m) in &self.materials {
@@ -513,7 +533,10 @@ impl SceneDesc {
         if self.objects.len() > MAX_OBJECTS {
             return Err(SceneError::new(
                 "objects",
-                format!("{} objects, at most {MAX_OBJECTS} are allowed", self.objects.len()),
+                format!(
+                    "{} objects, at most {MAX_OBJECTS} are allowed",
+                    self.objects.len()
+                ),
             ));
         }
         for (i, o) in self.objects.iter().enumerate() {
@@ -522,7 +545,11 @@ impl SceneDesc {
                 let known: Vec<&str> = self.materials.keys().map(String::as_str).take(20).collect();
                 return Err(SceneError::new(
                     format!("{p}.material"),
-                    format!("unknown material {:?}, expected one of: {}", o.material(), known.join(", ")),
+                    format!(
+                        "unknown material {:?}, expected one of: {}",
+                        o.material(),
+                        known.join(", ")
+                    ),
                 ));
             }
             match o {
@@ -618,7 +645,10 @@ fn point(path: &str, v: Vec3Desc) -> Result<(), SceneError> {
         if !(x.is_finite() && x.abs() <= limits::MAX_COORD) {
             return Err(SceneError::new(
                 format!("{path}[{i}]"),
-                format!("{x} is out of range, expected a coordinate within ±{:e}", limits::MAX_COORD),
+                format!(
+                    "{x} is out of range, expected a coordinate within ±{:e}",
+                    limits::MAX_COORD
+                ),
             ));
         }
     }
@@ -628,7 +658,10 @@ fn point(path: &str, v: Vec3Desc) -> Result<(), SceneError> {
 fn direction(path: &str, v: Vec3Desc) -> Result<(), SceneError> {
     point(path, v)?;
     if norm(v) == 0.0 {
-        return Err(SceneError::new(path, "is the zero vector, expected a non-zero direction"));
+        return Err(SceneError::new(
+            path,
+            "is the zero vector, expected a non-zero direction",
+        ));
     }
     Ok(())
 }

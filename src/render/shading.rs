@@ -76,8 +76,20 @@ pub fn shade(
 /// `sampled` model: the diffuse factor max(0, N·L) and the specular factor
 /// max(0, N·H)^shininess averaged over the light points, each weighted by
 /// its visibility.
-fn sampled_terms(n: Vec3, v: Vec3, shininess: f32, need_s: bool, count: usize, buf: &ShadowBuffers) -> (f32, f32) {
-    let (dx, dy, dz, vis) = (&buf.dx[..count], &buf.dy[..count], &buf.dz[..count], &buf.vis[..count]);
+fn sampled_terms(
+    n: Vec3,
+    v: Vec3,
+    shininess: f32,
+    need_s: bool,
+    count: usize,
+    buf: &ShadowBuffers,
+) -> (f32, f32) {
+    let (dx, dy, dz, vis) = (
+        &buf.dx[..count],
+        &buf.dy[..count],
+        &buf.dz[..count],
+        &buf.vis[..count],
+    );
     let mut diffuse = 0.0f32;
     let mut specular = 0.0f32;
     for j in 0..count {
@@ -119,7 +131,12 @@ fn nearest_point_terms(scene: &Scene, sp: &ShadingPoint) -> (f32, f32) {
     let mirrored = n * (2.0 * n.dot(sp.view)) - sp.view;
     let ls = to_light(mirrored);
     let specular = if n.dot(ls) > 0.0 {
-        phong_specular(n.as_vec3(), ls.as_vec3(), sp.view.as_vec3(), sp.material.shininess)
+        phong_specular(
+            n.as_vec3(),
+            ls.as_vec3(),
+            sp.view.as_vec3(),
+            sp.material.shininess,
+        )
     } else {
         0.0
     };

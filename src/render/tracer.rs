@@ -68,7 +68,11 @@ impl<'a> Tracer<'a> {
             let obj = &scene.objects[object as usize];
             let surface = obj.shape.surface(&ray, t);
             let inside = surface.normal.dot(ray.dir) > 0.0;
-            let normal = if inside { -surface.normal } else { surface.normal };
+            let normal = if inside {
+                -surface.normal
+            } else {
+                surface.normal
+            };
             let material = &scene.materials[obj.material as usize];
             let sp = ShadingPoint {
                 point: surface.point,
@@ -79,7 +83,14 @@ impl<'a> Tracer<'a> {
                 material,
             };
             let mut rng = Rng::for_vertex(s.seed, x, y, depth);
-            colour += shade(scene, &sp, &self.pattern, &mut rng, &mut scratch.shadow, &mut scratch.stats) * weight;
+            colour += shade(
+                scene,
+                &sp,
+                &self.pattern,
+                &mut rng,
+                &mut scratch.shadow,
+                &mut scratch.stats,
+            ) * weight;
 
             if material.reflectivity == 0.0 || depth == s.max_depth {
                 break;

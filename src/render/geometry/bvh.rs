@@ -114,7 +114,8 @@ impl Bvh {
             if count == 0 || right_count[b + 1] == 0 {
                 continue;
             }
-            let cost = acc.surface_area() * count as f64 + right_area[b + 1] * right_count[b + 1] as f64;
+            let cost =
+                acc.surface_area() * count as f64 + right_area[b + 1] * right_count[b + 1] as f64;
             if cost < best.0 {
                 best = (cost, b);
             }
@@ -148,7 +149,12 @@ impl Bvh {
 
     /// Closest hit: `hit(object, t_max)` returns the object's nearest t below
     /// t_max; nodes are visited near child first and pruned by the best t.
-    pub fn closest(&self, ray: &Ray, mut t_max: f64, mut hit: impl FnMut(u32, f64) -> Option<f64>) -> Option<(u32, f64)> {
+    pub fn closest(
+        &self,
+        ray: &Ray,
+        mut t_max: f64,
+        mut hit: impl FnMut(u32, f64) -> Option<f64>,
+    ) -> Option<(u32, f64)> {
         if self.nodes.is_empty() {
             return None;
         }
@@ -208,7 +214,11 @@ impl Bvh {
 
     /// Calls `visit` for every object whose leaf bounds pass `overlaps`,
     /// pruning subtrees whose bounds fail it.
-    pub fn for_each_overlapping(&self, overlaps: impl Fn(&Aabb) -> bool, mut visit: impl FnMut(u32)) {
+    pub fn for_each_overlapping(
+        &self,
+        overlaps: impl Fn(&Aabb) -> bool,
+        mut visit: impl FnMut(u32),
+    ) {
         if self.nodes.is_empty() {
             return;
         }
@@ -242,7 +252,11 @@ impl Bvh {
                 1 + walk(b, node.first as usize).max(walk(b, node.first as usize + 1))
             }
         }
-        if self.nodes.is_empty() { 0 } else { walk(self, 0) }
+        if self.nodes.is_empty() {
+            0
+        } else {
+            walk(self, 0)
+        }
     }
 }
 

@@ -29,13 +29,21 @@ impl Cuboid {
     /// World → box frame, for directions.
     #[inline]
     pub fn to_local(&self, v: DVec3) -> DVec3 {
-        DVec3::new(v.x * self.cos - v.z * self.sin, v.y, v.x * self.sin + v.z * self.cos)
+        DVec3::new(
+            v.x * self.cos - v.z * self.sin,
+            v.y,
+            v.x * self.sin + v.z * self.cos,
+        )
     }
 
     /// Box frame → world, for directions.
     #[inline]
     pub fn to_world(&self, v: DVec3) -> DVec3 {
-        DVec3::new(v.x * self.cos + v.z * self.sin, v.y, -v.x * self.sin + v.z * self.cos)
+        DVec3::new(
+            v.x * self.cos + v.z * self.sin,
+            v.y,
+            -v.x * self.sin + v.z * self.cos,
+        )
     }
 
     /// Entry and exit distances of the ray's line through the slabs.

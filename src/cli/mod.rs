@@ -2,6 +2,7 @@
 //! command returns a [`CliError`] whose exit code tells bad input (2) from
 //! other failures (1).
 
+mod bench_cmd;
 mod compare_cmd;
 mod render_cmd;
 
@@ -9,6 +10,7 @@ use std::path::PathBuf;
 
 use clap::{Args, Parser, Subcommand};
 
+pub use bench_cmd::{BenchArgs, bench};
 pub use compare_cmd::compare;
 pub use render_cmd::{load_scene, render};
 
@@ -33,6 +35,9 @@ pub enum Command {
     Render(RenderArgs),
     /// Compare two images (PNG or EXR): RMSE, PSNR, largest difference.
     Compare(CompareArgs),
+    /// Run time against error: sweep sampling patterns, shadow-ray counts
+    /// and area-light models against a converged reference.
+    Bench(BenchArgs),
 }
 
 #[derive(Debug, Args, Default)]
@@ -71,6 +76,13 @@ pub struct SceneOverrides {
     /// Multipliers of the ambient, diffuse and specular terms, e.g. 1,0,0.
     #[arg(long, value_parser = parse_terms)]
     pub terms: Option<[f64; 3]>,
+    /// Multiply every coordinate and length of the scene (camera included)
+    /// by this factor: the image stays the same.
+    #[arg(long)]
+    pub scale: Option<f64>,
+    /// Move the whole scene (camera included) by x,y,z.
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub translate: Option<[f64; 3]>,
 }
 
 #[derive(Debug, Args)]
@@ -136,6 +148,25 @@ impl From<ModelArg> for AreaLightModel {
             ModelArg::NearestPoint => AreaLightModel::NearestPoint,
         }
     }
+}
+
+fn parse_vec3(s: &str) -> Result<[f64; 3], String> {
+    let parts: Vec<&str> = s.split(',').collect();
+    if parts.len() != 3 {
+        return Err("expected three comma-separated numbers: x,y,z".into());
+    }
+    let mut out = [0.0; 3];
+    for (o, p) in out.iter_mut().zip(parts) {
+        let v: f64 = p
+            .trim()
+            .parse()
+            .map_err(|_| format!("{p:?} is not a number"))?;
+        *o = v;
+        if !v.is_finite() {
+            return Err(format!("{p} is not a finite number"));
+        }
+    }
+    Ok(out)
 }
 
 fn parse_terms(s: &str) -> Result<[f64; 3], String> {

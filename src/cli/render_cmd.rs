@@ -43,6 +43,12 @@ pub fn load_scene(path: Option<&Path>, overrides: &SceneOverrides) -> Result<Sce
         r.terms.diffuse = d;
         r.terms.specular = s;
     }
+    if let Some(f) = o.scale {
+        desc = desc.scaled(f);
+    }
+    if let Some(t) = o.translate {
+        desc = desc.translated(t);
+    }
     let scene = Scene::new(desc);
     match path {
         Some(p) => scene.map_err(|e| CliError::input(e.in_file(p))),

@@ -15,6 +15,7 @@ pub mod rng;
 pub mod sampling;
 pub mod scene;
 pub mod scene_file;
+pub mod scene_transform;
 pub mod shading;
 pub mod stats;
 pub mod tracer;

@@ -5,6 +5,7 @@ pub mod camera;
 pub mod compare;
 pub mod error;
 pub mod film;
+pub mod generate;
 pub mod geometry;
 pub mod light;
 pub mod math;

@@ -1,0 +1,233 @@
+//! The side panel: every control edits a field of the scene description
+//! (or of [`ViewSettings`]) in place and reports whether anything changed;
+//! the viewer then restarts the render from the edited description.
+
+use egui::{Slider, Ui};
+
+use super::settings::ViewSettings;
+use crate::render::{AreaLightModel, Sampling, SceneDesc};
+
+/// Buttons of the panel that the viewer acts on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Action {
+    OpenScene,
+    SavePng,
+    SaveScene,
+    ResetView,
+}
+
+/// What the panel did this frame.
+#[derive(Default)]
+pub struct ControlsOutput {
+    /// The scene to render changed.
+    pub changed: bool,
+    pub action: Option<Action>,
+}
+
+/// State of the panel itself (not part of the scene).
+#[derive(Default)]
+pub struct ControlsState {
+    /// Material selected in the editor.
+    pub material: String,
+}
+
+pub fn controls_ui(
+    ui: &mut Ui,
+    state: &mut ControlsState,
+    desc: &mut SceneDesc,
+    view: &mut ViewSettings,
+) -> ControlsOutput {
+    let mut out = ControlsOutput::default();
+    let mut changed = false;
+
+    ui.horizontal_wrapped(|ui| {
+        if ui.button("Open…").on_hover_text("Open a scene file (or drop one on the window)").clicked() {
+            out.action = Some(Action::OpenScene);
+        }
+        if ui.button("Save PNG…").on_hover_text("Ctrl+S: the image at the scene's full resolution").clicked() {
+            out.action = Some(Action::SavePng);
+        }
+        if ui.button("Save scene…").on_hover_text("Write these settings as a scene file").clicked() {
+            out.action = Some(Action::SaveScene);
+        }
+        if ui.button("Reset view").clicked() {
+            out.action = Some(Action::ResetView);
+        }
+    });
+    ui.separator();
+
+    egui::CollapsingHeader::new("Phong terms")
+        .default_open(true)
+        .show(ui, |ui| {
+            let terms = &mut desc.render.terms;
+            for (label, on, strength) in [
+                ("Ambient", &mut view.ambient, &mut terms.ambient),
+                ("Diffuse", &mut view.diffuse, &mut terms.diffuse),
+                ("Specular", &mut view.specular, &mut terms.specular),
+            ] {
+                ui.horizontal(|ui| {
+                    changed |= ui.checkbox(on, label).changed();
+                    ui.add_enabled_ui(*on, |ui| {
+                        changed |= ui
+                            .add(Slider::new(strength, 0.0..=2.0).text(format!("{label} strength")))
+                            .changed();
+                    });
+                });
+            }
+            ui.horizontal(|ui| {
+                let mut on = desc.render.shininess_override.is_some();
+                if ui
+                    .checkbox(&mut on, "Override shininess")
+                    .on_hover_text("One Blinn–Phong exponent for every material")
+                    .changed()
+                {
+                    desc.render.shininess_override = on.then_some(view.shininess);
+                    changed = true;
+                }
+                ui.add_enabled_ui(on, |ui| {
+                    if ui
+                        .add(Slider::new(&mut view.shininess, 1.0..=1000.0).logarithmic(true).text("Shininess"))
+                        .changed()
+                    {
+                        desc.render.shininess_override = Some(view.shininess);
+                        changed = true;
+                    }
+                });
+            });
+        });
+
+    egui::CollapsingHeader::new("Shadows and reflections")
+        .default_open(true)
+        .show(ui, |ui| {
+            let r = &mut desc.render;
+            changed |= ui.checkbox(&mut r.shadows, "Shadows").changed();
+            changed |= ui
+                .add(Slider::new(&mut r.shadow_rays, 1..=1024).logarithmic(true).text("Shadow rays"))
+                .on_hover_text("Shadow rays per hit point (the final pass)")
+                .changed();
+            egui::ComboBox::from_label("Sampling")
+                .selected_text(r.sampling.name())
+                .show_ui(ui, |ui| {
+                    for s in Sampling::ALL {
+                        changed |= ui.selectable_value(&mut r.sampling, s, s.name()).changed();
+                    }
+                });
+            egui::ComboBox::from_label("Area-light model")
+                .selected_text(r.area_light_model.name())
+                .show_ui(ui, |ui| {
+                    for m in AreaLightModel::ALL {
+                        changed |= ui.selectable_value(&mut r.area_light_model, m, m.name()).changed();
+                    }
+                });
+            changed |= ui.checkbox(&mut view.reflections, "Reflections").changed();
+            ui.add_enabled_ui(view.reflections, |ui| {
+                changed |= ui.add(Slider::new(&mut r.max_depth, 1..=16).text("Max depth")).changed();
+            });
+            changed |= ui
+                .add(Slider::new(&mut view.resolution_scale, ViewSettings::SCALE_RANGE).text("Resolution scale"))
+                .on_hover_text("Preview size relative to the scene's camera; export is always full size")
+                .changed();
+        });
+
+    egui::CollapsingHeader::new("Light")
+        .default_open(true)
+        .show(ui, |ui| changed |= light_ui(ui, desc));
+
+    egui::CollapsingHeader::new("Materials")
+        .default_open(true)
+        .show(ui, |ui| changed |= material_ui(ui, state, desc));
+
+    out.changed = changed;
+    out
+}
+
+/// Position (centre) and size of the light rectangle.
+fn light_ui(ui: &mut Ui, desc: &mut SceneDesc) -> bool {
+    let l = &mut desc.light;
+    let len = |v: [f64; 3]| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+    let mut centre: [f64; 3] = std::array::from_fn(|i| l.corner[i] + 0.5 * (l.edge_u[i] + l.edge_v[i]));
+    let (mut w, mut d) = (len(l.edge_u), len(l.edge_v));
+    let mut changed = false;
+    ui.horizontal(|ui| {
+        ui.label("Centre");
+        for (c, name) in centre.iter_mut().zip(["x", "y", "z"]) {
+            changed |= ui
+                .add(egui::DragValue::new(c).speed(0.02).prefix(format!("{name} ")).max_decimals(3))
+                .changed();
+        }
+    });
+    // Sizes are relative to the light's own edges, so any light works.
+    changed |= ui
+        .add(Slider::new(&mut w, 0.01..=20.0).logarithmic(true).text("Light width"))
+        .changed();
+    changed |= ui
+        .add(Slider::new(&mut d, 0.01..=20.0).logarithmic(true).text("Light depth"))
+        .changed();
+    if ui.button("Square").on_hover_text("Depth = width").clicked() {
+        d = w;
+        changed = true;
+    }
+    if changed {
+        let (lu, lv) = (len(l.edge_u), len(l.edge_v));
+        for i in 0..3 {
+            l.edge_u[i] *= w / lu;
+            l.edge_v[i] *= d / lv;
+        }
+        for i in 0..3 {
+            l.corner[i] = centre[i] - 0.5 * (l.edge_u[i] + l.edge_v[i]);
+        }
+    }
+    ui.horizontal(|ui| {
+        ui.label("Diffuse intensity");
+        changed |= colour_edit(ui, &mut l.diffuse);
+    });
+    changed
+}
+
+/// Pick a material by name and edit its colours, shininess and
+/// reflectivity.
+fn material_ui(ui: &mut Ui, state: &mut ControlsState, desc: &mut SceneDesc) -> bool {
+    if !desc.materials.contains_key(&state.material) {
+        state.material = desc.materials.keys().next().cloned().unwrap_or_default();
+    }
+    egui::ComboBox::from_label("Material")
+        .selected_text(state.material.as_str())
+        .show_ui(ui, |ui| {
+            for name in desc.materials.keys() {
+                ui.selectable_value(&mut state.material, name.clone(), name);
+            }
+        });
+    let Some(m) = desc.materials.get_mut(&state.material) else {
+        return false;
+    };
+    let mut changed = false;
+    egui::Grid::new("material").num_columns(2).show(ui, |ui| {
+        for (label, colour) in [
+            ("Ambient", &mut m.ambient),
+            ("Diffuse", &mut m.diffuse),
+            ("Specular", &mut m.specular),
+        ] {
+            ui.label(label);
+            changed |= colour_edit(ui, colour);
+            ui.end_row();
+        }
+    });
+    changed |= ui
+        .add(Slider::new(&mut m.shininess, 1.0..=1000.0).logarithmic(true).text("Material shininess"))
+        .changed();
+    changed |= ui
+        .add(Slider::new(&mut m.reflectivity, 0.0..=1.0).text("Reflectivity"))
+        .changed();
+    changed
+}
+
+/// An egui colour picker on a linear f64 colour; values above 1 are kept
+/// until the picker is used.
+fn colour_edit(ui: &mut Ui, c: &mut [f64; 3]) -> bool {
+    let mut rgb = c.map(|x| x as f32);
+    if ui.color_edit_button_rgb(&mut rgb).changed() {
+        *c = rgb.map(|x| x as f64);
+        return true;
+    }
+    false
+}

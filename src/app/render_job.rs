@@ -1,0 +1,330 @@
+//! The render worker: one long-lived thread that takes the latest render
+//! request, runs the core's progressive render on rayon's pool, and streams
+//! finished tiles (already converted to `Color32`) back to the UI.
+//!
+//! Requests go through a one-slot mailbox: a new request cancels the
+//! running render and overwrites any request still waiting, so rapid slider
+//! drags never queue stale renders (at most one running, one pending).
+
+use std::panic::AssertUnwindSafe;
+use std::sync::{Arc, Condvar, Mutex, MutexGuard};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use egui::Color32;
+
+use crate::render::film::encode_srgb8;
+use crate::render::progressive::{CancelToken, RenderOptions, TileRect};
+use crate::render::{Film, RenderReport, Scene, SceneDesc};
+
+/// One finished tile, ready for `TextureHandle::set_partial`.
+pub struct TileMsg {
+    pub generation: u64,
+    pub rect: TileRect,
+    pub pixels: Vec<Color32>,
+    pub pass_index: usize,
+    pub pass_count: usize,
+    /// Shadow rays per hit point of the tile's pass.
+    pub shadow_rays: u32,
+    pub tiles_done: usize,
+    pub tiles_total: usize,
+}
+
+/// How the render of one generation ended (or that it has not).
+#[derive(Debug, Clone)]
+pub enum JobState {
+    /// Waiting in the mailbox or running.
+    Running,
+    Finished(Box<FinishedRender>),
+    /// The worker panicked or the scene was refused; the message says why.
+    Failed(String),
+    /// A newer request replaced it.
+    Cancelled,
+}
+
+/// A completed render: its linear image and what it cost.
+#[derive(Debug, Clone)]
+pub struct FinishedRender {
+    pub desc: SceneDesc,
+    pub film: Film,
+    pub traced_rays: u64,
+    pub elapsed: Duration,
+}
+
+struct Request {
+    generation: u64,
+    desc: SceneDesc,
+    cancel: CancelToken,
+}
+
+#[derive(Default)]
+struct Shared {
+    /// The newest request not yet taken by the worker.
+    pending: Option<Request>,
+    /// Generation of the newest request.
+    latest: u64,
+    /// Token of the render running now.
+    running: Option<CancelToken>,
+    /// The description the worker is rendering (or last rendered).
+    running_desc: Option<(u64, SceneDesc)>,
+    /// Linear image of the latest generation, written tile by tile (for
+    /// picking and for exporting a finished render).
+    film: Option<(u64, Film)>,
+    tiles: Vec<TileMsg>,
+    state: Option<(u64, JobState)>,
+    shutdown: bool,
+    /// Test hook: the next render panics inside a tile callback.
+    panic_next: bool,
+}
+
+struct Inner {
+    shared: Mutex<Shared>,
+    /// Signalled on a new request (to the worker) and on a finished render
+    /// (to waiters in tests).
+    wake: Condvar,
+    repaint: egui::Context,
+}
+
+impl Inner {
+    fn lock(&self) -> MutexGuard<'_, Shared> {
+        // A panic while locked leaves plain data behind: keep going.
+        self.shared.lock().unwrap_or_else(|e| e.into_inner())
+    }
+}
+
+/// Handle to the worker thread; dropping it cancels and joins the worker.
+pub struct RenderJob {
+    inner: Arc<Inner>,
+    thread: Option<JoinHandle<()>>,
+}
+
+impl RenderJob {
+    pub fn new(repaint: egui::Context) -> RenderJob {
+        let inner = Arc::new(Inner {
+            shared: Mutex::new(Shared::default()),
+            wake: Condvar::new(),
+            repaint,
+        });
+        let worker = inner.clone();
+        let thread = std::thread::Builder::new()
+            .name("penumbra-render".into())
+            .spawn(move || worker_loop(&worker))
+            .expect("spawn the render thread");
+        RenderJob {
+            inner,
+            thread: Some(thread),
+        }
+    }
+
+    /// Cancels whatever runs or waits and asks for a render of `desc`;
+    /// returns its generation.
+    pub fn restart(&self, desc: SceneDesc) -> u64 {
+        let mut s = self.inner.lock();
+        if let Some(c) = &s.running {
+            c.cancel();
+        }
+        if let Some(old) = s.pending.take() {
+            s.state = Some((old.generation, JobState::Cancelled));
+        }
+        s.latest += 1;
+        let generation = s.latest;
+        s.pending = Some(Request {
+            generation,
+            desc,
+            cancel: CancelToken::new(),
+        });
+        s.state = Some((generation, JobState::Running));
+        // Tiles of older generations will never be shown.
+        s.tiles.clear();
+        self.inner.wake.notify_all();
+        generation
+    }
+
+    /// Takes the tiles finished since the last call (latest generation only).
+    pub fn take_tiles(&self) -> Vec<TileMsg> {
+        let mut s = self.inner.lock();
+        let latest = s.latest;
+        let mut tiles = std::mem::take(&mut s.tiles);
+        tiles.retain(|t| t.generation == latest);
+        tiles
+    }
+
+    /// Generation of the newest request.
+    pub fn generation(&self) -> u64 {
+        self.inner.lock().latest
+    }
+
+    /// State of the newest request.
+    pub fn state(&self) -> JobState {
+        let s = self.inner.lock();
+        match &s.state {
+            Some((g, st)) if *g == s.latest => st.clone(),
+            _ => JobState::Running,
+        }
+    }
+
+    /// The description the worker took last, with its generation.
+    pub fn running_desc(&self) -> Option<(u64, SceneDesc)> {
+        self.inner.lock().running_desc.clone()
+    }
+
+    /// Linear value of a pixel of the latest generation's image.
+    pub fn pixel(&self, x: u32, y: u32) -> Option<glam::Vec3> {
+        let s = self.inner.lock();
+        match &s.film {
+            Some((g, f)) if *g == s.latest && x < f.width && y < f.height => Some(f.get(x, y)),
+            _ => None,
+        }
+    }
+
+    /// Blocks until the newest request has ended; false on timeout. For
+    /// tests and scripts, never called from the UI.
+    pub fn wait(&self, timeout: Duration) -> bool {
+        let deadline = Instant::now() + timeout;
+        let mut s = self.inner.lock();
+        loop {
+            let ended = matches!(&s.state, Some((g, st)) if *g == s.latest && !matches!(st, JobState::Running));
+            if ended {
+                return true;
+            }
+            let now = Instant::now();
+            if now >= deadline {
+                return false;
+            }
+            s = self
+                .inner
+                .wake
+                .wait_timeout(s, deadline - now)
+                .unwrap_or_else(|e| e.into_inner())
+                .0;
+        }
+    }
+
+    /// Test hook: makes the next render panic in a worker thread.
+    pub fn inject_panic(&self) {
+        self.inner.lock().panic_next = true;
+    }
+}
+
+impl Drop for RenderJob {
+    fn drop(&mut self) {
+        {
+            let mut s = self.inner.lock();
+            s.shutdown = true;
+            s.pending = None;
+            if let Some(c) = &s.running {
+                c.cancel();
+            }
+        }
+        self.inner.wake.notify_all();
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+fn worker_loop(inner: &Inner) {
+    loop {
+        let (req, panic_now) = {
+            let mut s = inner.lock();
+            loop {
+                if s.shutdown {
+                    return;
+                }
+                if let Some(req) = s.pending.take() {
+                    s.running = Some(req.cancel.clone());
+                    s.running_desc = Some((req.generation, req.desc.clone()));
+                    let size = (req.desc.camera.width, req.desc.camera.height);
+                    s.film = Some((req.generation, Film::new(size.0, size.1)));
+                    let panic_now = std::mem::take(&mut s.panic_next);
+                    break (req, panic_now);
+                }
+                s = inner.wake.wait(s).unwrap_or_else(|e| e.into_inner());
+            }
+        };
+        let generation = req.generation;
+        // A panic anywhere in the render (our callback included) ends this
+        // generation with an error message; the thread and the window live on.
+        let result = std::panic::catch_unwind(AssertUnwindSafe(|| run_one(inner, &req, panic_now)));
+        let state = match result {
+            Ok(Ok(Some(report))) => JobState::Finished(Box::new(FinishedRender {
+                desc: req.desc,
+                traced_rays: report.stats.traced(),
+                elapsed: report.elapsed,
+                film: report.film,
+            })),
+            Ok(Ok(None)) => JobState::Cancelled,
+            Ok(Err(msg)) => JobState::Failed(msg),
+            Err(payload) => JobState::Failed(format!(
+                "the render worker panicked: {}",
+                panic_message(payload.as_ref())
+            )),
+        };
+        {
+            let mut s = inner.lock();
+            s.running = None;
+            if matches!(&s.state, Some((g, _)) if *g == generation) {
+                s.state = Some((generation, state));
+            }
+        }
+        inner.wake.notify_all();
+        inner.repaint.request_repaint();
+    }
+}
+
+/// Runs one request: `Ok(None)` if cancelled, `Err` if the scene is refused.
+fn run_one(inner: &Inner, req: &Request, panic_now: bool) -> Result<Option<RenderReport>, String> {
+    let scene = Scene::new(req.desc.clone()).map_err(|e| e.to_string())?;
+    let options = RenderOptions {
+        threads: None,
+        progressive: true,
+        tile_size: 32,
+    };
+    let result = crate::render::render(&scene, &options, &req.cancel, &|t| {
+        if panic_now {
+            panic!("injected test panic");
+        }
+        // Convert on the worker: the UI only copies bytes into the texture.
+        let pixels: Vec<Color32> = t
+            .pixels
+            .iter()
+            .map(|&p| {
+                let [r, g, b] = encode_srgb8(p);
+                Color32::from_rgb(r, g, b)
+            })
+            .collect();
+        {
+            let mut s = inner.lock();
+            if s.latest != req.generation {
+                return;
+            }
+            if let Some((g, film)) = &mut s.film
+                && *g == req.generation
+            {
+                film.write_block(t.rect.x, t.rect.y, t.rect.w, t.pixels);
+            }
+            s.tiles.push(TileMsg {
+                generation: req.generation,
+                rect: t.rect,
+                pixels,
+                pass_index: t.pass_index,
+                pass_count: t.pass_count,
+                shadow_rays: t.pass.shadow_rays,
+                tiles_done: t.tiles_done,
+                tiles_total: t.tiles_total,
+            });
+        }
+        inner.repaint.request_repaint();
+    });
+    Ok(result.ok())
+}
+
+fn panic_message(payload: &(dyn std::any::Any + Send)) -> String {
+    if let Some(s) = payload.downcast_ref::<&str>() {
+        (*s).to_string()
+    } else if let Some(s) = payload.downcast_ref::<String>() {
+        s.clone()
+    } else {
+        "unknown panic".into()
+    }
+}

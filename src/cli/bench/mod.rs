@@ -1,0 +1,256 @@
+//! `penumbra bench`: run time against error.
+//!
+//! - the default mode sweeps sampling patterns × shadow-ray counts ×
+//!   area-light models against a converged, cached reference and writes a
+//!   CSV, a log-log plot of RMSE against time and a table ([`sweep`]);
+//! - `--spheres N,… --scaling` times generated scenes of N spheres
+//!   ([`scaling`]);
+//! - `--target` measures the figures of the speed targets ([`target`]).
+//!
+//! Every time is the median of `--runs` renders (wall time of the render
+//! alone, not of building the scene), and every mode prints the machine's
+//! load, since the measurements share the machine with other work.
+
+pub mod plot;
+pub mod reference;
+pub mod scaling;
+pub mod sweep;
+pub mod target;
+
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use clap::Args;
+
+use super::{CliError, SceneOverrides, load_scene};
+use crate::render::{
+    CancelToken, RenderOptions, RenderReport, Scene, SceneDesc, generate, render as render_scene,
+};
+
+pub use reference::{Reference, reference, reference_key};
+pub use sweep::{Row, SweepPlan, run_sweep, write_csv};
+
+#[derive(Debug, Args, Default, Clone)]
+pub struct BenchArgs {
+    /// Scene file (JSON); the built-in seed room if omitted.
+    pub scene: Option<PathBuf>,
+    /// A small sweep that finishes in well under a minute: a 160-pixel-wide
+    /// image, counts 1 to 256, one run each.
+    #[arg(long)]
+    pub quick: bool,
+    /// Renders per measurement; the median time is reported.
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    pub runs: Option<u32>,
+    /// Shadow-ray counts to sweep, e.g. 1,4,16 (default 1,4,16,64,256,1024).
+    #[arg(long, value_delimiter = ',', value_parser = clap::value_parser!(u32).range(1..=4096))]
+    pub counts: Option<Vec<u32>>,
+    /// Stratified shadow rays per hit of the reference image.
+    #[arg(long, default_value_t = reference::REFERENCE_RAYS, value_parser = clap::value_parser!(u32).range(1..=4096))]
+    pub reference_rays: u32,
+    /// Where references are cached (EXR, keyed by a hash of the scene).
+    #[arg(long, default_value = "target/penumbra-cache")]
+    pub cache: PathBuf,
+    /// Render the reference again even if it is cached.
+    #[arg(long)]
+    pub fresh_reference: bool,
+    /// Directory of the CSV and plot (bench-<scene>.csv / .png).
+    #[arg(long, default_value = "target/penumbra-bench")]
+    pub out: PathBuf,
+    /// Write the CSV here instead (one scene only).
+    #[arg(long)]
+    pub csv: Option<PathBuf>,
+    /// Write the plot (PNG) here instead (one scene only).
+    #[arg(long)]
+    pub plot: Option<PathBuf>,
+    /// Image width in pixels (default: the scene's; 160 with --quick).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=16384))]
+    pub width: Option<u32>,
+    /// Image height in pixels (default: the width at the scene's aspect).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=16384))]
+    pub height: Option<u32>,
+    /// Most surface hits along one camera path.
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=16))]
+    pub depth: Option<u32>,
+    /// Random seed of the renders (the reference uses its own).
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Worker threads (default: all cores).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1024))]
+    pub threads: Option<u32>,
+    /// Replace the scene with the seed room holding N random spheres; a
+    /// comma-separated list runs each N.
+    #[arg(long, value_delimiter = ',', value_parser = clap::value_parser!(u32).range(1..=1_000_000))]
+    pub spheres: Option<Vec<u32>>,
+    /// Seed of the sphere generator.
+    #[arg(long, default_value_t = 1)]
+    pub sphere_seed: u64,
+    /// With --spheres: time each N at the scene's own settings (no sweep)
+    /// and print the ratio of the largest N to the smallest.
+    #[arg(long)]
+    pub scaling: bool,
+    /// Also render every configuration with skipping switched off: time,
+    /// speed-up and the RMSE between the two images (expected 0).
+    #[arg(long)]
+    pub no_skip: bool,
+    /// Measure the speed targets of issue 4 (1920×1080 and 960×540 at 64
+    /// grid rays, depth 4; skip on against off; peak memory).
+    #[arg(long)]
+    pub target: bool,
+}
+
+/// `penumbra bench`.
+pub fn bench(args: &BenchArgs) -> Result<(), CliError> {
+    println!("load average at start: {}", load_average());
+    let pool = thread_pool(args.threads)?;
+    let result = pool.install(|| {
+        if args.target {
+            target::run(args)
+        } else if args.scaling {
+            scaling::run(args)
+        } else {
+            sweep::run(args)
+        }
+    });
+    println!("load average at end: {}", load_average());
+    result
+}
+
+fn thread_pool(threads: Option<u32>) -> Result<rayon::ThreadPool, CliError> {
+    let mut b = rayon::ThreadPoolBuilder::new().thread_name(|i| format!("penumbra-bench-{i}"));
+    if let Some(n) = threads {
+        b = b.num_threads(n as usize);
+    }
+    b.build().map_err(CliError::other)
+}
+
+/// The machine's 1, 5 and 15 minute load averages (Linux), or "unknown".
+pub fn load_average() -> String {
+    std::fs::read_to_string("/proc/loadavg")
+        .ok()
+        .map(|s| s.split_whitespace().take(3).collect::<Vec<_>>().join(" "))
+        .unwrap_or_else(|| "unknown".into())
+}
+
+/// A scene to measure, with the name its output files get.
+pub struct BenchScene {
+    pub name: String,
+    pub desc: SceneDesc,
+}
+
+/// The scenes the arguments ask for: the scene file or the seed room, or
+/// one generated room per `--spheres` count; size, depth and seed
+/// overridden.
+pub fn scenes(args: &BenchArgs) -> Result<Vec<BenchScene>, CliError> {
+    let base: Vec<BenchScene> = match &args.spheres {
+        Some(counts) => counts
+            .iter()
+            .map(|&n| BenchScene {
+                name: format!("spheres-{n}"),
+                desc: generate::spheres_in_room(n as usize, args.sphere_seed),
+            })
+            .collect(),
+        None => {
+            let scene = load_scene(args.scene.as_deref(), &SceneOverrides::default())?;
+            let name = args
+                .scene
+                .as_deref()
+                .and_then(Path::file_stem)
+                .map_or("seed-room".into(), |s| s.to_string_lossy().into_owned());
+            vec![BenchScene {
+                name,
+                desc: scene.desc,
+            }]
+        }
+    };
+    let quick_width = args.quick.then_some(160);
+    base.into_iter()
+        .map(|mut s| {
+            let c = &mut s.desc.camera;
+            if let Some(w) = args.width.or(quick_width) {
+                if args.height.is_none() {
+                    // Keep the scene's aspect ratio.
+                    c.height = ((w as f64 * c.height as f64 / c.width as f64).round() as u32).max(1);
+                }
+                c.width = w;
+            }
+            if let Some(h) = args.height {
+                c.height = h;
+            }
+            if let Some(d) = args.depth {
+                s.desc.render.max_depth = d;
+            }
+            if let Some(seed) = args.seed {
+                s.desc.render.seed = seed;
+            }
+            s.desc.validate().map_err(CliError::input)?;
+            Ok(s)
+        })
+        .collect()
+}
+
+/// Builds the runtime scene of a validated description.
+pub fn build(desc: &SceneDesc, skip: bool) -> Result<Scene, CliError> {
+    let mut scene = Scene::new(desc.clone()).map_err(CliError::input)?;
+    scene.settings.skip = skip;
+    Ok(scene)
+}
+
+/// One render in the current thread pool (the final image only).
+pub fn render_once(scene: &Scene) -> RenderReport {
+    let options = RenderOptions::default();
+    render_scene(scene, &options, &CancelToken::new(), &|_| {})
+        .expect("an uncancellable render finishes")
+}
+
+/// A scene rendered `runs` times: the first report (every run gives the
+/// same image and counts) and the wall times, sorted.
+pub struct Timed {
+    pub report: RenderReport,
+    pub times: Vec<Duration>,
+}
+
+impl Timed {
+    pub fn median(&self) -> Duration {
+        median(&self.times)
+    }
+    pub fn min(&self) -> Duration {
+        self.times[0]
+    }
+}
+
+pub fn timed(scene: &Scene, runs: u32) -> Timed {
+    let report = render_once(scene);
+    let mut times = vec![report.elapsed];
+    for _ in 1..runs.max(1) {
+        times.push(render_once(scene).elapsed);
+    }
+    times.sort();
+    Timed { report, times }
+}
+
+/// Median of sorted durations (mean of the middle two for an even count).
+pub fn median(sorted: &[Duration]) -> Duration {
+    let n = sorted.len();
+    if n == 0 {
+        return Duration::ZERO;
+    }
+    if n % 2 == 1 {
+        sorted[n / 2]
+    } else {
+        (sorted[n / 2 - 1] + sorted[n / 2]) / 2
+    }
+}
+
+/// Compact count: 1234567 → "1.23M".
+pub fn si(n: u64) -> String {
+    let x = n as f64;
+    if x >= 1e9 {
+        format!("{:.2}G", x / 1e9)
+    } else if x >= 1e6 {
+        format!("{:.2}M", x / 1e6)
+    } else if x >= 1e4 {
+        format!("{:.1}k", x / 1e3)
+    } else {
+        n.to_string()
+    }
+}

@@ -1,0 +1,62 @@
+//! Generated scenes for benchmarks and tests: the seed room (walls, light,
+//! camera, materials) with its boxes and sphere replaced by N random
+//! spheres, deterministic from a seed.
+//!
+//! The spheres' radius shrinks as N^(-1/3) so that together they fill a
+//! roughly constant fraction of the room whatever N is: the image keeps a
+//! similar amount of covered surface and shadow, and the render time
+//! measures how the acceleration structure scales rather than how much
+//! more there is to see.
+
+use super::rng::Rng;
+use super::scene::SEED_ROOM_JSON;
+use super::scene_file::{ObjectDesc, SceneDesc, SphereDesc};
+
+/// The box spheres are placed in: the seed room's side walls (x = ±5), floor
+/// (y = 0) and back wall (z = 5); the top stops short of the light
+/// (y = 7.99) and the open front is closed at z = -5, well before the
+/// camera (z = -14).
+pub const ROOM_MIN: [f64; 3] = [-5.0, 0.0, -5.0];
+pub const ROOM_MAX: [f64; 3] = [5.0, 7.5, 5.0];
+
+/// Fraction of [`ROOM_MIN`]..[`ROOM_MAX`] the spheres' volumes add up to
+/// (ignoring overlaps).
+pub const VOLUME_FRACTION: f64 = 0.05;
+
+/// Materials the spheres draw from, by name in the seed room; the mirror
+/// keeps some reflected rays in the workload.
+const MATERIALS: [&str; 6] = ["white", "red", "green", "steel", "sand", "mirror"];
+
+/// Radius of each of `n` spheres filling [`VOLUME_FRACTION`] of the room.
+pub fn sphere_radius(n: usize) -> f64 {
+    let volume: f64 = (0..3).map(|i| ROOM_MAX[i] - ROOM_MIN[i]).product();
+    (3.0 * VOLUME_FRACTION * volume / (4.0 * std::f64::consts::PI * n.max(1) as f64)).cbrt()
+}
+
+/// The seed room with `n` random spheres instead of its boxes and sphere.
+/// The same `(n, seed)` always gives the same scene; every sphere lies
+/// strictly inside [`ROOM_MIN`]..[`ROOM_MAX`], touching no wall.
+pub fn spheres_in_room(n: usize, seed: u64) -> SceneDesc {
+    let mut desc = SceneDesc::from_json(SEED_ROOM_JSON).expect("the built-in seed room is valid");
+    desc.objects
+        .retain(|o| matches!(o, ObjectDesc::Plane(_) | ObjectDesc::Rect(_)));
+    let radius = sphere_radius(n);
+    // A hair of clearance so that rounding never puts a sphere on a wall.
+    let clearance = radius * (1.0 + 1e-6);
+    let mut rng = Rng::new(seed);
+    let mut uniform =
+        |lo: f64, hi: f64| lo + (hi - lo) * (rng.next_u64() >> 11) as f64 / (1u64 << 53) as f64;
+    desc.objects.reserve(n);
+    for _ in 0..n {
+        let center: [f64; 3] =
+            std::array::from_fn(|i| uniform(ROOM_MIN[i] + clearance, ROOM_MAX[i] - clearance));
+        let material =
+            MATERIALS[(uniform(0.0, MATERIALS.len() as f64) as usize).min(MATERIALS.len() - 1)];
+        desc.objects.push(ObjectDesc::Sphere(SphereDesc {
+            center,
+            radius,
+            material: material.to_string(),
+        }));
+    }
+    desc
+}

@@ -1,0 +1,21 @@
+//! Helpers shared by the integration tests.
+#![allow(dead_code)]
+
+use penumbra::render::{Scene, SceneDesc};
+
+/// The seed room description, resized.
+pub fn seed_room(width: u32, height: u32) -> SceneDesc {
+    let mut desc = SceneDesc::from_json(penumbra::render::scene::SEED_ROOM_JSON).unwrap();
+    desc.camera.width = width;
+    desc.camera.height = height;
+    desc
+}
+
+pub fn build(desc: SceneDesc) -> Scene {
+    Scene::new(desc).expect("valid scene")
+}
+
+/// A scene from JSON text, panicking with the loader's message.
+pub fn scene_json(text: &str) -> Scene {
+    Scene::from_json(text).unwrap_or_else(|e| panic!("{e}"))
+}

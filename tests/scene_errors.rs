@@ -1,0 +1,303 @@
+//! Each class of bad scene is refused with its own message naming the
+//! field's JSON path.
+
+use penumbra::render::scene::SEED_ROOM_JSON;
+use penumbra::render::{Scene, SceneDesc};
+use serde_json::{Value, json};
+
+fn seed() -> Value {
+    serde_json::from_str(SEED_ROOM_JSON).unwrap()
+}
+
+/// The error for the seed room changed by `edit`.
+fn error_of(edit: impl FnOnce(&mut Value)) -> String {
+    let mut v = seed();
+    edit(&mut v);
+    match Scene::from_json(&v.to_string()) {
+        Ok(_) => panic!("accepted: {v}"),
+        Err(e) => e.to_string(),
+    }
+}
+
+fn assert_error(edit: impl FnOnce(&mut Value), path: &str, words: &str) {
+    let e = error_of(edit);
+    if !path.is_empty() {
+        assert!(
+            e.starts_with(&format!("{path}: ")),
+            "expected path {path:?} in: {e}"
+        );
+    }
+    assert!(e.contains(words), "expected {words:?} in: {e}");
+}
+
+#[test]
+fn the_seed_room_round_trips() {
+    let desc = SceneDesc::from_json(SEED_ROOM_JSON).unwrap();
+    assert_eq!(SceneDesc::from_json(&desc.to_json()).unwrap(), desc);
+    assert_eq!(desc.objects.len(), 8);
+}
+
+#[test]
+fn unknown_keys_are_refused() {
+    assert_error(
+        |v| v["camera"]["fov"] = json!(40),
+        "camera.fov",
+        "unknown field `fov`",
+    );
+    assert_error(
+        |v| v["objects"][7]["radius_m"] = json!(1),
+        "objects[7].radius_m",
+        "unknown field",
+    );
+    assert_error(
+        |v| v["render"]["terms"]["emissive"] = json!(1),
+        "render.terms.emissive",
+        "unknown field",
+    );
+    assert_error(|v| v["extra"] = json!(1), "extra", "unknown field");
+    assert_error(
+        |v| v["objects"][0]["type"] = json!("torus"),
+        "objects[0].type",
+        "unknown object type \"torus\"",
+    );
+}
+
+#[test]
+fn missing_required_fields_are_refused() {
+    assert_error(
+        |v| {
+            v["camera"].as_object_mut().unwrap().remove("width");
+        },
+        "camera",
+        "missing field `width`",
+    );
+    assert_error(
+        |v| {
+            v.as_object_mut().unwrap().remove("light");
+        },
+        "",
+        "missing field `light`",
+    );
+    assert_error(
+        |v| {
+            v["objects"][7].as_object_mut().unwrap().remove("radius");
+        },
+        "objects[7]",
+        "missing field `radius`",
+    );
+    assert_error(
+        |v| {
+            v["objects"][2].as_object_mut().unwrap().remove("type");
+        },
+        "objects[2]",
+        "missing field `type`",
+    );
+}
+
+#[test]
+fn wrong_types_are_refused() {
+    assert_error(
+        |v| v["camera"]["width"] = json!("960"),
+        "camera.width",
+        "invalid type: string",
+    );
+    assert_error(
+        |v| v["camera"]["position"] = json!([0, 4]),
+        "camera.position",
+        "invalid length 2",
+    );
+    assert_error(
+        |v| v["objects"][7]["center"][1] = json!(null),
+        "objects[7].center[1]",
+        "invalid type: null",
+    );
+    assert_error(
+        |v| v["render"]["sampling"] = json!("sobol-ish"),
+        "render.sampling",
+        "unknown variant",
+    );
+    assert_error(
+        |v| v["materials"]["red"]["shininess"] = json!(true),
+        "materials.red.shininess",
+        "invalid type: boolean",
+    );
+}
+
+#[test]
+fn non_finite_numbers_are_refused() {
+    let text = SEED_ROOM_JSON.replace(r#""fov_y_deg": 36"#, r#""fov_y_deg": NaN"#);
+    let e = Scene::from_json(&text).unwrap_err().to_string();
+    assert!(e.starts_with("camera.fov_y_deg: expected value"), "{e}");
+    let text = SEED_ROOM_JSON.replace(r#""radius": 1"#, r#""radius": 1e999"#);
+    let e = Scene::from_json(&text).unwrap_err().to_string();
+    assert!(
+        e.starts_with("objects[7].radius: number out of range"),
+        "{e}"
+    );
+    let text = SEED_ROOM_JSON.replace(r#""radius": 1"#, r#""radius": Infinity"#);
+    assert!(
+        Scene::from_json(&text)
+            .unwrap_err()
+            .to_string()
+            .starts_with("objects[7].radius")
+    );
+}
+
+#[test]
+fn out_of_range_values_are_refused() {
+    assert_error(
+        |v| v["format"] = json!(2),
+        "format",
+        "unsupported format 2, expected 1",
+    );
+    assert_error(
+        |v| v["camera"]["fov_y_deg"] = json!(180),
+        "camera.fov_y_deg",
+        "expected degrees in (0, 180)",
+    );
+    assert_error(
+        |v| v["camera"]["width"] = json!(0),
+        "camera.width",
+        "expected 1..=16384",
+    );
+    assert_error(
+        |v| v["camera"]["height"] = json!(16385),
+        "camera.height",
+        "expected 1..=16384",
+    );
+    assert_error(
+        |v| v["camera"]["width"] = json!(-5),
+        "camera.width",
+        "invalid value: integer `-5`",
+    );
+    assert_error(
+        |v| v["render"]["shadow_rays"] = json!(4097),
+        "render.shadow_rays",
+        "expected 1..=4096",
+    );
+    assert_error(
+        |v| v["render"]["max_depth"] = json!(0),
+        "render.max_depth",
+        "expected 1..=16",
+    );
+    assert_error(
+        |v| v["render"]["terms"]["diffuse"] = json!(-1),
+        "render.terms.diffuse",
+        "out of range",
+    );
+    assert_error(
+        |v| v["materials"]["red"]["reflectivity"] = json!(1.5),
+        "materials.red.reflectivity",
+        "[0, 1]",
+    );
+    assert_error(
+        |v| v["materials"]["red"]["shininess"] = json!(0),
+        "materials.red.shininess",
+        "> 0",
+    );
+    assert_error(
+        |v| v["materials"]["red"]["diffuse"][1] = json!(-0.2),
+        "materials.red.diffuse[1]",
+        "out of range",
+    );
+    assert_error(
+        |v| v["objects"][7]["radius"] = json!(0),
+        "objects[7].radius",
+        "expected a number > 0",
+    );
+    assert_error(
+        |v| v["objects"][7]["center"][0] = json!(1e300),
+        "objects[7].center[0]",
+        "within ±1e9",
+    );
+}
+
+#[test]
+fn camera_degeneracies_are_refused() {
+    assert_error(
+        |v| v["camera"]["look_at"] = v["camera"]["position"].clone(),
+        "camera.look_at",
+        "equals camera.position",
+    );
+    assert_error(
+        |v| v["camera"]["up"] = json!([0, -1, 28]),
+        "camera.up",
+        "parallel to the view direction",
+    );
+    assert_error(
+        |v| v["camera"]["up"] = json!([0, 0, 0]),
+        "camera.up",
+        "zero vector",
+    );
+}
+
+#[test]
+fn unknown_materials_are_refused() {
+    assert_error(
+        |v| v["objects"][5]["material"] = json!("chrome"),
+        "objects[5].material",
+        "unknown material \"chrome\"",
+    );
+}
+
+#[test]
+fn zero_normals_are_refused() {
+    assert_error(
+        |v| v["objects"][1]["normal"] = json!([0, 0, 0]),
+        "objects[1].normal",
+        "zero vector",
+    );
+}
+
+#[test]
+fn degenerate_lights_and_rects_are_refused() {
+    assert_error(
+        |v| v["light"]["edge_u"] = json!([0, 0, 0]),
+        "light.edge_u",
+        "area is zero",
+    );
+    assert_error(
+        |v| v["light"]["edge_v"] = json!([4, 0, 0]),
+        "light.edge_v",
+        "parallel to edge_u",
+    );
+    assert_error(
+        |v| v["objects"][0] = json!({"type": "rect", "corner": [0, 0, 0], "edge_u": [1, 1, 1], "edge_v": [-2, -2, -2], "material": "white"}),
+        "objects[0].edge_v",
+        "parallel to edge_u",
+    );
+}
+
+#[test]
+fn boxes_with_min_above_max_are_refused() {
+    assert_error(
+        |v| v["objects"][5]["min"][1] = json!(6),
+        "objects[5].min[1]",
+        "min 6 is greater than max 5",
+    );
+}
+
+#[test]
+fn too_much_work_is_refused() {
+    assert_error(
+        |v| {
+            v["camera"]["width"] = json!(16384);
+            v["camera"]["height"] = json!(16384);
+            v["render"]["shadow_rays"] = json!(4096);
+        },
+        "render.shadow_rays",
+        "exceeds the limit",
+    );
+}
+
+#[test]
+fn errors_from_files_name_the_file() {
+    let dir = std::env::temp_dir().join(format!("penumbra-errors-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("truncated.json");
+    std::fs::write(&path, &SEED_ROOM_JSON[..200]).unwrap();
+    let e = Scene::load(&path).unwrap_err().to_string();
+    assert!(e.starts_with(&format!("{}: ", path.display())), "{e}");
+    assert!(e.contains("EOF while parsing"), "{e}");
+    std::fs::remove_dir_all(dir).unwrap();
+}

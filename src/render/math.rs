@@ -26,3 +26,62 @@ pub fn srgb_to_linear(x: f32) -> f32 {
         ((x + 0.055) / 1.055).powf(2.4)
     }
 }
+
+/// x^y for x ≥ 0 and y > 0, as exp2(y · log2 x) with polynomial log and
+/// exp: no table and no branch, so loops over it vectorize (`powf` is a
+/// libm call per value). Relative error about 1e-7 · max(1, |y·log2 x|);
+/// inputs below the smallest normal f32 give 0.
+#[inline(always)]
+pub fn pow_approx(x: f32, y: f32) -> f32 {
+    // x = m · 2^e with m in [√½, √2).
+    let bits = x.to_bits() as i32;
+    let mut e = ((bits >> 23) & 0xff) - 127;
+    let mut m = f32::from_bits(((bits & 0x007f_ffff) | 0x3f80_0000) as u32);
+    let big = m > std::f32::consts::SQRT_2;
+    m = if big { m * 0.5 } else { m };
+    e += big as i32;
+    // ln m = 2 atanh(t), t = (m − 1)/(m + 1), |t| ≤ 0.172.
+    let t = (m - 1.0) / (m + 1.0);
+    let t2 = t * t;
+    let ln_m = 2.0 * t * (1.0 + t2 * (1.0 / 3.0 + t2 * (1.0 / 5.0 + t2 * (1.0 / 7.0 + t2 * (1.0 / 9.0)))));
+    let log2_x = e as f32 + ln_m * std::f32::consts::LOG2_E;
+    // 2^z = 2^k · 2^f with k = round(z), f in [−½, ½].
+    let z = (y * log2_x).max(-126.0);
+    let k = z.round();
+    let f = (z - k) * std::f32::consts::LN_2;
+    let p = 1.0
+        + f * (1.0
+            + f * (1.0 / 2.0
+                + f * (1.0 / 6.0 + f * (1.0 / 24.0 + f * (1.0 / 120.0 + f * (1.0 / 720.0 + f * (1.0 / 5040.0)))))));
+    let scaled = p * f32::from_bits(((k as i32 + 127) << 23) as u32);
+    if x >= f32::MIN_POSITIVE && z > -126.0 { scaled } else { 0.0 }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::pow_approx;
+
+    #[test]
+    fn pow_approx_matches_powf() {
+        let mut worst = 0.0f64;
+        for i in 1..=2000 {
+            let x = i as f32 / 2000.0;
+            for y in [1e-3f32, 0.5, 1.0, 2.0, 7.3, 20.0, 100.0, 500.0, 1e4] {
+                let exact = (x as f64).powf(y as f64);
+                let got = pow_approx(x, y) as f64;
+                if exact < 1e-30 {
+                    assert!(got < 1e-30, "{x}^{y}: {got} vs {exact}");
+                    continue;
+                }
+                let rel = (got - exact).abs() / exact;
+                let bound = 3e-7 * (1.0 + (y as f64 * (x as f64).log2()).abs());
+                assert!(rel < bound, "{x}^{y}: {got} vs {exact} (rel {rel:e})");
+                worst = worst.max(rel);
+            }
+        }
+        assert_eq!(pow_approx(0.0, 20.0), 0.0);
+        assert_eq!(pow_approx(0.0, 1e-3), 0.0);
+        assert_eq!(pow_approx(1.0, 1e4), 1.0);
+        assert!(worst > 0.0);
+    }
+}

@@ -56,22 +56,20 @@ struct Candidate {
 }
 
 impl ShadowBuffers {
+    /// Buffers for up to `points` light points. Lengths are rounded up to a
+    /// multiple of 8 and the padding holds invisible points at a finite
+    /// direction, so that vector loops may run over whole chunks.
     pub fn with_capacity(points: usize) -> ShadowBuffers {
-        let v = || vec![0.0; points];
+        let len = points.next_multiple_of(8).max(8);
+        let v = |x: f32| vec![x; len];
         ShadowBuffers {
-            a: v(),
-            b: v(),
-            dx: v(),
-            dy: v(),
-            dz: v(),
-            vis: v(),
+            a: v(0.0),
+            b: v(0.0),
+            dx: v(0.0),
+            dy: v(1.0),
+            dz: v(0.0),
+            vis: v(0.0),
             occluders: Vec::with_capacity(16),
-        }
-    }
-
-    pub fn ensure(&mut self, points: usize) {
-        if self.vis.len() < points {
-            *self = ShadowBuffers::with_capacity(points);
         }
     }
 }

@@ -3,6 +3,7 @@
 
 use glam::{DVec3, Vec3};
 
+use super::math::pow_approx;
 use super::occlusion::{self, ShadowBuffers, ShadowQuery};
 use super::rng::Rng;
 use super::sampling::Pattern;
@@ -76,35 +77,37 @@ pub fn shade(
 /// `sampled` model: the diffuse factor max(0, N·L) and the specular factor
 /// max(0, N·H)^shininess averaged over the light points, each weighted by
 /// its visibility.
-fn sampled_terms(
-    n: Vec3,
-    v: Vec3,
-    shininess: f32,
-    need_s: bool,
-    count: usize,
-    buf: &ShadowBuffers,
-) -> (f32, f32) {
-    let (dx, dy, dz, vis) = (
-        &buf.dx[..count],
-        &buf.dy[..count],
-        &buf.dz[..count],
-        &buf.vis[..count],
-    );
-    let mut diffuse = 0.0f32;
-    let mut specular = 0.0f32;
-    for j in 0..count {
-        if vis[j] == 0.0 {
-            continue;
-        }
-        let d = Vec3::new(dx[j], dy[j], dz[j]);
-        let l = d / d.length();
-        diffuse += n.dot(l).max(0.0);
-        if need_s {
-            specular += phong_specular(n, l, v, shininess);
+///
+/// Written for the vectorizer: eight independent partial sums (one per SIMD
+/// lane), no branches, and the buffers padded to a multiple of eight with
+/// invisible points. The summation order is fixed, so the result does not
+/// depend on which points were found visible by tracing or by skipping.
+fn sampled_terms(n: Vec3, v: Vec3, shininess: f32, need_s: bool, count: usize, buf: &ShadowBuffers) -> (f32, f32) {
+    const LANES: usize = 8;
+    let padded = count.next_multiple_of(LANES);
+    let (dx, dy, dz, vis) = (&buf.dx[..padded], &buf.dy[..padded], &buf.dz[..padded], &buf.vis[..padded]);
+    let mut diffuse = [0.0f32; LANES];
+    let mut specular = [0.0f32; LANES];
+    for c in (0..padded).step_by(LANES) {
+        for k in 0..LANES {
+            let j = c + k;
+            let (x, y, z) = (dx[j], dy[j], dz[j]);
+            let inv = 1.0 / (x * x + y * y + z * z).sqrt();
+            let (lx, ly, lz) = (x * inv, y * inv, z * inv);
+            diffuse[k] += vis[j] * (n.x * lx + n.y * ly + n.z * lz).max(0.0);
+            if need_s {
+                let (hx, hy, hz) = (lx + v.x, ly + v.y, lz + v.z);
+                let h2 = hx * hx + hy * hy + hz * hz;
+                // N·H / |H|; H = 0 (light exactly behind the viewer) gives 0.
+                let c = ((n.x * hx + n.y * hy + n.z * hz) / h2.sqrt()).max(0.0);
+                let c = if h2 > 0.0 { c } else { 0.0 };
+                specular[k] += vis[j] * pow_approx(c, shininess);
+            }
         }
     }
+    let sum = |lanes: [f32; LANES]| lanes.iter().fold(0.0, |a, b| a + b);
     let inv = 1.0 / count as f32;
-    (diffuse * inv, specular * inv)
+    (sum(diffuse) * inv, sum(specular) * inv)
 }
 
 /// Blinn–Phong specular factor max(0, N·H)^shininess, H = normalize(L + V).
@@ -116,7 +119,7 @@ pub fn phong_specular(n: Vec3, l: Vec3, v: Vec3, shininess: f32) -> f32 {
         return 0.0;
     }
     let c = n.dot(h) / len;
-    if c <= 0.0 { 0.0 } else { c.powf(shininess) }
+    if c <= 0.0 { 0.0 } else { pow_approx(c, shininess) }
 }
 
 /// `nearest_point` model (the report's): diffuse from the light point met

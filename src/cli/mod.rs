@@ -2,7 +2,7 @@
 //! command returns a [`CliError`] whose exit code tells bad input (2) from
 //! other failures (1).
 
-mod bench_cmd;
+pub mod bench;
 mod compare_cmd;
 mod render_cmd;
 
@@ -10,7 +10,7 @@ use std::path::PathBuf;
 
 use clap::{Args, Parser, Subcommand};
 
-pub use bench_cmd::{BenchArgs, bench};
+pub use bench::{BenchArgs, bench};
 pub use compare_cmd::compare;
 pub use render_cmd::{load_scene, render};
 
@@ -47,6 +47,10 @@ pub struct ViewArgs {
     /// Log UI frame times and render latencies to stderr.
     #[arg(long)]
     pub log_timings: bool,
+    /// Change the ambient slider by itself every SECS seconds (six times),
+    /// to measure `--log-timings` without a person at the mouse.
+    #[arg(long, value_name = "SECS", hide = true)]
+    pub wiggle: Option<f64>,
 }
 
 /// Overrides of a scene's settings.

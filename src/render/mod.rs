@@ -1,6 +1,7 @@
 //! The rendering core: scene, geometry, camera, light, sampling, shading,
 //! tracer, progressive tiles and film/output. It knows nothing of the UI.
 
+pub mod analytic;
 pub mod camera;
 pub mod compare;
 pub mod error;
@@ -18,6 +19,7 @@ pub mod scene;
 pub mod scene_file;
 pub mod scene_transform;
 pub mod shading;
+pub mod sobol;
 pub mod stats;
 pub mod tracer;
 

@@ -35,10 +35,11 @@ pub struct BenchArgs {
     /// Scene file (JSON); the built-in seed room if omitted.
     pub scene: Option<PathBuf>,
     /// A small sweep that finishes in well under a minute: a 160-pixel-wide
-    /// image, counts 1 to 256, one run each.
+    /// image and counts 1 to 256.
     #[arg(long)]
     pub quick: bool,
-    /// Renders per measurement; the median time is reported.
+    /// Renders per measurement; the median time is reported (default 3;
+    /// 5 for --scaling and at least 5 for --target).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1000))]
     pub runs: Option<u32>,
     /// Shadow-ray counts to sweep, e.g. 1,4,16 (default 1,4,16,64,256,1024).
@@ -169,7 +170,8 @@ pub fn scenes(args: &BenchArgs) -> Result<Vec<BenchScene>, CliError> {
             if let Some(w) = args.width.or(quick_width) {
                 if args.height.is_none() {
                     // Keep the scene's aspect ratio.
-                    c.height = ((w as f64 * c.height as f64 / c.width as f64).round() as u32).max(1);
+                    c.height =
+                        ((w as f64 * c.height as f64 / c.width as f64).round() as u32).max(1);
                 }
                 c.width = w;
             }

@@ -23,15 +23,18 @@ impl Parallelogram {
         // under/overflow in the Gram determinant.
         let (lu, lv) = (edge_u.length(), edge_v.length());
         let (eu, ev) = (edge_u / lu, edge_v / lv);
-        let uv = eu.dot(ev);
-        let det = 1.0 - uv * uv;
-        let dual_u = (eu - ev * uv) / (det * lu);
-        let dual_v = (ev - eu * uv) / (det * lv);
+        // The dual basis from cross products: n = eu × ev has |n|² = sin²
+        // of the edges' angle without the cancellation of 1 − (eu·ev)²,
+        // which loses all precision for thin parallelograms (sin ≈ 1e-8).
+        let n = eu.cross(ev);
+        let det = n.length_squared();
+        let dual_u = ev.cross(n) / (det * lu);
+        let dual_v = n.cross(eu) / (det * lv);
         Parallelogram {
             corner,
             edge_u,
             edge_v,
-            normal: eu.cross(ev).normalize(),
+            normal: n.normalize(),
             dual_u,
             dual_v,
         }

@@ -1,0 +1,80 @@
+//! `--spheres N,… --scaling`: how render time grows with object count.
+
+use std::time::Instant;
+
+use super::{BenchArgs, CliError, build, scenes, si, timed};
+use crate::render::generate::sphere_radius;
+
+/// One scene size's measurement.
+#[derive(Debug, Clone, Copy)]
+pub struct ScalingRow {
+    pub spheres: u32,
+    pub radius: f64,
+    pub build_s: f64,
+    pub time_s: f64,
+    pub rays_traced: u64,
+}
+
+pub fn run(args: &BenchArgs) -> Result<(), CliError> {
+    let Some(counts) = &args.spheres else {
+        return Err(CliError::input(
+            "--scaling needs --spheres, e.g. --spheres 10,100,1000,10000",
+        ));
+    };
+    let runs = args.runs.unwrap_or(if args.quick { 1 } else { 5 });
+    let scenes = scenes(args)?;
+    if let Some(s) = scenes.first() {
+        let r = &s.desc.render;
+        println!(
+            "generated rooms (sphere seed {}): {}×{}, {} {} shadow rays, depth {}, {}; median of {runs} runs",
+            args.sphere_seed,
+            s.desc.camera.width,
+            s.desc.camera.height,
+            r.shadow_rays,
+            r.sampling.name(),
+            r.max_depth,
+            r.area_light_model.name()
+        );
+    }
+    println!(
+        "{:>8} {:>8} {:>9} {:>10} {:>9} {:>7} {:>9}",
+        "spheres", "radius", "build ms", "render ms", "traced", "Mray/s", "vs first"
+    );
+    let mut rows: Vec<ScalingRow> = Vec::new();
+    for (scene, &n) in scenes.iter().zip(counts) {
+        let start = Instant::now();
+        let built = build(&scene.desc, true)?;
+        let build_s = start.elapsed().as_secs_f64();
+        let t = timed(&built, runs);
+        let row = ScalingRow {
+            spheres: n,
+            radius: sphere_radius(n as usize),
+            build_s,
+            time_s: t.median().as_secs_f64(),
+            rays_traced: t.report.final_stats.traced(),
+        };
+        let first = rows.first().map_or(row.time_s, |f| f.time_s);
+        println!(
+            "{:>8} {:>8.4} {:>9.2} {:>10.2} {:>9} {:>7.1} {:>8.2}×",
+            row.spheres,
+            row.radius,
+            row.build_s * 1e3,
+            row.time_s * 1e3,
+            si(row.rays_traced),
+            row.rays_traced as f64 / row.time_s / 1e6,
+            row.time_s / first
+        );
+        rows.push(row);
+    }
+    let lo = rows.iter().min_by_key(|r| r.spheres);
+    let hi = rows.iter().max_by_key(|r| r.spheres);
+    if let (Some(lo), Some(hi)) = (lo, hi) {
+        println!(
+            "time ratio N={} / N={}: {:.2} (target ≤ 4 for 10000 / 10)",
+            hi.spheres,
+            lo.spheres,
+            hi.time_s / lo.time_s
+        );
+    }
+    Ok(())
+}

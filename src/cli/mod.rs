@@ -215,3 +215,15 @@ impl CliError {
         }
     }
 }
+
+/// Prints to stdout; a closed pipe (`penumbra compare … | head -1`) is not
+/// an error worth a panic or a message.
+pub fn print_stdout(text: &str) -> Result<(), CliError> {
+    use std::io::Write;
+    match std::io::stdout().lock().write_all(text.as_bytes()) {
+        Err(e) if e.kind() != std::io::ErrorKind::BrokenPipe => {
+            Err(CliError::other(format!("stdout: {e}")))
+        }
+        _ => Ok(()),
+    }
+}

@@ -43,18 +43,31 @@ pub fn pow_approx(x: f32, y: f32) -> f32 {
     // ln m = 2 atanh(t), t = (m − 1)/(m + 1), |t| ≤ 0.172.
     let t = (m - 1.0) / (m + 1.0);
     let t2 = t * t;
-    let ln_m = 2.0 * t * (1.0 + t2 * (1.0 / 3.0 + t2 * (1.0 / 5.0 + t2 * (1.0 / 7.0 + t2 * (1.0 / 9.0)))));
+    let ln_m =
+        2.0 * t * (1.0 + t2 * (1.0 / 3.0 + t2 * (1.0 / 5.0 + t2 * (1.0 / 7.0 + t2 * (1.0 / 9.0)))));
     let log2_x = e as f32 + ln_m * std::f32::consts::LOG2_E;
     // 2^z = 2^k · 2^f with k = round(z), f in [−½, ½].
     let z = (y * log2_x).max(-126.0);
-    let k = z.round();
-    let f = (z - k) * std::f32::consts::LN_2;
+    // Round to nearest by adding and removing 1.5·2²³ (exact for |z| < 2²²);
+    // the integer then sits in the sum's low mantissa bits. (`f32::round`
+    // is a libm call on baseline x86-64 and `as i32` saturates lane by
+    // lane: both block vectorizing.)
+    const ROUNDER: f32 = 12_582_912.0;
+    let r = z + ROUNDER;
+    let k_int = r.to_bits() as i32 - ROUNDER.to_bits() as i32;
+    let f = (z - (r - ROUNDER)) * std::f32::consts::LN_2;
     let p = 1.0
         + f * (1.0
             + f * (1.0 / 2.0
-                + f * (1.0 / 6.0 + f * (1.0 / 24.0 + f * (1.0 / 120.0 + f * (1.0 / 720.0 + f * (1.0 / 5040.0)))))));
-    let scaled = p * f32::from_bits(((k as i32 + 127) << 23) as u32);
-    if x >= f32::MIN_POSITIVE && z > -126.0 { scaled } else { 0.0 }
+                + f * (1.0 / 6.0
+                    + f * (1.0 / 24.0
+                        + f * (1.0 / 120.0 + f * (1.0 / 720.0 + f * (1.0 / 5040.0)))))));
+    let scaled = p * f32::from_bits(((k_int + 127) << 23) as u32);
+    if x >= f32::MIN_POSITIVE && z > -126.0 {
+        scaled
+    } else {
+        0.0
+    }
 }
 
 #[cfg(test)]

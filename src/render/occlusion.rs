@@ -43,6 +43,11 @@ pub struct ShadowBuffers {
     pub dz: Vec<f32>,
     /// 1 where the light point is visible, 0 where it is blocked.
     pub vis: Vec<f32>,
+    /// Per-point diffuse and specular contributions (shading scratch).
+    pub term_d: Vec<f32>,
+    pub term_s: Vec<f32>,
+    /// The fixed pattern whose points `a` and `b` already hold, if any.
+    pub filled: Option<(super::scene_file::Sampling, u32)>,
     occluders: Vec<Candidate>,
 }
 
@@ -69,6 +74,9 @@ impl ShadowBuffers {
             dy: v(1.0),
             dz: v(0.0),
             vis: v(0.0),
+            term_d: v(0.0),
+            term_s: v(0.0),
+            filled: None,
             occluders: Vec::with_capacity(16),
         }
     }
@@ -141,6 +149,23 @@ impl Occluder {
 
     /// Clears `vis[j]` for every ray that this occluder blocks.
     fn block(&self, dx: &[f32], dy: &[f32], dz: &[f32], vis: &mut [f32]) {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU supports AVX2, checked just above.
+            return unsafe { self.block_avx2(dx, dy, dz, vis) };
+        }
+        self.block_generic(dx, dy, dz, vis)
+    }
+
+    /// `block` compiled for 8-wide vectors; bit-identical results (no FMA).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn block_avx2(&self, dx: &[f32], dy: &[f32], dz: &[f32], vis: &mut [f32]) {
+        self.block_generic(dx, dy, dz, vis)
+    }
+
+    #[inline(always)]
+    fn block_generic(&self, dx: &[f32], dy: &[f32], dz: &[f32], vis: &mut [f32]) {
         let n = vis.len();
         let (dx, dy, dz) = (&dx[..n], &dy[..n], &dz[..n]);
         match *self {
@@ -283,27 +308,7 @@ pub fn visibility(
     let light = &scene.light.shape;
     let to_corner = (light.corner - q.point).as_vec3();
     let (eu, ev) = (light.edge_u.as_vec3(), light.edge_v.as_vec3());
-    let n = q.normal.as_vec3();
-    let mut facing = 0u64;
-    {
-        let (a, b) = (&buf.a[..count], &buf.b[..count]);
-        let (dx, dy, dz) = (
-            &mut buf.dx[..count],
-            &mut buf.dy[..count],
-            &mut buf.dz[..count],
-        );
-        let vis = &mut buf.vis[..count];
-        for j in 0..count {
-            let d = to_corner + eu * a[j] + ev * b[j];
-            dx[j] = d.x;
-            dy[j] = d.y;
-            dz[j] = d.z;
-            vis[j] = if n.dot(d) > 0.0 { 1.0 } else { 0.0 };
-        }
-        for v in vis.iter() {
-            facing += *v as u64;
-        }
-    }
+    let facing = light_directions(to_corner, eu, ev, q.normal.as_vec3(), count, buf);
     stats.shadow_backfacing += count as u64 - facing;
     if facing == 0 {
         return;
@@ -355,12 +360,12 @@ pub fn visibility(
             });
         };
         for &i in scene.unbounded.iter().chain(&scene.bounded) {
-            consider(i, scene.objects[i as usize].shape.bounds());
+            consider(i, scene.objects[i as usize].bounds);
         }
         let overlaps = |b: &Aabb| !skip || pyramid.may_overlap(b);
-        scene.bvh.for_each_overlapping(overlaps, |i| {
-            consider(i, scene.objects[i as usize].shape.bounds())
-        });
+        scene
+            .bvh
+            .for_each_overlapping(overlaps, |i| consider(i, scene.objects[i as usize].bounds));
     }
     if buf.occluders.is_empty() {
         stats.shadow_unoccluded += facing;
@@ -387,4 +392,70 @@ pub fn visibility(
     for c in &buf.occluders {
         c.occ.block(&buf.dx, &buf.dy, &buf.dz, vis);
     }
+}
+
+/// Directions from the hit point to the light points, and 1 in `vis` for
+/// those in front of the surface; returns how many are.
+fn light_directions(
+    to_corner: Vec3,
+    eu: Vec3,
+    ev: Vec3,
+    n: Vec3,
+    count: usize,
+    buf: &mut ShadowBuffers,
+) -> u64 {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU supports AVX2, checked just above.
+        return unsafe { light_directions_avx2(to_corner, eu, ev, n, count, buf) };
+    }
+    light_directions_generic(to_corner, eu, ev, n, count, buf)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn light_directions_avx2(
+    to_corner: Vec3,
+    eu: Vec3,
+    ev: Vec3,
+    n: Vec3,
+    count: usize,
+    buf: &mut ShadowBuffers,
+) -> u64 {
+    light_directions_generic(to_corner, eu, ev, n, count, buf)
+}
+
+#[inline(always)]
+fn light_directions_generic(
+    to_corner: Vec3,
+    eu: Vec3,
+    ev: Vec3,
+    n: Vec3,
+    count: usize,
+    buf: &mut ShadowBuffers,
+) -> u64 {
+    let (a, b) = (&buf.a[..count], &buf.b[..count]);
+    let (dx, dy, dz) = (
+        &mut buf.dx[..count],
+        &mut buf.dy[..count],
+        &mut buf.dz[..count],
+    );
+    let vis = &mut buf.vis[..count];
+    for j in 0..count {
+        let (x, y, z) = (
+            to_corner.x + eu.x * a[j] + ev.x * b[j],
+            to_corner.y + eu.y * a[j] + ev.y * b[j],
+            to_corner.z + eu.z * a[j] + ev.z * b[j],
+        );
+        dx[j] = x;
+        dy[j] = y;
+        dz[j] = z;
+        vis[j] = if n.x * x + n.y * y + n.z * z > 0.0 {
+            1.0
+        } else {
+            0.0
+        };
+    }
+    // Exact: a sum of ones and zeros below 2²⁴.
+    vis.iter().sum::<f32>() as u64
 }

@@ -28,6 +28,8 @@ pub struct Material {
 pub struct Object {
     pub shape: Shape,
     pub material: u32,
+    /// The shape's bounds (`None` for planes), computed once.
+    pub bounds: Option<Aabb>,
 }
 
 /// Settings of one render, from the scene's `render` section.
@@ -126,14 +128,19 @@ impl Scene {
                 let material = material_names
                     .binary_search_by(|n| n.as_str().cmp(o.material()))
                     .expect("validated material name") as u32;
-                Object { shape, material }
+                let bounds = shape.bounds();
+                Object {
+                    shape,
+                    material,
+                    bounds,
+                }
             })
             .collect();
 
         let mut unbounded = Vec::new();
         let mut with_bounds = Vec::new();
         for (i, o) in objects.iter().enumerate() {
-            match o.shape.bounds() {
+            match o.bounds {
                 Some(b) => with_bounds.push((i as u32, b)),
                 None => unbounded.push(i as u32),
             }

@@ -246,6 +246,8 @@ impl Occluder {
 /// planes `n · x <= d` (four sides and the light's plane), for culling.
 struct ShadowPyramid {
     planes: [(DVec3, f64); 5],
+    /// Length of each plane's normal (they are not normalized).
+    lengths: [f64; 5],
     bounds: Aabb,
 }
 
@@ -267,8 +269,17 @@ impl ShadowPyramid {
         planes[4] = (-light_normal, -light_normal.dot(corners[0]));
         ShadowPyramid {
             planes,
+            lengths: planes.map(|(n, _)| n.length()),
             bounds: Aabb::from_points(corners).grow(p),
         }
+    }
+
+    /// Conservative: false only if the sphere certainly misses the pyramid.
+    fn may_overlap_sphere(&self, centre: DVec3, radius: f64) -> bool {
+        self.planes
+            .iter()
+            .zip(&self.lengths)
+            .all(|(&(n, d), &len)| n.dot(centre) - d <= radius * len * (1.0 + 1e-9))
     }
 
     /// Conservative: false only if the box certainly misses the pyramid.
@@ -318,60 +329,69 @@ pub fn visibility(
         return;
     }
 
-    // Candidate occluders.
     let skip = scene.settings.skip;
     let corners = light.corners();
     let pyramid = ShadowPyramid::new(q.point, &corners, light.normal, light.centre());
-    buf.occluders.clear();
-    {
-        let occluders = &mut buf.occluders;
-        let mut consider = |i: u32, bounds: Option<Aabb>| {
-            let inside = i == q.object && q.inside;
-            if i == q.object && !inside {
-                return;
-            }
-            let shape = &scene.objects[i as usize].shape;
-            if skip {
-                if let Shape::Plane(pl) = shape {
-                    // A plane blocks only if some light point lies on its
-                    // other side from p.
+    // An object as a possible occluder of this hit point, unless it can
+    // certainly block nothing.
+    let candidate = |i: u32| -> Option<Candidate> {
+        let inside = i == q.object && q.inside;
+        if i == q.object && !inside {
+            return None;
+        }
+        let object = &scene.objects[i as usize];
+        if skip {
+            match &object.shape {
+                // A plane blocks only if some light point lies on its other
+                // side from p.
+                Shape::Plane(pl) => {
                     let sp = pl.signed_distance(q.point);
                     if corners.iter().all(|c| pl.signed_distance(*c) * sp > 0.0) {
-                        return;
+                        return None;
                     }
                 }
-                if bounds.is_some_and(|b| !pyramid.may_overlap(&b)) {
-                    return;
+                // The sphere itself is a tighter test than its box.
+                Shape::Sphere(sp) => {
+                    if !pyramid.may_overlap_sphere(sp.centre, sp.radius) {
+                        return None;
+                    }
+                }
+                _ => {
+                    if object.bounds.is_some_and(|b| !pyramid.may_overlap(&b)) {
+                        return None;
+                    }
                 }
             }
-            let umbra_test = !inside
-                && match bounds {
-                    // Planes block a light point iff it lies on their other
-                    // side: all four corners there means the whole light.
-                    None => true,
-                    Some(b) => {
-                        let x = DVec3::select(light.normal.cmpge(DVec3::ZERO), b.min, b.max);
-                        light.signed_distance(x) > 0.0
-                    }
-                };
-            occluders.push(Candidate {
-                occ: Occluder::new(shape, q.point, inside),
-                umbra_test,
-            });
-        };
-        for &i in scene.unbounded.iter().chain(&scene.bounded) {
-            consider(i, scene.objects[i as usize].bounds);
         }
-        let overlaps = |b: &Aabb| !skip || pyramid.may_overlap(b);
+        let umbra_test = !inside
+            && match object.bounds {
+                // Planes block a light point iff it lies on their other side:
+                // all four corners there means the whole light.
+                None => true,
+                Some(b) => {
+                    let x = DVec3::select(light.normal.cmpge(DVec3::ZERO), b.min, b.max);
+                    light.signed_distance(x) > 0.0
+                }
+            };
+        Some(Candidate {
+            occ: Occluder::new(&object.shape, q.point, inside),
+            umbra_test,
+        })
+    };
+
+    // Objects outside the BVH (planes, and all objects of small scenes).
+    buf.occluders.clear();
+    buf.occluders.extend(
         scene
-            .bvh
-            .for_each_overlapping(overlaps, |i| consider(i, scene.objects[i as usize].bounds));
-    }
-    if buf.occluders.is_empty() {
+            .unbounded
+            .iter()
+            .chain(&scene.bounded)
+            .filter_map(|&i| candidate(i)),
+    );
+    if buf.occluders.is_empty() && scene.bvh.is_empty() {
         stats.shadow_unoccluded += facing;
         return;
     }
-
     if skip {
         // Umbra: one convex occluder between p and the light's plane that
         // blocks all four corner rays blocks the whole light.
@@ -386,11 +406,34 @@ pub fn visibility(
             return;
         }
     }
-
-    stats.shadow += facing;
+    let (dx, dy, dz) = (&buf.dx[..count], &buf.dy[..count], &buf.dz[..count]);
     let vis = &mut buf.vis[..count];
+    let mut traced = !buf.occluders.is_empty();
     for c in &buf.occluders {
-        c.occ.block(&buf.dx, &buf.dy, &buf.dz, vis);
+        c.occ.block(dx, dy, dz, vis);
+    }
+
+    // The BVH, nearest nodes first, each leaf's objects blocking rays at
+    // once, until no ray is left (an any-hit traversal for the whole packet;
+    // the result does not depend on the order).
+    if !scene.bvh.is_empty() && (!skip || vis.iter().any(|&v| v != 0.0)) {
+        scene.bvh.visit_near_first(
+            q.point,
+            |b| !skip || pyramid.may_overlap(b),
+            |i| {
+                let Some(c) = candidate(i) else {
+                    return true;
+                };
+                traced = true;
+                c.occ.block(dx, dy, dz, vis);
+                !skip || vis.iter().any(|&v| v != 0.0)
+            },
+        );
+    }
+    if traced {
+        stats.shadow += facing;
+    } else {
+        stats.shadow_unoccluded += facing;
     }
 }
 

@@ -242,6 +242,43 @@ impl Bvh {
         }
     }
 
+    /// Like [`Bvh::for_each_overlapping`], but visiting the child nearer to
+    /// `origin` first, and stopping as soon as `visit` returns false.
+    pub fn visit_near_first(
+        &self,
+        origin: DVec3,
+        overlaps: impl Fn(&Aabb) -> bool,
+        mut visit: impl FnMut(u32) -> bool,
+    ) {
+        if self.nodes.is_empty() {
+            return;
+        }
+        let mut stack = [0u32; 64];
+        let mut sp = 1;
+        while sp > 0 {
+            sp -= 1;
+            let n = &self.nodes[stack[sp] as usize];
+            if !overlaps(&n.bounds) {
+                continue;
+            }
+            if n.count > 0 {
+                for &obj in &self.items[n.first as usize..(n.first + n.count) as usize] {
+                    if !visit(obj) {
+                        return;
+                    }
+                }
+            } else {
+                let (l, r) = (n.first, n.first + 1);
+                let dist =
+                    |i: u32| (self.nodes[i as usize].bounds.centre() - origin).length_squared();
+                let (near, far) = if dist(l) <= dist(r) { (l, r) } else { (r, l) };
+                stack[sp] = far;
+                stack[sp + 1] = near;
+                sp += 2;
+            }
+        }
+    }
+
     /// Depth of the deepest leaf (for tests and statistics).
     pub fn depth(&self) -> usize {
         fn walk(b: &Bvh, n: usize) -> usize {

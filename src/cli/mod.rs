@@ -80,9 +80,13 @@ pub struct SceneOverrides {
     /// Multipliers of the ambient, diffuse and specular terms, e.g. 1,0,0.
     #[arg(long, value_parser = parse_terms)]
     pub terms: Option<[f64; 3]>,
+    /// Adaptive shadow rays: a few first, the rest only where they disagree
+    /// (faster, biased).
+    #[arg(long)]
+    pub adaptive: bool,
     /// Multiply every coordinate and length of the scene (camera included)
     /// by this factor: the image stays the same.
-    #[arg(long)]
+    #[arg(long, value_parser = parse_scale)]
     pub scale: Option<f64>,
     /// Move the whole scene (camera included) by x,y,z.
     #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
@@ -171,6 +175,17 @@ fn parse_vec3(s: &str) -> Result<[f64; 3], String> {
         }
     }
     Ok(out)
+}
+
+fn parse_scale(s: &str) -> Result<f64, String> {
+    let v: f64 = s
+        .trim()
+        .parse()
+        .map_err(|_| format!("{s:?} is not a number"))?;
+    if !(v.is_finite() && v > 0.0) {
+        return Err(format!("{s} is out of range, expected a number > 0"));
+    }
+    Ok(v)
 }
 
 fn parse_terms(s: &str) -> Result<[f64; 3], String> {

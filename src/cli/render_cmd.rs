@@ -43,6 +43,9 @@ pub fn load_scene(path: Option<&Path>, overrides: &SceneOverrides) -> Result<Sce
         r.terms.diffuse = d;
         r.terms.specular = s;
     }
+    if o.adaptive {
+        r.adaptive = true;
+    }
     if let Some(f) = o.scale {
         desc = desc.scaled(f);
     }

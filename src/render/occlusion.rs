@@ -30,6 +30,9 @@ use super::geometry::{Aabb, Shape};
 use super::scene::Scene;
 use super::stats::RayStats;
 
+/// Rays traced first by the adaptive mode.
+const ADAPTIVE_PROBES: usize = 8;
+
 /// Per-thread buffers for one hit point's light points, reused from hit to
 /// hit so that the hot loop never allocates.
 #[derive(Debug, Default)]
@@ -406,30 +409,87 @@ pub fn visibility(
             return;
         }
     }
-    let (dx, dy, dz) = (&buf.dx[..count], &buf.dy[..count], &buf.dz[..count]);
-    let vis = &mut buf.vis[..count];
-    let mut traced = !buf.occluders.is_empty();
-    for c in &buf.occluders {
-        c.occ.block(dx, dy, dz, vis);
+    // Traces rays (directions and visibility as parallel slices) against the
+    // candidates; returns whether there was any candidate at all.
+    let occluders = &buf.occluders;
+    let trace = |dx: &[f32], dy: &[f32], dz: &[f32], vis: &mut [f32]| -> bool {
+        let mut traced = !occluders.is_empty();
+        for c in occluders {
+            c.occ.block(dx, dy, dz, vis);
+        }
+        // The BVH, nearest nodes first, each leaf's objects blocking rays at
+        // once, until no ray is left (an any-hit traversal for the whole
+        // packet; the result does not depend on the order).
+        if !scene.bvh.is_empty() && (!skip || vis.iter().any(|&v| v != 0.0)) {
+            scene.bvh.visit_near_first(
+                q.point,
+                |b| !skip || pyramid.may_overlap(b),
+                |i| {
+                    let Some(c) = candidate(i) else {
+                        return true;
+                    };
+                    traced = true;
+                    c.occ.block(dx, dy, dz, vis);
+                    !skip || vis.iter().any(|&v| v != 0.0)
+                },
+            );
+        }
+        traced
+    };
+
+    if scene.settings.adaptive && count >= 4 * ADAPTIVE_PROBES {
+        // Adaptive (biased): trace a spread subset first; if its facing rays
+        // all agree, give every facing ray their answer.
+        // The points nearest the light's four corners and four edge
+        // midpoints: where a shadow edge would first show.
+        const TARGETS: [(f32, f32); ADAPTIVE_PROBES] = [
+            (0.0, 0.0),
+            (1.0, 0.0),
+            (1.0, 1.0),
+            (0.0, 1.0),
+            (0.5, 0.0),
+            (1.0, 0.5),
+            (0.5, 1.0),
+            (0.0, 0.5),
+        ];
+        let mut nearest = [(f32::INFINITY, 0usize); ADAPTIVE_PROBES];
+        for j in 0..count {
+            let (a, b) = (buf.a[j], buf.b[j]);
+            for (t, n) in TARGETS.iter().zip(nearest.iter_mut()) {
+                let d = (a - t.0) * (a - t.0) + (b - t.1) * (b - t.1);
+                if d < n.0 {
+                    *n = (d, j);
+                }
+            }
+        }
+        let mut probe = [[0.0f32; ADAPTIVE_PROBES]; 4];
+        let mut facing_probes = 0.0;
+        for (k, &(_, j)) in nearest.iter().enumerate() {
+            probe[0][k] = buf.dx[j];
+            probe[1][k] = buf.dy[j];
+            probe[2][k] = buf.dz[j];
+            probe[3][k] = buf.vis[j];
+            facing_probes += buf.vis[j];
+        }
+        let [px, py, pz, pvis] = &mut probe;
+        let traced = trace(px, py, pz, pvis);
+        let visible: f32 = pvis.iter().sum();
+        if !traced {
+            stats.shadow_unoccluded += facing;
+            return;
+        }
+        if facing_probes > 0.0 && (visible == 0.0 || visible == facing_probes) {
+            if visible == 0.0 {
+                buf.vis[..count].fill(0.0);
+            }
+            stats.shadow += ADAPTIVE_PROBES as u64;
+            stats.shadow_adaptive += facing.saturating_sub(ADAPTIVE_PROBES as u64);
+            return;
+        }
     }
 
-    // The BVH, nearest nodes first, each leaf's objects blocking rays at
-    // once, until no ray is left (an any-hit traversal for the whole packet;
-    // the result does not depend on the order).
-    if !scene.bvh.is_empty() && (!skip || vis.iter().any(|&v| v != 0.0)) {
-        scene.bvh.visit_near_first(
-            q.point,
-            |b| !skip || pyramid.may_overlap(b),
-            |i| {
-                let Some(c) = candidate(i) else {
-                    return true;
-                };
-                traced = true;
-                c.occ.block(dx, dy, dz, vis);
-                !skip || vis.iter().any(|&v| v != 0.0)
-            },
-        );
-    }
+    let (dx, dy, dz) = (&buf.dx[..count], &buf.dy[..count], &buf.dz[..count]);
+    let traced = trace(dx, dy, dz, &mut buf.vis[..count]);
     if traced {
         stats.shadow += facing;
     } else {

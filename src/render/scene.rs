@@ -45,6 +45,9 @@ pub struct RenderSettings {
     pub background: Vec3,
     /// `false`: every shadow ray arrives.
     pub shadows: bool,
+    /// Trace a few shadow rays first and the rest only where they disagree
+    /// (faster, biased).
+    pub adaptive: bool,
     /// Skip work whose result is known (exact; see `occlusion.rs`). Only
     /// switched off to measure what the skipping saves.
     pub skip: bool,
@@ -176,6 +179,7 @@ impl Scene {
             ),
             background: DVec3::from(r.background).as_vec3(),
             shadows: r.shadows,
+            adaptive: r.adaptive,
             skip: true,
         };
         Ok(Scene {

@@ -184,6 +184,10 @@ pub struct RenderDesc {
     /// viewer's "shadows" toggle). Omitted when true.
     #[serde(default = "yes", skip_serializing_if = "is_true")]
     pub shadows: bool,
+    /// Extension: trace a few shadow rays per hit point first and the rest
+    /// only where they disagree (faster, biased). Omitted when false.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub adaptive: bool,
     /// Extension: one shininess for every material (the viewer's global
     /// override). Omitted when unset.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -201,6 +205,7 @@ impl Default for RenderDesc {
             terms: TermsDesc::default(),
             background: [0.0; 3],
             shadows: true,
+            adaptive: false,
             shininess_override: None,
         }
     }
@@ -442,7 +447,7 @@ impl SceneDesc {
                 "camera.fov_y_deg",
                 format!(
                     "{} is out of range, expected degrees in (0, 180)",
-                    c.fov_y_deg
+                    num(c.fov_y_deg)
                 ),
             ));
         }
@@ -570,7 +575,8 @@ impl SceneDesc {
                                 format!("{p}.min[{axis}]"),
                                 format!(
                                     "min {} is greater than max {}: expected min <= max on every axis",
-                                    b.min[axis], b.max[axis]
+                                    num(b.min[axis]),
+                                    num(b.max[axis])
                                 ),
                             ));
                         }
@@ -618,13 +624,26 @@ fn sin_angle(a: Vec3Desc, b: Vec3Desc) -> f64 {
     norm(cross(a, b))
 }
 
+/// A number for a message: as written when of ordinary size, in exponent
+/// form when huge or tiny (1e308 would otherwise print as 309 digits).
+fn num(v: f64) -> String {
+    if v == 0.0 || !v.is_finite() || (1e-4..=1e9).contains(&v.abs()) {
+        format!("{v}")
+    } else {
+        format!("{v:e}")
+    }
+}
+
 fn scalar(path: &str, v: f64, lo: f64, hi: f64) -> Result<(), SceneError> {
     if v.is_finite() && v >= lo && v <= hi {
         Ok(())
     } else {
         Err(SceneError::new(
             path,
-            format!("{v} is out of range, expected a number in [{lo}, {hi}]"),
+            format!(
+                "{} is out of range, expected a number in [{lo}, {hi}]",
+                num(v)
+            ),
         ))
     }
 }
@@ -635,7 +654,10 @@ fn positive(path: &str, v: f64, hi: f64) -> Result<(), SceneError> {
     } else {
         Err(SceneError::new(
             path,
-            format!("{v} is out of range, expected a number > 0 and <= {hi}"),
+            format!(
+                "{} is out of range, expected a number > 0 and <= {hi}",
+                num(v)
+            ),
         ))
     }
 }
@@ -646,7 +668,8 @@ fn point(path: &str, v: Vec3Desc) -> Result<(), SceneError> {
             return Err(SceneError::new(
                 format!("{path}[{i}]"),
                 format!(
-                    "{x} is out of range, expected a coordinate within ±{:e}",
+                    "{} is out of range, expected a coordinate within ±{:e}",
+                    num(*x),
                     limits::MAX_COORD
                 ),
             ));

@@ -20,6 +20,9 @@ pub struct RayStats {
     pub shadow_disabled: u64,
     /// Shadow rays not traced: neither diffuse nor specular needs them.
     pub shadow_unneeded: u64,
+    /// Shadow rays not traced: the adaptive mode's probes all agreed
+    /// (an approximation, unlike the other skips).
+    pub shadow_adaptive: u64,
     /// Reflected rays not traced: the path weight fell below 1/1024.
     pub reflected_culled: u64,
 }
@@ -32,7 +35,7 @@ impl RayStats {
 
     /// Shadow rays whose answer was found without tracing them.
     pub fn shadow_skipped(&self) -> u64 {
-        self.shadow_unoccluded + self.shadow_umbra + self.shadow_unneeded
+        self.shadow_unoccluded + self.shadow_umbra + self.shadow_unneeded + self.shadow_adaptive
     }
 
     /// Traced rays plus the shadow rays the skipping answered: what a
@@ -52,6 +55,7 @@ impl AddAssign for RayStats {
         self.shadow_umbra += o.shadow_umbra;
         self.shadow_disabled += o.shadow_disabled;
         self.shadow_unneeded += o.shadow_unneeded;
+        self.shadow_adaptive += o.shadow_adaptive;
         self.reflected_culled += o.reflected_culled;
     }
 }

@@ -130,6 +130,9 @@ pub enum SamplingArg {
     Random,
     Mixed,
     Stratified,
+    Sobol,
+    #[value(alias = "rotated_grid")]
+    RotatedGrid,
 }
 
 impl From<SamplingArg> for Sampling {
@@ -139,6 +142,8 @@ impl From<SamplingArg> for Sampling {
             SamplingArg::Random => Sampling::Random,
             SamplingArg::Mixed => Sampling::Mixed,
             SamplingArg::Stratified => Sampling::Stratified,
+            SamplingArg::Sobol => Sampling::Sobol,
+            SamplingArg::RotatedGrid => Sampling::RotatedGrid,
         }
     }
 }
@@ -146,6 +151,7 @@ impl From<SamplingArg> for Sampling {
 #[derive(Debug, Clone, Copy, clap::ValueEnum)]
 pub enum ModelArg {
     Sampled,
+    #[value(alias = "nearest_point")]
     NearestPoint,
 }
 

@@ -3,6 +3,7 @@
 
 use super::rng::Rng;
 use super::scene_file::Sampling;
+use super::sobol::{rotated_grid, sobol_2d};
 
 /// Side of the grid used by the grid-based patterns: ⌊√shadow_rays⌋.
 pub fn grid_side(shadow_rays: u32) -> u32 {
@@ -13,8 +14,8 @@ pub fn grid_side(shadow_rays: u32) -> u32 {
 pub fn points_per_hit(sampling: Sampling, shadow_rays: u32) -> usize {
     let n = grid_side(shadow_rays) as usize;
     match sampling {
-        Sampling::Grid | Sampling::Stratified => n * n,
-        Sampling::Random => shadow_rays.max(1) as usize,
+        Sampling::Grid | Sampling::Stratified | Sampling::RotatedGrid => n * n,
+        Sampling::Random | Sampling::Sobol => shadow_rays.max(1) as usize,
         Sampling::Mixed => 2 * n * n,
     }
 }
@@ -85,6 +86,22 @@ impl Pattern {
                 for k in n * n..self.count {
                     a[k] = rng.next_f32();
                     b[k] = rng.next_f32();
+                }
+            }
+            Sampling::Sobol => {
+                let seed = rng.next_u64() as u32;
+                for k in 0..self.count {
+                    (a[k], b[k]) = sobol_2d(k as u32, seed);
+                }
+            }
+            Sampling::RotatedGrid => {
+                let (su, sv) = (rng.next_f32(), rng.next_f32());
+                let mut k = 0;
+                for j in 0..n as u32 {
+                    for i in 0..n as u32 {
+                        (a[k], b[k]) = rotated_grid(n as u32, i, j, su, sv);
+                        k += 1;
+                    }
                 }
             }
         }

@@ -78,14 +78,22 @@ pub enum Sampling {
     Mixed,
     /// One jittered point in each of the n×n grid cells.
     Stratified,
+    /// `shadow_rays` points of an Owen-scrambled Sobol' sequence, scrambled
+    /// afresh for every hit point.
+    Sobol,
+    /// The n×n grid shifted by a random toroidal offset per hit point
+    /// (Cranley–Patterson rotation): the grid's bands become noise.
+    RotatedGrid,
 }
 
 impl Sampling {
-    pub const ALL: [Sampling; 4] = [
+    pub const ALL: [Sampling; 6] = [
         Sampling::Grid,
         Sampling::Random,
         Sampling::Mixed,
         Sampling::Stratified,
+        Sampling::Sobol,
+        Sampling::RotatedGrid,
     ];
 
     pub fn name(self) -> &'static str {
@@ -94,6 +102,8 @@ impl Sampling {
             Sampling::Random => "random",
             Sampling::Mixed => "mixed",
             Sampling::Stratified => "stratified",
+            Sampling::Sobol => "sobol",
+            Sampling::RotatedGrid => "rotated_grid",
         }
     }
 }

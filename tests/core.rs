@@ -351,3 +351,45 @@ fn srgb_encoding_rounds_correctly() {
     assert_eq!(encode_channel(0.2), (mid * 255.0).round() as u8);
     assert_eq!(Vec3::splat(0.5).to_array().map(encode_channel), [188; 3]);
 }
+
+#[test]
+fn analytic_model_is_exact_and_noise_free_where_the_light_is_unblocked() {
+    // Four random shadow rays are enough: with nothing in the way the ratio
+    // estimator's ratio is 1 and the closed form is all that remains.
+    let scene = common::scene_json(&lit_floor(
+        "",
+        r#"{ "shadow_rays": 4, "sampling": "random", "area_light_model": "analytic", "max_depth": 1 }"#,
+    ));
+    let film = render_image(&scene);
+    for (x, y) in [(4, 4), (0, 0), (8, 3)] {
+        let ray = scene.camera.pixel_ray(x, y);
+        let (_, t) = scene.closest_hit(&ray).unwrap();
+        let expected = average_cosine(
+            ray.at(t),
+            DVec3::Y,
+            DVec3::new(-1.0, 8.0, -1.0),
+            DVec3::new(2.0, 0.0, 0.0),
+            DVec3::new(0.0, 0.0, 2.0),
+            1000,
+        );
+        let got = film.get(x, y).x as f64;
+        let rel = (got - expected).abs() / expected;
+        assert!(
+            rel < 1e-5,
+            "pixel ({x},{y}): {got} vs {expected} (rel {rel:e})"
+        );
+    }
+}
+
+#[test]
+fn sampled_and_analytic_models_converge_to_one_image() {
+    let mut desc = common::seed_room(48, 27);
+    desc.render.terms.specular = 0.0;
+    desc.render.sampling = Sampling::Stratified;
+    desc.render.shadow_rays = 1024;
+    let sampled = render_image(&common::build(desc.clone()));
+    desc.render.area_light_model = penumbra::render::AreaLightModel::Analytic;
+    let analytic = render_image(&common::build(desc));
+    let c = penumbra::render::compare::compare(&sampled, &analytic).unwrap();
+    assert!(c.rmse < 2e-3, "rmse {:e}", c.rmse);
+}

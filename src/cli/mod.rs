@@ -153,6 +153,7 @@ pub enum ModelArg {
     Sampled,
     #[value(alias = "nearest_point")]
     NearestPoint,
+    Analytic,
 }
 
 impl From<ModelArg> for AreaLightModel {
@@ -160,6 +161,7 @@ impl From<ModelArg> for AreaLightModel {
         match m {
             ModelArg::Sampled => AreaLightModel::Sampled,
             ModelArg::NearestPoint => AreaLightModel::NearestPoint,
+            ModelArg::Analytic => AreaLightModel::Analytic,
         }
     }
 }

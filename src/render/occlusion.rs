@@ -6,12 +6,12 @@
 //! vectorize the per-ray loops (structure of arrays, no branches).
 //!
 //! A ray from hit point p to light point y is blocked by an object met at
-//! t ∈ (0, 1) on p + t (y − p). A light point behind the surface
-//! (N·(y − p) ≤ 0) counts as blocked by the surface itself. The surface's
-//! own object is otherwise left out: every primitive is convex or flat, so a
-//! ray leaving it on the outer side can never meet it again — exact, with no
-//! epsilon. Hit from inside (the normal was flipped), the object is kept and
-//! only its exit point counts.
+//! t ∈ (0, 1 − 10⁻⁴) on p + t (y − p) (see [`RAY_END`]). A light point
+//! behind the surface (N·(y − p) ≤ 0) counts as blocked by the surface
+//! itself. The surface's own object is otherwise left out: every primitive
+//! is convex or flat, so a ray leaving it on the outer side can never meet
+//! it again — exact, with no epsilon. Hit from inside (the normal was
+//! flipped), the object is kept and only its exit point counts.
 //!
 //! Work is skipped where the answer is known (when `settings.skip`):
 //! - objects whose bounds miss the pyramid spanned by p and the light
@@ -29,6 +29,14 @@ use glam::{DVec3, Vec3};
 use super::geometry::{Aabb, Shape};
 use super::scene::Scene;
 use super::stats::RayStats;
+
+/// Shadow rays end at this fraction of the way to their light point: a
+/// surface the light lies in (a light flush with a ceiling) must not block
+/// it, and in f32 the light point's side of such a surface is a coin toss
+/// unless the geometry is axis-aligned. Occluders closer to the light than
+/// 1e-4 of the ray's length are not seen (a relative margin, so it holds at
+/// every scale; pbrt uses the same shadow epsilon).
+const RAY_END: f32 = 1.0 - 1e-4;
 
 /// Rays traced first by the adaptive mode.
 const ADAPTIVE_PROBES: usize = 8;
@@ -49,6 +57,8 @@ pub struct ShadowBuffers {
     /// Per-point diffuse and specular contributions (shading scratch).
     pub term_d: Vec<f32>,
     pub term_s: Vec<f32>,
+    /// Per-point unshadowed diffuse factor (the ratio estimator's weights).
+    pub term_f: Vec<f32>,
     /// The fixed pattern whose points `a` and `b` already hold, if any.
     pub filled: Option<(super::scene_file::Sampling, u32)>,
     occluders: Vec<Candidate>,
@@ -79,6 +89,7 @@ impl ShadowBuffers {
             vis: v(0.0),
             term_d: v(0.0),
             term_s: v(0.0),
+            term_f: v(0.0),
             filled: None,
             occluders: Vec::with_capacity(16),
         }
@@ -182,9 +193,9 @@ impl Occluder {
                     // (0, 1) iff b > 0 and b − a < √disc. Inside: the exit,
                     // b + √disc < a.
                     let blocked = if inside {
-                        b + disc.max(0.0).sqrt() < a
+                        b + disc.max(0.0).sqrt() < a * RAY_END
                     } else {
-                        let s = b - a;
+                        let s = b - a * RAY_END;
                         disc >= 0.0 && b > 0.0 && (s < 0.0 || s * s < disc)
                     };
                     vis[j] = if blocked { 0.0 } else { vis[j] };
@@ -207,7 +218,7 @@ impl Occluder {
                     // f32::min/max drop the NaN of 0·∞ (a ray in a face's
                     // plane), treating that slab as not limiting.
                     let near = ax.min(bx).max(ay.min(by)).max(az.min(bz)).max(0.0);
-                    let far = ax.max(bx).min(ay.max(by)).min(az.max(bz)).min(1.0);
+                    let far = ax.max(bx).min(ay.max(by)).min(az.max(bz)).min(RAY_END);
                     vis[j] = if near < far { 0.0 } else { vis[j] };
                 }
             }
@@ -223,14 +234,17 @@ impl Occluder {
                     let t = dist / normal.dot(d);
                     let q = d * t - to_corner;
                     let (a, b) = (q.dot(dual_u), q.dot(dual_v));
-                    let blocked =
-                        t > 0.0 && t < 1.0 && (0.0..=1.0).contains(&a) && (0.0..=1.0).contains(&b);
+                    let blocked = t > 0.0
+                        && t < RAY_END
+                        && (0.0..=1.0).contains(&a)
+                        && (0.0..=1.0).contains(&b);
                     vis[j] = if blocked { 0.0 } else { vis[j] };
                 }
             }
             Occluder::Plane { normal, dist } => {
                 for j in 0..n {
-                    let end = dist + normal.x * dx[j] + normal.y * dy[j] + normal.z * dz[j];
+                    let end =
+                        dist + (normal.x * dx[j] + normal.y * dy[j] + normal.z * dz[j]) * RAY_END;
                     vis[j] = if dist * end < 0.0 { 0.0 } else { vis[j] };
                 }
             }

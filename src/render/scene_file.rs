@@ -119,15 +119,24 @@ pub enum AreaLightModel {
     /// The report's method: one "optimal" light point for diffuse and one
     /// for specular, scaled by the fraction of unblocked shadow rays.
     NearestPoint,
+    /// The diffuse term in closed form (the exact average of max(0, N·L)
+    /// over the light's area, the `sampled` model's limit), shadowed by the
+    /// ratio estimator over the shadow rays; specular as `sampled`.
+    Analytic,
 }
 
 impl AreaLightModel {
-    pub const ALL: [AreaLightModel; 2] = [AreaLightModel::Sampled, AreaLightModel::NearestPoint];
+    pub const ALL: [AreaLightModel; 3] = [
+        AreaLightModel::Sampled,
+        AreaLightModel::NearestPoint,
+        AreaLightModel::Analytic,
+    ];
 
     pub fn name(self) -> &'static str {
         match self {
             AreaLightModel::Sampled => "sampled",
             AreaLightModel::NearestPoint => "nearest_point",
+            AreaLightModel::Analytic => "analytic",
         }
     }
 }

@@ -3,6 +3,7 @@
 
 use glam::{DVec3, Vec3};
 
+use super::analytic;
 use super::math::pow_approx;
 use super::occlusion::{self, ShadowBuffers, ShadowQuery};
 use super::rng::Rng;
@@ -67,7 +68,38 @@ pub fn shade(
     let n = sp.normal.as_vec3();
     let v = sp.view.as_vec3();
     let (diffuse, specular) = match s.model {
-        AreaLightModel::Sampled => sampled_terms(n, v, m.shininess, need_s, count, buf),
+        AreaLightModel::Sampled => {
+            let t = sampled_terms(n, v, m.shininess, need_s, count, buf);
+            (t.diffuse, t.specular)
+        }
+        AreaLightModel::Analytic => {
+            // Ratio estimator (Heitz, Hill & McGuire 2018): the exact
+            // unshadowed diffuse average times the visible share of the
+            // sampled integrand. Noise-free wherever the light is wholly
+            // visible or wholly hidden. The specular term has no closed form
+            // (see `analytic::specular_area_average`) and stays sampled.
+            let t = sampled_terms(n, v, m.shininess, need_s, count, buf);
+            let light = &scene.light.shape;
+            let exact = if need_d {
+                analytic::diffuse_area_average(
+                    sp.point,
+                    sp.normal,
+                    light.corner,
+                    light.edge_u,
+                    light.edge_v,
+                ) as f32
+            } else {
+                0.0
+            };
+            // All sampled points below the horizon: no weights, so fall back
+            // to the plain visible fraction.
+            let ratio = if t.unshadowed_diffuse > 0.0 {
+                t.diffuse / t.unshadowed_diffuse
+            } else {
+                buf.vis[..count].iter().sum::<f32>() / count as f32
+            };
+            (exact * ratio, t.specular)
+        }
         AreaLightModel::NearestPoint => {
             let visible: f32 = buf.vis[..count].iter().sum();
             let fraction = visible / count as f32;
@@ -94,7 +126,7 @@ fn sampled_terms(
     need_s: bool,
     count: usize,
     buf: &mut ShadowBuffers,
-) -> (f32, f32) {
+) -> SampledTerms {
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx2") {
         // SAFETY: the CPU supports AVX2, checked just above.
@@ -115,7 +147,7 @@ fn sampled_terms_avx2(
     need_s: bool,
     count: usize,
     buf: &mut ShadowBuffers,
-) -> (f32, f32) {
+) -> SampledTerms {
     sampled_terms_generic(n, v, shininess, need_s, count, buf)
 }
 
@@ -127,7 +159,7 @@ fn sampled_terms_generic(
     need_s: bool,
     count: usize,
     buf: &mut ShadowBuffers,
-) -> (f32, f32) {
+) -> SampledTerms {
     let padded = count.next_multiple_of(8);
     let (dx, dy, dz, vis) = (
         &buf.dx[..padded],
@@ -135,28 +167,48 @@ fn sampled_terms_generic(
         &buf.dz[..padded],
         &buf.vis[..padded],
     );
-    let (term_d, term_s) = (&mut buf.term_d[..padded], &mut buf.term_s[..padded]);
+    let (term_d, term_f, term_s) = (
+        &mut buf.term_d[..padded],
+        &mut buf.term_f[..padded],
+        &mut buf.term_s[..padded],
+    );
     for j in 0..padded {
         let (x, y, z) = (dx[j], dy[j], dz[j]);
         let inv = 1.0 / (x * x + y * y + z * z).sqrt();
-        term_d[j] = vis[j] * ((n.x * x + n.y * y + n.z * z) * inv).max(0.0);
+        let f = ((n.x * x + n.y * y + n.z * z) * inv).max(0.0);
+        term_f[j] = f;
+        term_d[j] = vis[j] * f;
     }
     let inv_count = 1.0 / count as f32;
-    let diffuse = term_d[..count].iter().sum::<f32>() * inv_count;
-    if !need_s {
-        return (diffuse, 0.0);
+    let mut terms = SampledTerms {
+        diffuse: term_d[..count].iter().sum::<f32>() * inv_count,
+        unshadowed_diffuse: term_f[..count].iter().sum::<f32>() * inv_count,
+        specular: 0.0,
+    };
+    if need_s {
+        for j in 0..padded {
+            let (x, y, z) = (dx[j], dy[j], dz[j]);
+            let inv = 1.0 / (x * x + y * y + z * z).sqrt();
+            let (hx, hy, hz) = (x * inv + v.x, y * inv + v.y, z * inv + v.z);
+            let h2 = hx * hx + hy * hy + hz * hz;
+            // N·H / |H|; H = 0 (light exactly behind the viewer) gives 0.
+            let c = ((n.x * hx + n.y * hy + n.z * hz) / h2.sqrt()).max(0.0);
+            let c = if h2 > 0.0 { c } else { 0.0 };
+            term_s[j] = vis[j] * pow_approx(c, shininess);
+        }
+        terms.specular = term_s[..count].iter().sum::<f32>() * inv_count;
     }
-    for j in 0..padded {
-        let (x, y, z) = (dx[j], dy[j], dz[j]);
-        let inv = 1.0 / (x * x + y * y + z * z).sqrt();
-        let (hx, hy, hz) = (x * inv + v.x, y * inv + v.y, z * inv + v.z);
-        let h2 = hx * hx + hy * hy + hz * hz;
-        // N·H / |H|; H = 0 (light exactly behind the viewer) gives 0.
-        let c = ((n.x * hx + n.y * hy + n.z * hz) / h2.sqrt()).max(0.0);
-        let c = if h2 > 0.0 { c } else { 0.0 };
-        term_s[j] = vis[j] * pow_approx(c, shininess);
-    }
-    (diffuse, term_s[..count].iter().sum::<f32>() * inv_count)
+    terms
+}
+
+/// Averages over the light points of one hit point.
+struct SampledTerms {
+    /// max(0, N·L), weighted by visibility.
+    diffuse: f32,
+    /// max(0, N·L) without visibility (the ratio estimator's denominator).
+    unshadowed_diffuse: f32,
+    /// max(0, N·H)^shininess, weighted by visibility.
+    specular: f32,
 }
 
 /// Blinn–Phong specular factor max(0, N·H)^shininess, H = normalize(L + V).

@@ -27,10 +27,22 @@ pub const VOLUME_FRACTION: f64 = 0.05;
 /// keeps some reflected rays in the workload.
 const MATERIALS: [&str; 6] = ["white", "red", "green", "steel", "sand", "mirror"];
 
+/// Coordinates are rounded to millionths: short decimals survive a JSON
+/// round trip exactly (serde_json's default parser can be off by an ulp on
+/// 17-digit numbers), so a saved generated scene is the scene measured.
+const PER_UNIT: f64 = 1e6;
+const STEP: f64 = 1.0 / PER_UNIT;
+
+/// The double nearest to a multiple of a millionth (one correctly rounded
+/// division of an integer, so it prints as a short decimal).
+fn round(x: f64) -> f64 {
+    (x * PER_UNIT).round() / PER_UNIT
+}
+
 /// Radius of each of `n` spheres filling [`VOLUME_FRACTION`] of the room.
 pub fn sphere_radius(n: usize) -> f64 {
     let volume: f64 = (0..3).map(|i| ROOM_MAX[i] - ROOM_MIN[i]).product();
-    (3.0 * VOLUME_FRACTION * volume / (4.0 * std::f64::consts::PI * n.max(1) as f64)).cbrt()
+    round((3.0 * VOLUME_FRACTION * volume / (4.0 * std::f64::consts::PI * n.max(1) as f64)).cbrt())
 }
 
 /// The seed room with `n` random spheres instead of its boxes and sphere.
@@ -41,15 +53,17 @@ pub fn spheres_in_room(n: usize, seed: u64) -> SceneDesc {
     desc.objects
         .retain(|o| matches!(o, ObjectDesc::Plane(_) | ObjectDesc::Rect(_)));
     let radius = sphere_radius(n);
-    // A hair of clearance so that rounding never puts a sphere on a wall.
-    let clearance = radius * (1.0 + 1e-6);
+    // Clearance for the rounding of the centres, so that no sphere touches
+    // a wall.
+    let clearance = radius + 2.0 * STEP;
     let mut rng = Rng::new(seed);
     let mut uniform =
         |lo: f64, hi: f64| lo + (hi - lo) * (rng.next_u64() >> 11) as f64 / (1u64 << 53) as f64;
     desc.objects.reserve(n);
     for _ in 0..n {
-        let center: [f64; 3] =
-            std::array::from_fn(|i| uniform(ROOM_MIN[i] + clearance, ROOM_MAX[i] - clearance));
+        let center: [f64; 3] = std::array::from_fn(|i| {
+            round(uniform(ROOM_MIN[i] + clearance, ROOM_MAX[i] - clearance))
+        });
         let material =
             MATERIALS[(uniform(0.0, MATERIALS.len() as f64) as usize).min(MATERIALS.len() - 1)];
         desc.objects.push(ObjectDesc::Sphere(SphereDesc {

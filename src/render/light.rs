@@ -26,9 +26,14 @@ impl AreaLight {
 
     /// Whether a point is on the emitting side (strictly in front of the
     /// light's plane); points behind or in the plane get no direct light.
+    /// "In the plane" includes the rounding of the distance (a few ulps of
+    /// the coordinates): otherwise a surface flush with a light that is not
+    /// axis-aligned would be lit at random points.
     #[inline]
     pub fn illuminates(&self, p: DVec3) -> bool {
-        self.shape.signed_distance(p) > 0.0
+        let c = self.shape.corner;
+        let magnitude = p.abs().max_element() + c.abs().max_element() + (p - c).abs().max_element();
+        self.shape.signed_distance(p) > 64.0 * f64::EPSILON * magnitude
     }
 
     /// The report's "optimal" light point for a point `p` looking along

@@ -1,5 +1,34 @@
 //! Small numeric helpers shared by the core.
 
+/// Defines `fn $name(args) -> ret` that runs `$body_fn(args)` compiled for
+/// 8-wide AVX2 vectors when the CPU has them, and the baseline (SSE2) build
+/// otherwise. The hot loops are plain scalar code written for the
+/// vectorizer; only the vector width changes (no FMA contraction), so both
+/// give bit-identical results. `$body_fn` must be `#[inline(always)]`.
+macro_rules! avx2_dispatch {
+    ($(#[$meta:meta])* $vis:vis fn $name:ident($($arg:ident: $ty:ty),* $(,)?) -> $ret:ty => $body_fn:ident) => {
+        $(#[$meta])*
+        $vis fn $name($($arg: $ty),*) -> $ret {
+            #[cfg(target_arch = "x86_64")]
+            {
+                #[target_feature(enable = "avx2")]
+                fn avx2($($arg: $ty),*) -> $ret {
+                    $body_fn($($arg),*)
+                }
+                if std::arch::is_x86_feature_detected!("avx2") {
+                    // SAFETY: the CPU supports AVX2, checked just above.
+                    return unsafe { avx2($($arg),*) };
+                }
+            }
+            $body_fn($($arg),*)
+        }
+    };
+    ($(#[$meta:meta])* $vis:vis fn $name:ident($($arg:ident: $ty:ty),* $(,)?) => $body_fn:ident) => {
+        avx2_dispatch!($(#[$meta])* $vis fn $name($($arg: $ty),*) -> () => $body_fn);
+    };
+}
+pub(crate) use avx2_dispatch;
+
 use glam::DVec3;
 
 /// Normalizes any finite non-zero vector without overflow or underflow

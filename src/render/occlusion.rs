@@ -27,6 +27,7 @@
 use glam::{DVec3, Vec3};
 
 use super::geometry::{Aabb, Shape};
+use super::math::avx2_dispatch;
 use super::scene::Scene;
 use super::stats::RayStats;
 
@@ -163,19 +164,7 @@ impl Occluder {
 
     /// Clears `vis[j]` for every ray that this occluder blocks.
     fn block(&self, dx: &[f32], dy: &[f32], dz: &[f32], vis: &mut [f32]) {
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU supports AVX2, checked just above.
-            return unsafe { self.block_avx2(dx, dy, dz, vis) };
-        }
-        self.block_generic(dx, dy, dz, vis)
-    }
-
-    /// `block` compiled for 8-wide vectors; bit-identical results (no FMA).
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    fn block_avx2(&self, dx: &[f32], dy: &[f32], dz: &[f32], vis: &mut [f32]) {
-        self.block_generic(dx, dy, dz, vis)
+        block(self, dx, dy, dz, vis)
     }
 
     #[inline(always)]
@@ -511,36 +500,12 @@ pub fn visibility(
     }
 }
 
-/// Directions from the hit point to the light points, and 1 in `vis` for
-/// those in front of the surface; returns how many are.
-fn light_directions(
-    to_corner: Vec3,
-    eu: Vec3,
-    ev: Vec3,
-    n: Vec3,
-    count: usize,
-    buf: &mut ShadowBuffers,
-) -> u64 {
-    #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") {
-        // SAFETY: the CPU supports AVX2, checked just above.
-        return unsafe { light_directions_avx2(to_corner, eu, ev, n, count, buf) };
-    }
-    light_directions_generic(to_corner, eu, ev, n, count, buf)
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-fn light_directions_avx2(
-    to_corner: Vec3,
-    eu: Vec3,
-    ev: Vec3,
-    n: Vec3,
-    count: usize,
-    buf: &mut ShadowBuffers,
-) -> u64 {
-    light_directions_generic(to_corner, eu, ev, n, count, buf)
-}
+avx2_dispatch!(
+    /// Directions from the hit point to the light points, and 1 in `vis` for
+    /// those in front of the surface; returns how many are.
+    fn light_directions(to_corner: Vec3, eu: Vec3, ev: Vec3, n: Vec3, count: usize, buf: &mut ShadowBuffers) -> u64
+        => light_directions_generic
+);
 
 #[inline(always)]
 fn light_directions_generic(
@@ -575,4 +540,14 @@ fn light_directions_generic(
     }
     // Exact: a sum of ones and zeros below 2²⁴.
     vis.iter().sum::<f32>() as u64
+}
+
+avx2_dispatch!(
+    /// Clears `vis[j]` for every ray that `occ` blocks.
+    fn block(occ: &Occluder, dx: &[f32], dy: &[f32], dz: &[f32], vis: &mut [f32]) => block_generic
+);
+
+#[inline(always)]
+fn block_generic(occ: &Occluder, dx: &[f32], dy: &[f32], dz: &[f32], vis: &mut [f32]) {
+    occ.block_generic(dx, dy, dz, vis)
 }

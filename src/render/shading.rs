@@ -4,7 +4,7 @@
 use glam::{DVec3, Vec3};
 
 use super::analytic;
-use super::math::pow_approx;
+use super::math::{avx2_dispatch, pow_approx};
 use super::occlusion::{self, ShadowBuffers, ShadowQuery};
 use super::rng::Rng;
 use super::sampling::Pattern;
@@ -119,37 +119,14 @@ pub fn shade(
 /// each point's contribution, then a sum in a fixed order — so the result
 /// does not depend on whether visibility came from tracing or skipping.
 /// The buffers are padded to a multiple of eight with invisible points.
-fn sampled_terms(
+avx2_dispatch!(fn sampled_terms(
     n: Vec3,
     v: Vec3,
     shininess: f32,
     need_s: bool,
     count: usize,
     buf: &mut ShadowBuffers,
-) -> SampledTerms {
-    #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") {
-        // SAFETY: the CPU supports AVX2, checked just above.
-        return unsafe { sampled_terms_avx2(n, v, shininess, need_s, count, buf) };
-    }
-    sampled_terms_generic(n, v, shininess, need_s, count, buf)
-}
-
-/// The same loops compiled for 8-wide AVX2 vectors. Only the vector width
-/// changes (no FMA contraction), so results are bit-identical to the
-/// baseline build's.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-fn sampled_terms_avx2(
-    n: Vec3,
-    v: Vec3,
-    shininess: f32,
-    need_s: bool,
-    count: usize,
-    buf: &mut ShadowBuffers,
-) -> SampledTerms {
-    sampled_terms_generic(n, v, shininess, need_s, count, buf)
-}
+) -> SampledTerms => sampled_terms_generic);
 
 #[inline(always)]
 fn sampled_terms_generic(

@@ -212,38 +212,9 @@ impl Bvh {
         }
     }
 
-    /// Calls `visit` for every object whose leaf bounds pass `overlaps`,
-    /// pruning subtrees whose bounds fail it.
-    pub fn for_each_overlapping(
-        &self,
-        overlaps: impl Fn(&Aabb) -> bool,
-        mut visit: impl FnMut(u32),
-    ) {
-        if self.nodes.is_empty() {
-            return;
-        }
-        let mut stack = [0u32; 64];
-        let mut sp = 1;
-        while sp > 0 {
-            sp -= 1;
-            let n = &self.nodes[stack[sp] as usize];
-            if !overlaps(&n.bounds) {
-                continue;
-            }
-            if n.count > 0 {
-                for &obj in &self.items[n.first as usize..(n.first + n.count) as usize] {
-                    visit(obj);
-                }
-            } else {
-                stack[sp] = n.first;
-                stack[sp + 1] = n.first + 1;
-                sp += 2;
-            }
-        }
-    }
-
-    /// Like [`Bvh::for_each_overlapping`], but visiting the child nearer to
-    /// `origin` first, and stopping as soon as `visit` returns false.
+    /// Calls `visit` for every object in a leaf whose bounds pass
+    /// `overlaps`, pruning subtrees that fail it; visits the child nearer to
+    /// `origin` first and stops as soon as `visit` returns false.
     pub fn visit_near_first(
         &self,
         origin: DVec3,

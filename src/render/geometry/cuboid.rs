@@ -63,13 +63,7 @@ impl Cuboid {
         if near > far {
             return None;
         }
-        if near > 0.0 && near < t_max {
-            Some(near)
-        } else if far > 0.0 && far < t_max {
-            Some(far)
-        } else {
-            None
-        }
+        super::first_in_range(near, far, t_max)
     }
 
     pub fn surface(&self, ray: &Ray, t: f64) -> SurfacePoint {

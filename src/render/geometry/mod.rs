@@ -80,3 +80,16 @@ impl Shape {
         true
     }
 }
+
+/// The first of `near <= far` (entry and exit of a convex shape) inside
+/// (0, t_max): the entry, or the exit for a ray starting inside.
+#[inline]
+fn first_in_range(near: f64, far: f64, t_max: f64) -> Option<f64> {
+    if near > 0.0 && near < t_max {
+        Some(near)
+    } else if far > 0.0 && far < t_max {
+        Some(far)
+    } else {
+        None
+    }
+}

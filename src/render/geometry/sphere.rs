@@ -27,13 +27,7 @@ impl Sphere {
         let q = b + b.signum() * disc.sqrt();
         let (t0, t1) = if q == 0.0 { (0.0, 0.0) } else { (c / q, q) };
         let (near, far) = if t0 <= t1 { (t0, t1) } else { (t1, t0) };
-        if near > 0.0 && near < t_max {
-            Some(near)
-        } else if far > 0.0 && far < t_max {
-            Some(far)
-        } else {
-            None
-        }
+        super::first_in_range(near, far, t_max)
     }
 
     pub fn surface(&self, ray: &Ray, t: f64) -> SurfacePoint {

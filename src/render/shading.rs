@@ -111,15 +111,16 @@ pub fn shade(
     colour
 }
 
-/// `sampled` model: the diffuse factor max(0, N·L) and the specular factor
-/// max(0, N·H)^shininess averaged over the light points, each weighted by
-/// its visibility.
-///
-/// Written for the vectorizer: one branch-free loop per term that writes
-/// each point's contribution, then a sum in a fixed order — so the result
-/// does not depend on whether visibility came from tracing or skipping.
-/// The buffers are padded to a multiple of eight with invisible points.
-avx2_dispatch!(fn sampled_terms(
+avx2_dispatch!(
+    /// `sampled` model: the diffuse factor max(0, N·L) and the specular factor
+    /// max(0, N·H)^shininess averaged over the light points, each weighted by
+    /// its visibility.
+    ///
+    /// Written for the vectorizer: one branch-free loop per term that writes
+    /// each point's contribution, then a sum in a fixed order — so the result
+    /// does not depend on whether visibility came from tracing or skipping.
+    /// The buffers are padded to a multiple of eight with invisible points.
+    fn sampled_terms(
     n: Vec3,
     v: Vec3,
     shininess: f32,

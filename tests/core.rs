@@ -214,7 +214,6 @@ fn image_is_identical_for_any_thread_count_and_pass_schedule() {
             threads: Some(2),
             progressive: true,
             tile_size: 24,
-            ..Default::default()
         },
     );
     assert!(one.film == two.film, "1 vs 2 threads");

@@ -8,7 +8,7 @@ use glam::DVec3;
 use crate::render::scene_file::CameraDesc;
 
 /// Radians of orbit per point dragged.
-const ORBIT_SPEED: f64 = 0.008;
+const ORBIT_SPEED: f64 = 0.004;
 /// Zoom factor per point of wheel scroll.
 const ZOOM_SPEED: f64 = 0.002;
 

@@ -41,13 +41,25 @@ pub fn controls_ui(
     let mut changed = false;
 
     ui.horizontal_wrapped(|ui| {
-        if ui.button("Open…").on_hover_text("Open a scene file (or drop one on the window)").clicked() {
+        if ui
+            .button("Open…")
+            .on_hover_text("Open a scene file (or drop one on the window)")
+            .clicked()
+        {
             out.action = Some(Action::OpenScene);
         }
-        if ui.button("Save PNG…").on_hover_text("Ctrl+S: the image at the scene's full resolution").clicked() {
+        if ui
+            .button("Save PNG…")
+            .on_hover_text("Ctrl+S: the image at the scene's full resolution")
+            .clicked()
+        {
             out.action = Some(Action::SavePng);
         }
-        if ui.button("Save scene…").on_hover_text("Write these settings as a scene file").clicked() {
+        if ui
+            .button("Save scene…")
+            .on_hover_text("Write these settings as a scene file")
+            .clicked()
+        {
             out.action = Some(Action::SaveScene);
         }
         if ui.button("Reset view").clicked() {
@@ -86,7 +98,11 @@ pub fn controls_ui(
                 }
                 ui.add_enabled_ui(on, |ui| {
                     if ui
-                        .add(Slider::new(&mut view.shininess, 1.0..=1000.0).logarithmic(true).text("Shininess"))
+                        .add(
+                            Slider::new(&mut view.shininess, 1.0..=1000.0)
+                                .logarithmic(true)
+                                .text("Shininess"),
+                        )
                         .changed()
                     {
                         desc.render.shininess_override = Some(view.shininess);
@@ -102,7 +118,11 @@ pub fn controls_ui(
             let r = &mut desc.render;
             changed |= ui.checkbox(&mut r.shadows, "Shadows").changed();
             changed |= ui
-                .add(Slider::new(&mut r.shadow_rays, 1..=1024).logarithmic(true).text("Shadow rays"))
+                .add(
+                    Slider::new(&mut r.shadow_rays, 1..=1024)
+                        .logarithmic(true)
+                        .text("Shadow rays"),
+                )
                 .on_hover_text("Shadow rays per hit point (the final pass)")
                 .changed();
             egui::ComboBox::from_label("Sampling")
@@ -112,20 +132,35 @@ pub fn controls_ui(
                         changed |= ui.selectable_value(&mut r.sampling, s, s.name()).changed();
                     }
                 });
+            changed |= ui
+                .checkbox(&mut r.adaptive, "Adaptive shadow rays")
+                .on_hover_text(
+                    "A few probe rays first, the rest only where they disagree (faster, biased)",
+                )
+                .changed();
             egui::ComboBox::from_label("Area-light model")
                 .selected_text(r.area_light_model.name())
                 .show_ui(ui, |ui| {
                     for m in AreaLightModel::ALL {
-                        changed |= ui.selectable_value(&mut r.area_light_model, m, m.name()).changed();
+                        changed |= ui
+                            .selectable_value(&mut r.area_light_model, m, m.name())
+                            .changed();
                     }
                 });
             changed |= ui.checkbox(&mut view.reflections, "Reflections").changed();
             ui.add_enabled_ui(view.reflections, |ui| {
-                changed |= ui.add(Slider::new(&mut r.max_depth, 1..=16).text("Max depth")).changed();
+                changed |= ui
+                    .add(Slider::new(&mut r.max_depth, 1..=16).text("Max depth"))
+                    .changed();
             });
             changed |= ui
-                .add(Slider::new(&mut view.resolution_scale, ViewSettings::SCALE_RANGE).text("Resolution scale"))
-                .on_hover_text("Preview size relative to the scene's camera; export is always full size")
+                .add(
+                    Slider::new(&mut view.resolution_scale, ViewSettings::SCALE_RANGE)
+                        .text("Resolution scale"),
+                )
+                .on_hover_text(
+                    "Preview size relative to the scene's camera; export is always full size",
+                )
                 .changed();
         });
 
@@ -145,23 +180,37 @@ pub fn controls_ui(
 fn light_ui(ui: &mut Ui, desc: &mut SceneDesc) -> bool {
     let l = &mut desc.light;
     let len = |v: [f64; 3]| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-    let mut centre: [f64; 3] = std::array::from_fn(|i| l.corner[i] + 0.5 * (l.edge_u[i] + l.edge_v[i]));
+    let mut centre: [f64; 3] =
+        std::array::from_fn(|i| l.corner[i] + 0.5 * (l.edge_u[i] + l.edge_v[i]));
     let (mut w, mut d) = (len(l.edge_u), len(l.edge_v));
     let mut changed = false;
     ui.horizontal(|ui| {
         ui.label("Centre");
         for (c, name) in centre.iter_mut().zip(["x", "y", "z"]) {
             changed |= ui
-                .add(egui::DragValue::new(c).speed(0.02).prefix(format!("{name} ")).max_decimals(3))
+                .add(
+                    egui::DragValue::new(c)
+                        .speed(0.02)
+                        .prefix(format!("{name} "))
+                        .max_decimals(3),
+                )
                 .changed();
         }
     });
     // Sizes are relative to the light's own edges, so any light works.
     changed |= ui
-        .add(Slider::new(&mut w, 0.01..=20.0).logarithmic(true).text("Light width"))
+        .add(
+            Slider::new(&mut w, 0.01..=20.0)
+                .logarithmic(true)
+                .text("Light width"),
+        )
         .changed();
     changed |= ui
-        .add(Slider::new(&mut d, 0.01..=20.0).logarithmic(true).text("Light depth"))
+        .add(
+            Slider::new(&mut d, 0.01..=20.0)
+                .logarithmic(true)
+                .text("Light depth"),
+        )
         .changed();
     if ui.button("Square").on_hover_text("Depth = width").clicked() {
         d = w;
@@ -169,13 +218,9 @@ fn light_ui(ui: &mut Ui, desc: &mut SceneDesc) -> bool {
     }
     if changed {
         let (lu, lv) = (len(l.edge_u), len(l.edge_v));
-        for i in 0..3 {
-            l.edge_u[i] *= w / lu;
-            l.edge_v[i] *= d / lv;
-        }
-        for i in 0..3 {
-            l.corner[i] = centre[i] - 0.5 * (l.edge_u[i] + l.edge_v[i]);
-        }
+        l.edge_u = l.edge_u.map(|x| x * w / lu);
+        l.edge_v = l.edge_v.map(|x| x * d / lv);
+        l.corner = std::array::from_fn(|i| centre[i] - 0.5 * (l.edge_u[i] + l.edge_v[i]));
     }
     ui.horizontal(|ui| {
         ui.label("Diffuse intensity");
@@ -213,7 +258,11 @@ fn material_ui(ui: &mut Ui, state: &mut ControlsState, desc: &mut SceneDesc) -> 
         }
     });
     changed |= ui
-        .add(Slider::new(&mut m.shininess, 1.0..=1000.0).logarithmic(true).text("Material shininess"))
+        .add(
+            Slider::new(&mut m.shininess, 1.0..=1000.0)
+                .logarithmic(true)
+                .text("Material shininess"),
+        )
         .changed();
     changed |= ui
         .add(Slider::new(&mut m.reflectivity, 0.0..=1.0).text("Reflectivity"))

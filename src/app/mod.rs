@@ -1,7 +1,62 @@
 //! The egui viewer (only UI; rendering lives in `crate::render`).
+//!
+//! - [`viewer`]: the app state and its frame.
+//! - [`render_job`]: the worker thread, cancellation and tile streaming.
+//! - [`controls`], [`camera_control`], [`status`]: the panels and the mouse.
+//! - [`settings`]: viewer toggles that map onto the scene description.
+//! - [`file_dialog`], [`export`], [`watch`]: files in and out.
+//! - [`timings`]: the `--log-timings` figures.
+
+pub mod camera_control;
+pub mod controls;
+pub mod export;
+pub mod file_dialog;
+pub mod render_job;
+pub mod settings;
+pub mod status;
+pub mod timings;
+pub mod viewer;
+pub mod watch;
+
+use std::time::Duration;
+
+pub use viewer::{PickInfo, Viewer, ViewerOptions};
 
 use crate::cli::ViewArgs;
+use crate::render::SceneDesc;
+use crate::render::scene::SEED_ROOM_JSON;
 
-pub fn run(_args: &ViewArgs) -> Result<(), String> {
-    Err("the viewer is not built yet; use `penumbra render`".into())
+impl ViewerOptions {
+    /// Reads the scene named on the command line (the seed room if none).
+    pub fn from_args(args: &ViewArgs) -> Result<ViewerOptions, String> {
+        let desc = match &args.scene {
+            Some(p) => SceneDesc::load(p).map_err(|e| e.to_string())?,
+            None => SceneDesc::from_json(SEED_ROOM_JSON).map_err(|e| e.to_string())?,
+        };
+        Ok(ViewerOptions {
+            desc,
+            scene_path: args.scene.clone(),
+            log_timings: args.log_timings,
+            wiggle: args.wiggle.map(Duration::from_secs_f64),
+        })
+    }
+}
+
+/// Opens the viewer window and runs it until it is closed.
+pub fn run(args: &ViewArgs) -> Result<(), String> {
+    let options = ViewerOptions::from_args(args)?;
+    let native = eframe::NativeOptions {
+        viewport: egui::ViewportBuilder::default()
+            .with_title("penumbra")
+            .with_inner_size([1500.0, 860.0])
+            .with_min_inner_size([640.0, 400.0])
+            .with_drag_and_drop(true),
+        ..Default::default()
+    };
+    eframe::run_native(
+        "penumbra",
+        native,
+        Box::new(move |_cc| Ok(Box::new(Viewer::new(options)))),
+    )
+    .map_err(|e| format!("cannot open the viewer window: {e}"))
 }

@@ -30,12 +30,13 @@ pub struct TileMsg {
     pub tiles_total: usize,
 }
 
-/// How the render of one generation ended (or that it has not).
+/// How the render of one generation ended (or that it has not). Cheap to
+/// clone: the status bar asks for it every frame.
 #[derive(Debug, Clone)]
 pub enum JobState {
     /// Waiting in the mailbox or running.
     Running,
-    Finished(Box<FinishedRender>),
+    Finished(Arc<FinishedRender>),
     /// The worker panicked or the scene was refused; the message says why.
     Failed(String),
     /// A newer request replaced it.
@@ -46,7 +47,8 @@ pub enum JobState {
 #[derive(Debug, Clone)]
 pub struct FinishedRender {
     pub desc: SceneDesc,
-    pub film: Film,
+    /// Shared with a pending export, which writes it without a copy.
+    pub film: Arc<Film>,
     pub traced_rays: u64,
     pub elapsed: Duration,
 }
@@ -70,9 +72,13 @@ struct Shared {
     /// Linear image of the latest generation, written tile by tile (for
     /// picking and for exporting a finished render).
     film: Option<(u64, Film)>,
+    /// The runtime scene being rendered (for picking under the cursor).
+    scene: Option<(u64, Arc<Scene>)>,
     tiles: Vec<TileMsg>,
     state: Option<(u64, JobState)>,
     shutdown: bool,
+    /// Renders the worker has started (requests it skipped are not counted).
+    started: u64,
     /// Test hook: the next render panics inside a tile callback.
     panic_next: bool,
 }
@@ -108,7 +114,10 @@ impl RenderJob {
         let worker = inner.clone();
         let thread = std::thread::Builder::new()
             .name("penumbra-render".into())
-            .spawn(move || worker_loop(&worker))
+            .spawn(move || match render_pool() {
+                Some(pool) => pool.install(|| worker_loop(&worker)),
+                None => worker_loop(&worker),
+            })
             .expect("spawn the render thread");
         RenderJob {
             inner,
@@ -177,6 +186,15 @@ impl RenderJob {
         }
     }
 
+    /// The runtime scene of the latest generation, once the worker built it.
+    pub fn scene(&self) -> Option<Arc<Scene>> {
+        let s = self.inner.lock();
+        match &s.scene {
+            Some((g, scene)) if *g == s.latest => Some(scene.clone()),
+            _ => None,
+        }
+    }
+
     /// Blocks until the newest request has ended; false on timeout. For
     /// tests and scripts, never called from the UI.
     pub fn wait(&self, timeout: Duration) -> bool {
@@ -198,6 +216,11 @@ impl RenderJob {
                 .unwrap_or_else(|e| e.into_inner())
                 .0;
         }
+    }
+
+    /// How many renders the worker started (stale requests are skipped).
+    pub fn renders_started(&self) -> u64 {
+        self.inner.lock().started
     }
 
     /// Test hook: makes the next render panic in a worker thread.
@@ -223,6 +246,31 @@ impl Drop for RenderJob {
     }
 }
 
+/// The viewer's own rayon pool, one thread per core, each at a lower
+/// scheduling priority than the UI thread: the render takes every idle
+/// cycle, but a UI frame never waits behind it for a core.
+fn render_pool() -> Option<rayon::ThreadPool> {
+    rayon::ThreadPoolBuilder::new()
+        .thread_name(|i| format!("penumbra-tile-{i}"))
+        .start_handler(|_| lower_priority())
+        .build()
+        .ok()
+}
+
+#[cfg(target_os = "linux")]
+fn lower_priority() {
+    // On Linux `setpriority` with a thread id sets that thread's nice value;
+    // failing (e.g. under a sandbox) only leaves the default priority.
+    // SAFETY: plain system calls on the calling thread, no pointers.
+    unsafe {
+        let tid = libc::syscall(libc::SYS_gettid) as libc::id_t;
+        libc::setpriority(libc::PRIO_PROCESS, tid, 10);
+    }
+}
+
+#[cfg(not(target_os = "linux"))]
+fn lower_priority() {}
+
 fn worker_loop(inner: &Inner) {
     loop {
         let (req, panic_now) = {
@@ -237,6 +285,7 @@ fn worker_loop(inner: &Inner) {
                     let size = (req.desc.camera.width, req.desc.camera.height);
                     s.film = Some((req.generation, Film::new(size.0, size.1)));
                     let panic_now = std::mem::take(&mut s.panic_next);
+                    s.started += 1;
                     break (req, panic_now);
                 }
                 s = inner.wake.wait(s).unwrap_or_else(|e| e.into_inner());
@@ -247,11 +296,11 @@ fn worker_loop(inner: &Inner) {
         // generation with an error message; the thread and the window live on.
         let result = std::panic::catch_unwind(AssertUnwindSafe(|| run_one(inner, &req, panic_now)));
         let state = match result {
-            Ok(Ok(Some(report))) => JobState::Finished(Box::new(FinishedRender {
+            Ok(Ok(Some(report))) => JobState::Finished(Arc::new(FinishedRender {
                 desc: req.desc,
                 traced_rays: report.stats.traced(),
                 elapsed: report.elapsed,
-                film: report.film,
+                film: Arc::new(report.film),
             })),
             Ok(Ok(None)) => JobState::Cancelled,
             Ok(Err(msg)) => JobState::Failed(msg),
@@ -274,7 +323,8 @@ fn worker_loop(inner: &Inner) {
 
 /// Runs one request: `Ok(None)` if cancelled, `Err` if the scene is refused.
 fn run_one(inner: &Inner, req: &Request, panic_now: bool) -> Result<Option<RenderReport>, String> {
-    let scene = Scene::new(req.desc.clone()).map_err(|e| e.to_string())?;
+    let scene = Arc::new(Scene::new(req.desc.clone()).map_err(|e| e.to_string())?);
+    inner.lock().scene = Some((req.generation, scene.clone()));
     let options = RenderOptions {
         threads: None,
         progressive: true,

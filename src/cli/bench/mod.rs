@@ -85,18 +85,39 @@ pub struct BenchArgs {
     /// Seed of the sphere generator.
     #[arg(long, default_value_t = 1)]
     pub sphere_seed: u64,
+    /// With --spheres: also write each generated scene as DIR/spheres-N.json
+    /// (to render or view it).
+    #[arg(long, value_name = "DIR")]
+    pub save_scenes: Option<PathBuf>,
     /// With --spheres: time each N at the scene's own settings (no sweep)
     /// and print the ratio of the largest N to the smallest.
     #[arg(long)]
     pub scaling: bool,
+    /// Leave adaptive shadow rays out of the sweep (by default every
+    /// configuration is also measured with `render.adaptive` on, to show
+    /// its error next to its time).
+    #[arg(long)]
+    pub no_adaptive: bool,
     /// Also render every configuration with skipping switched off: time,
     /// speed-up and the RMSE between the two images (expected 0).
     #[arg(long)]
     pub no_skip: bool,
+    /// Time axis of the plot: the median wall time, or the median CPU time
+    /// divided by the threads (the wall time with the cores to itself:
+    /// steadier on a machine shared with other work).
+    #[arg(long, value_enum, default_value_t = PlotTime::Wall)]
+    pub plot_time: PlotTime,
     /// Measure the speed targets of issue 4 (1920×1080 and 960×540 at 64
     /// grid rays, depth 4; skip on against off; peak memory).
     #[arg(long)]
     pub target: bool,
+}
+
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum PlotTime {
+    #[default]
+    Wall,
+    Cpu,
 }
 
 /// `penumbra bench`.
@@ -185,6 +206,12 @@ pub fn scenes(args: &BenchArgs) -> Result<Vec<BenchScene>, CliError> {
                 s.desc.render.seed = seed;
             }
             s.desc.validate().map_err(CliError::input)?;
+            if let (Some(dir), Some(_)) = (&args.save_scenes, &args.spheres) {
+                let path = dir.join(format!("{}.json", s.name));
+                std::fs::create_dir_all(dir)
+                    .and_then(|_| std::fs::write(&path, s.desc.to_json()))
+                    .map_err(|e| CliError::other(format!("{}: {e}", path.display())))?;
+            }
             Ok(s)
         })
         .collect()
@@ -205,10 +232,13 @@ pub fn render_once(scene: &Scene) -> RenderReport {
 }
 
 /// A scene rendered `runs` times: the first report (every run gives the
-/// same image and counts) and the wall times, sorted.
+/// same image and counts), the wall times and the CPU times, each sorted.
 pub struct Timed {
     pub report: RenderReport,
     pub times: Vec<Duration>,
+    /// CPU time of all the process's threads per run (empty where
+    /// `/proc` is missing).
+    pub cpu: Vec<Duration>,
 }
 
 impl Timed {
@@ -218,16 +248,48 @@ impl Timed {
     pub fn min(&self) -> Duration {
         self.times[0]
     }
+    /// Median CPU time: on a machine shared with other work it varies far
+    /// less than the wall time, and CPU time / threads estimates the wall
+    /// time the render would take with the cores to itself.
+    pub fn median_cpu(&self) -> Option<Duration> {
+        (!self.cpu.is_empty()).then(|| median(&self.cpu))
+    }
 }
 
 pub fn timed(scene: &Scene, runs: u32) -> Timed {
-    let report = render_once(scene);
-    let mut times = vec![report.elapsed];
-    for _ in 1..runs.max(1) {
-        times.push(render_once(scene).elapsed);
+    let mut report = None;
+    let mut times = Vec::new();
+    let mut cpu = Vec::new();
+    for _ in 0..runs.max(1) {
+        let before = cpu_time();
+        let r = render_once(scene);
+        if let (Some(a), Some(b)) = (before, cpu_time()) {
+            cpu.push(b.saturating_sub(a));
+        }
+        times.push(r.elapsed);
+        report.get_or_insert(r);
     }
     times.sort();
-    Timed { report, times }
+    cpu.sort();
+    if cpu.len() != times.len() {
+        cpu.clear();
+    }
+    Timed {
+        report: report.expect("at least one run"),
+        times,
+        cpu,
+    }
+}
+
+/// CPU time used so far by all live threads of this process (Linux:
+/// nanoseconds on CPU from /proc/self/task/*/schedstat).
+pub fn cpu_time() -> Option<Duration> {
+    let mut ns = 0u64;
+    for task in std::fs::read_dir("/proc/self/task").ok()? {
+        let text = std::fs::read_to_string(task.ok()?.path().join("schedstat")).ok()?;
+        ns += text.split_whitespace().next()?.parse::<u64>().ok()?;
+    }
+    Some(Duration::from_nanos(ns))
 }
 
 /// Median of sorted durations (mean of the middle two for an even count).

@@ -1,5 +1,5 @@
-//! The sweep's plot: RMSE against wall time, both logarithmic, one line
-//! per sampling pattern and area-light model.
+//! The sweep's plot: RMSE against time, both logarithmic, one panel per
+//! area-light model and one line per sampling pattern (and adaptive mode).
 
 use std::path::Path;
 use std::sync::OnceLock;
@@ -7,12 +7,11 @@ use std::sync::OnceLock;
 use plotters::prelude::*;
 use plotters::style::FontStyle;
 
-use super::CliError;
 use super::sweep::Row;
+use super::{CliError, PlotTime};
 use crate::render::output::write_rgb8;
 use crate::render::{AreaLightModel, Sampling};
 
-const SIZE: (u32, u32) = (1100, 760);
 const FONT: &str = "sans-serif";
 
 /// Colours by pattern (index in `Sampling::ALL`, cycling for new ones).
@@ -54,21 +53,38 @@ fn index_of<T: PartialEq>(all: &[T], x: &T) -> usize {
     all.iter().position(|a| a == x).unwrap_or(0)
 }
 
-/// Writes the plot of `rows` as a PNG.
-pub fn plot(path: &Path, title: &str, rows: &[Row]) -> Result<(), CliError> {
+/// Panel size; one panel per area-light model, up to three in a row.
+const PANEL: (u32, u32) = (640, 700);
+const TITLE_HEIGHT: u32 = 44;
+
+/// Writes the plot of `rows` as a PNG: one panel per area-light model,
+/// one line per sampling pattern (dashed with hollow markers: adaptive),
+/// on shared axes. `time` picks the x axis (CPU time is divided by
+/// `threads`).
+pub fn plot(
+    path: &Path,
+    title: &str,
+    rows: &[Row],
+    time: PlotTime,
+    threads: usize,
+) -> Result<(), CliError> {
     register_font()?;
     let fail = |e: &dyn std::fmt::Display| CliError::other(format!("plot: {e}"));
+    let x_of = |r: &Row| match time {
+        PlotTime::Wall => r.time_s,
+        PlotTime::Cpu => r.cpu_s / threads.max(1) as f64,
+    };
     // Log axes cannot show a zero error or time.
     let points: Vec<&Row> = rows
         .iter()
-        .filter(|r| r.rmse > 0.0 && r.rmse.is_finite() && r.time_s > 0.0)
+        .filter(|r| r.rmse > 0.0 && r.rmse.is_finite() && x_of(r) > 0.0)
         .collect();
     if points.is_empty() {
         return Err(CliError::other(
             "plot: no configuration with a time and an error > 0",
         ));
     }
-    let fold = |f: fn(&Row) -> f64| {
+    let fold = |f: &dyn Fn(&Row) -> f64| {
         points
             .iter()
             .map(|r| f(r))
@@ -76,92 +92,114 @@ pub fn plot(path: &Path, title: &str, rows: &[Row]) -> Result<(), CliError> {
                 (lo.min(v), hi.max(v))
             })
     };
-    let (t0, t1) = fold(|r| r.time_s);
-    let (e0, e1) = fold(|r| r.rmse);
-    let x_range = (t0 / 1.5)..(t1 * 1.5);
-    let y_range = (e0 / 1.5)..(e1 * 1.5);
-
-    let mut buf = vec![0u8; (SIZE.0 * SIZE.1 * 3) as usize];
-    {
-        let root = BitMapBackend::with_buffer(&mut buf, SIZE).into_drawing_area();
-        root.fill(&WHITE).map_err(|e| fail(&e))?;
-        let mut chart = ChartBuilder::on(&root)
-            .caption(title, (FONT, 24))
-            .margin(18)
-            .x_label_area_size(56)
-            .y_label_area_size(84)
-            .build_cartesian_2d(x_range.log_scale(), y_range.log_scale())
-            .map_err(|e| fail(&e))?;
-        chart
-            .configure_mesh()
-            .x_desc("wall time per image, s (median)")
-            .y_desc("RMSE against the converged reference (linear RGB)")
-            .x_label_formatter(&|x| format_tick(*x))
-            .y_label_formatter(&|y| format!("{y:.0e}"))
-            .label_style((FONT, 16))
-            .axis_desc_style((FONT, 18))
-            .draw()
-            .map_err(|e| fail(&e))?;
-        let mut series: Vec<(Sampling, AreaLightModel)> = Vec::new();
-        for r in &points {
-            if !series.contains(&(r.sampling, r.model)) {
-                series.push((r.sampling, r.model));
-            }
+    let (t0, t1) = fold(&x_of);
+    let (e0, e1) = fold(&|r| r.rmse);
+    let mut models: Vec<AreaLightModel> = Vec::new();
+    for r in &points {
+        if !models.contains(&r.model) {
+            models.push(r.model);
         }
-        for (sampling, model) in series {
-            // Joined in the order swept (growing ray count), so that noisy
-            // times show as kinks rather than scrambling the line.
-            let line: Vec<(f64, f64)> = points
-                .iter()
-                .filter(|r| r.sampling == sampling && r.model == model)
-                .map(|r| (r.time_s, r.rmse))
-                .collect();
-            let colour = COLOURS[index_of(&Sampling::ALL, &sampling) % COLOURS.len()];
-            let model_index = index_of(&AreaLightModel::ALL, &model);
-            let style = colour.stroke_width(2);
-            let label = format!("{} / {}", sampling.name(), model.name());
-            // Solid for the first model, dashed for the others.
-            if model_index == 0 {
+    }
+    let cols = models.len().clamp(1, 3);
+    let grid_rows = models.len().div_ceil(cols);
+    let size = (
+        PANEL.0 * cols as u32,
+        PANEL.1 * grid_rows as u32 + TITLE_HEIGHT,
+    );
+
+    let mut buf = vec![0u8; (size.0 * size.1 * 3) as usize];
+    {
+        let root = BitMapBackend::with_buffer(&mut buf, size).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| fail(&e))?;
+        let body = root.titled(title, (FONT, 26)).map_err(|e| fail(&e))?;
+        let panels = body.split_evenly((grid_rows, cols));
+        for (panel, &model) in panels.iter().zip(&models) {
+            let mut chart = ChartBuilder::on(panel)
+                .caption(format!("model: {}", model.name()), (FONT, 22))
+                .margin(14)
+                .x_label_area_size(52)
+                .y_label_area_size(78)
+                .build_cartesian_2d(
+                    ((t0 / 1.5)..(t1 * 1.5)).log_scale(),
+                    ((e0 / 1.5)..(e1 * 1.5)).log_scale(),
+                )
+                .map_err(|e| fail(&e))?;
+            chart
+                .configure_mesh()
+                .x_desc(match time {
+                    PlotTime::Wall => "wall time per image, s (median)",
+                    PlotTime::Cpu => "CPU time per image / threads, s (median)",
+                })
+                .y_desc("RMSE against the converged reference")
+                .x_label_formatter(&|x| format_tick(*x))
+                .y_label_formatter(&|y| format!("{y:.0e}"))
+                .label_style((FONT, 15))
+                .axis_desc_style((FONT, 17))
+                .draw()
+                .map_err(|e| fail(&e))?;
+            let mut series: Vec<(Sampling, bool)> = Vec::new();
+            for r in points.iter().filter(|r| r.model == model) {
+                if !series.contains(&(r.sampling, r.adaptive)) {
+                    series.push((r.sampling, r.adaptive));
+                }
+            }
+            for (sampling, adaptive) in series {
+                // Joined in the order swept (growing ray count), so that
+                // noisy times show as kinks rather than scrambling the line.
+                let line: Vec<(f64, f64)> = points
+                    .iter()
+                    .filter(|r| {
+                        r.model == model && r.sampling == sampling && r.adaptive == adaptive
+                    })
+                    .map(|r| (x_of(r), r.rmse))
+                    .collect();
+                let colour = COLOURS[index_of(&Sampling::ALL, &sampling) % COLOURS.len()];
+                let style = colour.stroke_width(2);
+                let label = if adaptive {
+                    format!("{} + adaptive", sampling.name())
+                } else {
+                    sampling.name().to_string()
+                };
+                if adaptive {
+                    chart
+                        .draw_series(DashedLineSeries::new(line.clone(), 7, 5, style))
+                        .map_err(|e| fail(&e))?
+                        .label(label)
+                        .legend(move |(x, y)| {
+                            EmptyElement::at((x, y))
+                                + PathElement::new(vec![(0, 0), (9, 0)], style)
+                                + PathElement::new(vec![(15, 0), (24, 0)], style)
+                        });
+                } else {
+                    chart
+                        .draw_series(LineSeries::new(line.clone(), style))
+                        .map_err(|e| fail(&e))?
+                        .label(label)
+                        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], style));
+                }
                 chart
-                    .draw_series(LineSeries::new(line.clone(), style))
-                    .map_err(|e| fail(&e))?
-                    .label(label)
-                    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], style));
-            } else {
-                let dash = (10 / model_index as u32).max(2);
-                chart
-                    .draw_series(DashedLineSeries::new(line.clone(), dash, 6, style))
-                    .map_err(|e| fail(&e))?
-                    .label(label)
-                    .legend(move |(x, y)| {
-                        EmptyElement::at((x, y))
-                            + PathElement::new(vec![(0, 0), (9, 0)], style)
-                            + PathElement::new(vec![(15, 0), (24, 0)], style)
-                    });
+                    .draw_series(line.iter().map(|&p| {
+                        let marker = if adaptive {
+                            colour.stroke_width(2)
+                        } else {
+                            colour.filled()
+                        };
+                        Circle::new(p, 4, marker)
+                    }))
+                    .map_err(|e| fail(&e))?;
             }
             chart
-                .draw_series(line.iter().map(|&p| {
-                    // Filled markers for the first model, hollow for others.
-                    let marker = if model_index == 0 {
-                        colour.filled()
-                    } else {
-                        colour.stroke_width(2)
-                    };
-                    Circle::new(p, 4, marker)
-                }))
+                .configure_series_labels()
+                .position(SeriesLabelPosition::UpperRight)
+                .label_font((FONT, 15))
+                .background_style(WHITE.mix(0.85))
+                .border_style(BLACK)
+                .draw()
                 .map_err(|e| fail(&e))?;
         }
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
-            .label_font((FONT, 16))
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK)
-            .draw()
-            .map_err(|e| fail(&e))?;
         root.present().map_err(|e| fail(&e))?;
     }
-    write_rgb8(path, SIZE.0, SIZE.1, &buf).map_err(CliError::other)
+    write_rgb8(path, size.0, size.1, &buf).map_err(CliError::other)
 }
 
 /// Tick labels of the time axis: short and without trailing noise.

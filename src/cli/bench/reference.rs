@@ -42,6 +42,8 @@ pub fn reference_desc(desc: &SceneDesc, model: AreaLightModel, rays: u32) -> Sce
     d.render.shadow_rays = rays;
     d.render.seed = REFERENCE_SEED;
     d.render.area_light_model = model;
+    // The converged answer is the unbiased one.
+    d.render.adaptive = false;
     d
 }
 

@@ -12,6 +12,8 @@ pub struct ScalingRow {
     pub radius: f64,
     pub build_s: f64,
     pub time_s: f64,
+    /// Median CPU seconds of all threads (NaN if unknown).
+    pub cpu_s: f64,
     pub rays_traced: u64,
 }
 
@@ -37,8 +39,17 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
         );
     }
     println!(
-        "{:>8} {:>8} {:>9} {:>10} {:>9} {:>7} {:>9}",
-        "spheres", "radius", "build ms", "render ms", "traced", "Mray/s", "vs first"
+        "{:>8} {:>8} {:>9} {:>10} {:>9} {:>9} {:>7} {:>10} {:>9} {:>9}",
+        "spheres",
+        "radius",
+        "build ms",
+        "render ms",
+        "cpu ms",
+        "traced",
+        "Mray/s",
+        "cpu ns/ray",
+        "vs first",
+        "cpu vs first"
     );
     let mut rows: Vec<ScalingRow> = Vec::new();
     for (scene, &n) in scenes.iter().zip(counts) {
@@ -51,29 +62,36 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
             radius: sphere_radius(n as usize),
             build_s,
             time_s: t.median().as_secs_f64(),
+            cpu_s: t.median_cpu().map_or(f64::NAN, |c| c.as_secs_f64()),
             rays_traced: t.report.final_stats.traced(),
         };
-        let first = rows.first().map_or(row.time_s, |f| f.time_s);
+        let first = rows.first().copied().unwrap_or(row);
         println!(
-            "{:>8} {:>8.4} {:>9.2} {:>10.2} {:>9} {:>7.1} {:>8.2}×",
+            "{:>8} {:>8.4} {:>9.2} {:>10.2} {:>9.2} {:>9} {:>7.1} {:>10.1} {:>8.2}× {:>8.2}×",
             row.spheres,
             row.radius,
             row.build_s * 1e3,
             row.time_s * 1e3,
+            row.cpu_s * 1e3,
             si(row.rays_traced),
             row.rays_traced as f64 / row.time_s / 1e6,
-            row.time_s / first
+            row.cpu_s * 1e9 / row.rays_traced.max(1) as f64,
+            row.time_s / first.time_s,
+            row.cpu_s / first.cpu_s
         );
         rows.push(row);
     }
     let lo = rows.iter().min_by_key(|r| r.spheres);
     let hi = rows.iter().max_by_key(|r| r.spheres);
-    if let (Some(lo), Some(hi)) = (lo, hi) {
+    if let (Some(lo), Some(hi)) = (lo, hi)
+        && lo.spheres != hi.spheres
+    {
         println!(
-            "time ratio N={} / N={}: {:.2} (target ≤ 4 for 10000 / 10)",
+            "time ratio N={} / N={}: {:.2} wall, {:.2} CPU (target ≤ 4 for 10000 / 10)",
             hi.spheres,
             lo.spheres,
-            hi.time_s / lo.time_s
+            hi.time_s / lo.time_s,
+            hi.cpu_s / lo.cpu_s
         );
     }
     Ok(())

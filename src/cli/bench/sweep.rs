@@ -22,6 +22,8 @@ pub struct SweepPlan {
     pub samplings: Vec<Sampling>,
     pub models: Vec<AreaLightModel>,
     pub counts: Vec<u32>,
+    /// Adaptive shadow rays off and/or on (`render.adaptive`).
+    pub adaptive: Vec<bool>,
     pub runs: u32,
     /// Also render with skipping off.
     pub no_skip: bool,
@@ -43,6 +45,11 @@ impl SweepPlan {
             samplings: Sampling::ALL.to_vec(),
             models: AreaLightModel::ALL.to_vec(),
             counts,
+            adaptive: if args.no_adaptive {
+                vec![false]
+            } else {
+                vec![false, true]
+            },
             runs: args.runs.unwrap_or(3),
             no_skip: args.no_skip,
             reference_rays: args.reference_rays,
@@ -57,6 +64,7 @@ impl SweepPlan {
             samplings: Sampling::ALL.to_vec(),
             models: AreaLightModel::ALL.to_vec(),
             counts: counts.to_vec(),
+            adaptive: vec![false],
             runs: 1,
             no_skip: false,
             reference_rays: REFERENCE_RAYS,
@@ -81,12 +89,17 @@ pub struct NoSkip {
 pub struct Row {
     pub sampling: Sampling,
     pub model: AreaLightModel,
+    /// Adaptive shadow rays (biased: a few first, the rest where they
+    /// disagree).
+    pub adaptive: bool,
     pub shadow_rays: u32,
     pub points_per_hit: usize,
     pub runs: u32,
     /// Median and fastest wall time, seconds.
     pub time_s: f64,
     pub time_min_s: f64,
+    /// Median CPU seconds of all threads (NaN if unknown).
+    pub cpu_s: f64,
     pub stats: RayStats,
     pub rmse: f64,
     pub psnr: f64,
@@ -122,12 +135,17 @@ pub fn run_sweep(
             cached: reference.cached,
             secs: reference.elapsed.as_secs_f64(),
         });
-        for &sampling in &plan.samplings {
+        for (&sampling, &adaptive) in plan
+            .samplings
+            .iter()
+            .flat_map(|s| plan.adaptive.iter().map(move |a| (s, a)))
+        {
             for &shadow_rays in &plan.counts {
                 let mut d = desc.clone();
                 d.render.sampling = sampling;
                 d.render.shadow_rays = shadow_rays;
                 d.render.area_light_model = model;
+                d.render.adaptive = adaptive;
                 let on = timed(&build(&d, true)?, plan.runs);
                 let c = compare(&on.report.film, &reference.film).map_err(CliError::other)?;
                 let no_skip = if plan.no_skip {
@@ -146,11 +164,13 @@ pub fn run_sweep(
                 let row = Row {
                     sampling,
                     model,
+                    adaptive,
                     shadow_rays,
                     points_per_hit: points_per_hit(sampling, shadow_rays),
                     runs: plan.runs,
                     time_s: on.median().as_secs_f64(),
                     time_min_s: on.min().as_secs_f64(),
+                    cpu_s: on.median_cpu().map_or(f64::NAN, |d| d.as_secs_f64()),
                     stats: on.report.final_stats,
                     rmse: c.rmse,
                     psnr: c.psnr,
@@ -176,18 +196,20 @@ pub enum Progress<'a> {
 }
 
 /// The CSV's columns, in order.
-pub const CSV_COLUMNS: [&str; 27] = [
+pub const CSV_COLUMNS: [&str; 30] = [
     "scene",
     "width",
     "height",
     "max_depth",
     "sampling",
     "model",
+    "adaptive",
     "shadow_rays",
     "points_per_hit",
     "runs",
     "time_s",
     "time_min_s",
+    "cpu_s",
     "rays_traced",
     "camera_rays",
     "shadow_traced",
@@ -196,6 +218,7 @@ pub const CSV_COLUMNS: [&str; 27] = [
     "shadow_unoccluded",
     "shadow_umbra",
     "shadow_unneeded",
+    "shadow_adaptive",
     "reflected_culled",
     "mray_per_s",
     "rmse",
@@ -228,17 +251,19 @@ pub fn csv(scene: &str, desc: &SceneDesc, rows: &[Row]) -> String {
             .collect();
         let _ = writeln!(
             out,
-            "{name},{},{},{},{},{},{},{},{},{:.6},{:.6},{},{},{},{},{},{},{},{},{},{:.3},{:e},{:.3},{nt},{nr},{nd},{nm}",
+            "{name},{},{},{},{},{},{},{},{},{},{:.6},{:.6},{:.6},{},{},{},{},{},{},{},{},{},{},{:.3},{:e},{:.3},{nt},{nr},{nd},{nm}",
             desc.camera.width,
             desc.camera.height,
             desc.render.max_depth,
             r.sampling.name(),
             r.model.name(),
+            r.adaptive,
             r.shadow_rays,
             r.points_per_hit,
             r.runs,
             r.time_s,
             r.time_min_s,
+            r.cpu_s,
             s.traced(),
             s.camera,
             s.shadow,
@@ -247,6 +272,7 @@ pub fn csv(scene: &str, desc: &SceneDesc, rows: &[Row]) -> String {
             s.shadow_unoccluded,
             s.shadow_umbra,
             s.shadow_unneeded,
+            s.shadow_adaptive,
             s.reflected_culled,
             r.mrays(),
             r.rmse,
@@ -272,12 +298,14 @@ pub fn table(rows: &[Row]) -> String {
     let no_skip = rows.iter().any(|r| r.no_skip.is_some());
     let _ = write!(
         out,
-        "{:<10} {:<13} {:>5} {:>5} {:>9} {:>8} {:>7} {:>10} {:>7} | skipped: {:>7} {:>7} {:>7} {:>7} {:>6}",
+        "{:<12} {:<13} {:>4} {:>5} {:>5} {:>9} {:>9} {:>8} {:>7} {:>10} {:>7} | skipped: {:>7} {:>7} {:>7} {:>7} {:>7} {:>6}",
         "sampling",
         "model",
+        "adap",
         "rays",
         "pts",
         "time ms",
+        "cpu ms",
         "traced",
         "Mray/s",
         "rmse",
@@ -286,6 +314,7 @@ pub fn table(rows: &[Row]) -> String {
         "unocc",
         "umbra",
         "unneed",
+        "adapt",
         "culled"
     );
     if no_skip {
@@ -300,12 +329,14 @@ pub fn table(rows: &[Row]) -> String {
         let s = &r.stats;
         let _ = write!(
             out,
-            "{:<10} {:<13} {:>5} {:>5} {:>9.2} {:>8} {:>7.1} {:>10.3e} {:>7.2} | skipped: {:>7} {:>7} {:>7} {:>7} {:>6}",
+            "{:<12} {:<13} {:>4} {:>5} {:>5} {:>9.2} {:>9.2} {:>8} {:>7.1} {:>10.3e} {:>7.2} | skipped: {:>7} {:>7} {:>7} {:>7} {:>7} {:>6}",
             r.sampling.name(),
             r.model.name(),
+            if r.adaptive { "on" } else { "off" },
             r.shadow_rays,
             r.points_per_hit,
             r.time_s * 1e3,
+            r.cpu_s * 1e3,
             si(s.traced()),
             r.mrays(),
             r.rmse,
@@ -314,6 +345,7 @@ pub fn table(rows: &[Row]) -> String {
             si(s.shadow_unoccluded),
             si(s.shadow_umbra),
             si(s.shadow_unneeded),
+            si(s.shadow_adaptive),
             si(s.reflected_culled),
         );
         if let Some(n) = &r.no_skip {
@@ -380,9 +412,10 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
                 }
             }
             Progress::Row(r) => eprintln!(
-                "  {} {} {}: {:.2} ms, rmse {:.3e}",
+                "  {} {}{} {}: {:.2} ms, rmse {:.3e}",
                 r.sampling.name(),
                 r.model.name(),
+                if r.adaptive { " adaptive" } else { "" },
                 r.shadow_rays,
                 r.time_s * 1e3,
                 r.rmse
@@ -416,7 +449,13 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
             plan.counts.iter().max().unwrap_or(&0),
             plan.runs
         );
-        super::plot::plot(&plot_path, &title, &rows)?;
+        super::plot::plot(
+            &plot_path,
+            &title,
+            &rows,
+            args.plot_time,
+            rayon::current_num_threads(),
+        )?;
         println!("wrote {} and {}", csv_path.display(), plot_path.display());
     }
     Ok(())

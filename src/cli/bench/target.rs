@@ -35,11 +35,12 @@ fn verdict(ok: bool) -> &'static str {
 /// The rays each skip answered or saved, one per line.
 pub fn savings(s: &RayStats) -> String {
     format!(
-        "  shadow rays behind the surface (backfacing): {}\n  shadow rays with no possible occluder (unoccluded): {}\n  shadow rays inside one occluder's umbra: {}\n  shadow rays no term needed (unneeded): {}\n  reflected rays below the path weight (culled): {}\n  traced {} of {} rays ({:.1}% skipped)",
+        "  shadow rays behind the surface (backfacing): {}\n  shadow rays with no possible occluder (unoccluded): {}\n  shadow rays inside one occluder's umbra: {}\n  shadow rays no term needed (unneeded): {}\n  shadow rays left out by adaptive sampling: {}\n  reflected rays below the path weight (culled): {}\n  traced {} of {} rays ({:.1}% skipped)",
         si(s.shadow_backfacing),
         si(s.shadow_unoccluded),
         si(s.shadow_umbra),
         si(s.shadow_unneeded),
+        si(s.shadow_adaptive),
         si(s.reflected_culled),
         si(s.traced()),
         si(s.effective()),
@@ -88,6 +89,17 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
     };
     let mr_full = per_core(&full_on, false);
     let mr_half = per_core(&half_on, false);
+    // Load-robust companions: CPU time / threads is the wall time with the
+    // cores to ourselves; rays per CPU-second are rays per second per core.
+    let idle = |t: &Timed| {
+        t.median_cpu()
+            .map_or(f64::NAN, |c| c.as_secs_f64() / threads as f64)
+    };
+    let per_cpu_s = |t: &Timed| {
+        t.median_cpu().map_or(f64::NAN, |c| {
+            t.report.final_stats.traced() as f64 / c.as_secs_f64() / 1e6
+        })
+    };
     println!();
     println!(
         "{:<48} {:>14} {:>10} {:>4}",
@@ -108,6 +120,20 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
         verdict(t_half <= HALF_HD_GOAL_S)
     );
     println!(
+        "{:<48} {:>12.3} s {:>8} s {:>4}",
+        "  CPU time / threads, 1920×1080",
+        idle(&full_on),
+        FULL_HD_GOAL_S,
+        verdict(idle(&full_on) <= FULL_HD_GOAL_S)
+    );
+    println!(
+        "{:<48} {:>12.3} s {:>8} s {:>4}",
+        "  CPU time / threads, 960×540",
+        idle(&half_on),
+        HALF_HD_GOAL_S,
+        verdict(idle(&half_on) <= HALF_HD_GOAL_S)
+    );
+    println!(
         "{:<48} {:>14.1} {:>10} {:>4}",
         "traced Mray/s per core, 1920×1080",
         mr_full,
@@ -120,6 +146,20 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
         mr_half,
         MRAYS_PER_CORE_GOAL,
         verdict(mr_half >= MRAYS_PER_CORE_GOAL)
+    );
+    println!(
+        "{:<48} {:>14.1} {:>10} {:>4}",
+        "  traced Mray per CPU-second, 1920×1080",
+        per_cpu_s(&full_on),
+        MRAYS_PER_CORE_GOAL,
+        verdict(per_cpu_s(&full_on) >= MRAYS_PER_CORE_GOAL)
+    );
+    println!(
+        "{:<48} {:>14.1} {:>10} {:>4}",
+        "  traced Mray per CPU-second, 960×540",
+        per_cpu_s(&half_on),
+        MRAYS_PER_CORE_GOAL,
+        verdict(per_cpu_s(&half_on) >= MRAYS_PER_CORE_GOAL)
     );
     println!(
         "{:<48} {:>14.1} {:>10} {:>4}",
@@ -172,8 +212,9 @@ fn report_line(label: &str, t: &Timed, threads: usize) {
         .iter()
         .map(|d| format!("{:.3}", d.as_secs_f64()))
         .collect();
+    let cpu = t.median_cpu().map_or(f64::NAN, |c| c.as_secs_f64());
     println!(
-        "{label}: median {secs:.3} s (runs {} s), {} rays traced, {:.1} Mray/s ({:.1} per core)",
+        "{label}: median {secs:.3} s (runs {} s), CPU {cpu:.3} s, {} rays traced, {:.1} Mray/s ({:.1} per core)",
         times.join(" "),
         si(s.traced()),
         s.traced() as f64 / secs / 1e6,

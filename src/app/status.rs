@@ -1,0 +1,120 @@
+//! The status bar: pass k of n, shadow samples per hit, elapsed time, ray
+//! throughput and the current pass's progress.
+
+use std::time::{Duration, Instant};
+
+use super::render_job::{JobState, TileMsg};
+use crate::render::Sampling;
+use crate::render::sampling::points_per_hit;
+
+/// Progress of the render on screen, as seen from the tiles shown.
+#[derive(Debug, Clone)]
+pub struct Progress {
+    pub started: Instant,
+    pub sampling: Sampling,
+    pub pass_index: usize,
+    pub pass_count: usize,
+    pub shadow_rays: u32,
+    pub tiles_done: usize,
+    pub tiles_total: usize,
+    /// Set when the render ended: its time and rays traced (all passes).
+    pub finished: Option<(Duration, u64)>,
+}
+
+impl Progress {
+    pub fn new(sampling: Sampling) -> Progress {
+        Progress {
+            started: Instant::now(),
+            sampling,
+            pass_index: 0,
+            pass_count: 0,
+            shadow_rays: 0,
+            tiles_done: 0,
+            tiles_total: 0,
+            finished: None,
+        }
+    }
+
+    pub fn on_tile(&mut self, t: &TileMsg) {
+        // Tiles of one pass arrive in any order; keep the furthest.
+        if (t.pass_index, t.tiles_done) >= (self.pass_index, self.tiles_done)
+            || self.pass_count == 0
+        {
+            self.pass_index = t.pass_index;
+            self.tiles_done = t.tiles_done;
+        }
+        self.pass_count = t.pass_count;
+        self.tiles_total = t.tiles_total;
+        if t.pass_index == self.pass_index {
+            self.shadow_rays = t.shadow_rays;
+        }
+    }
+}
+
+pub fn status_ui(
+    ui: &mut egui::Ui,
+    progress: &Progress,
+    state: &JobState,
+    exporting: Option<&str>,
+) {
+    ui.horizontal(|ui| {
+        match state {
+            JobState::Failed(_) => {
+                ui.colored_label(ui.visuals().error_fg_color, "render failed");
+            }
+            JobState::Cancelled => {
+                ui.label("cancelled");
+            }
+            _ => {}
+        }
+        if progress.pass_count > 0 {
+            ui.label(format!(
+                "pass {} of {}",
+                progress.pass_index + 1,
+                progress.pass_count
+            ));
+            ui.separator();
+            ui.label(format!(
+                "{} samples/hit",
+                points_per_hit(progress.sampling, progress.shadow_rays.max(1))
+            ));
+            ui.separator();
+        }
+        let elapsed = match progress.finished {
+            Some((d, _)) => d,
+            None => progress.started.elapsed(),
+        };
+        ui.label(format!("{:.2} s", elapsed.as_secs_f64()));
+        ui.separator();
+        match progress.finished {
+            Some((d, rays)) => {
+                ui.label(format!(
+                    "{:.1} Mray/s",
+                    rays as f64 / d.as_secs_f64().max(1e-9) / 1e6
+                ));
+            }
+            None => {
+                ui.label("— Mray/s")
+                    .on_hover_text("Shown when the render finishes");
+            }
+        }
+        ui.separator();
+        if let Some(what) = exporting {
+            ui.spinner();
+            ui.label(what);
+            ui.separator();
+        }
+        let fraction = if progress.finished.is_some() {
+            1.0
+        } else if progress.tiles_total > 0 {
+            progress.tiles_done as f32 / progress.tiles_total as f32
+        } else {
+            0.0
+        };
+        ui.add(
+            egui::ProgressBar::new(fraction)
+                .desired_width(ui.available_width().min(320.0))
+                .show_percentage(),
+        );
+    });
+}

@@ -1,0 +1,623 @@
+//! The viewer's state and frame: the edited scene, the texture the tiles
+//! stream into, and the panels around it.
+//!
+//! One road for every parameter: a control edits `desc` (or `view`), then
+//! [`Viewer::restart`] renders `view.apply(&desc)` on the worker. Nothing
+//! renders on the UI thread, and nothing here waits for the worker.
+
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use egui::{Color32, ColorImage, Key, Modifiers, Sense, TextureHandle, TextureOptions, Ui};
+
+use super::camera_control::camera_input;
+use super::controls::{Action, ControlsState, controls_ui};
+use super::export::IoTasks;
+use super::file_dialog::{DialogResult, PathDialog, Purpose};
+use super::render_job::{JobState, RenderJob};
+use super::settings::ViewSettings;
+use super::status::{Progress, status_ui};
+use super::timings::Timings;
+use super::watch::SceneWatcher;
+use crate::render::scene::HitTarget;
+use crate::render::scene_file::CameraDesc;
+use crate::render::{Film, SceneDesc};
+
+/// Background of the image area and of an image not yet rendered.
+const EMPTY: Color32 = Color32::from_rgb(24, 24, 24);
+
+/// How the viewer starts.
+#[derive(Debug, Clone)]
+pub struct ViewerOptions {
+    pub desc: SceneDesc,
+    /// The scene file, watched for changes; `None` for the built-in room.
+    pub scene_path: Option<PathBuf>,
+    pub log_timings: bool,
+    /// Change a slider by itself at this interval (for measuring
+    /// `--log-timings` without a person at the mouse).
+    pub wiggle: Option<Duration>,
+}
+
+impl ViewerOptions {
+    /// Options for a scene description, nothing else switched on.
+    pub fn new(desc: SceneDesc) -> ViewerOptions {
+        ViewerOptions {
+            desc,
+            scene_path: None,
+            log_timings: false,
+            wiggle: None,
+        }
+    }
+}
+
+/// What a double-click on the image found.
+#[derive(Debug, Clone)]
+pub struct PickInfo {
+    pub pixel: (u32, u32),
+    /// "objects[3] (box)", "the light" or "background".
+    pub what: String,
+    pub material: Option<String>,
+    pub linear_rgb: Option<[f32; 3]>,
+}
+
+pub struct Viewer {
+    /// The scene as edited, at its own resolution.
+    desc: SceneDesc,
+    /// The scene as last read from its file (to tell what a reload changed).
+    file_desc: Option<SceneDesc>,
+    home_camera: CameraDesc,
+    view: ViewSettings,
+    controls: ControlsState,
+    scene_path: Option<PathBuf>,
+    watcher: Option<SceneWatcher>,
+    job: Option<RenderJob>,
+    texture: Option<TextureHandle>,
+    /// What the texture holds, kept on the CPU (for tests and resizes).
+    shown: ColorImage,
+    progress: Progress,
+    /// Generation whose end (finished or failed) was already handled.
+    handled: u64,
+    banner: Option<String>,
+    /// The banner shows a failed render (cleared by the next good one).
+    banner_from_render: bool,
+    notice: Option<String>,
+    dialog: Option<PathDialog>,
+    io: IoTasks,
+    pick: Option<PickInfo>,
+    timings: Timings,
+    wiggle: Option<(Duration, Instant, u32)>,
+}
+
+impl Viewer {
+    pub fn new(options: ViewerOptions) -> Viewer {
+        let desc = options.desc;
+        let shown = ColorImage::filled(
+            [desc.camera.width as usize, desc.camera.height as usize],
+            EMPTY,
+        );
+        Viewer {
+            home_camera: desc.camera.clone(),
+            view: ViewSettings::for_scene(&desc),
+            progress: Progress::new(desc.render.sampling),
+            file_desc: options.scene_path.as_ref().map(|_| desc.clone()),
+            desc,
+            controls: ControlsState::default(),
+            scene_path: options.scene_path,
+            watcher: None,
+            job: None,
+            texture: None,
+            shown,
+            handled: 0,
+            banner: None,
+            banner_from_render: false,
+            notice: None,
+            dialog: None,
+            io: IoTasks::default(),
+            pick: None,
+            timings: Timings::new(options.log_timings),
+            wiggle: options.wiggle.map(|d| (d, Instant::now(), 0)),
+        }
+    }
+
+    // ----- API for tests and scripts -------------------------------------
+
+    /// The scene as edited (full resolution, toggles not applied).
+    pub fn desc(&self) -> &SceneDesc {
+        &self.desc
+    }
+
+    /// Edits the scene as a control would; the render restarts.
+    pub fn edit(&mut self, f: impl FnOnce(&mut SceneDesc, &mut ViewSettings)) {
+        f(&mut self.desc, &mut self.view);
+        self.restart();
+    }
+
+    pub fn view_settings(&self) -> &ViewSettings {
+        &self.view
+    }
+
+    /// The scene the renderer would get now (toggles and scale applied).
+    pub fn render_desc(&self) -> SceneDesc {
+        self.view.apply(&self.desc, false)
+    }
+
+    /// Generation of the latest render request (0 before the first frame).
+    pub fn render_generation(&self) -> u64 {
+        self.job.as_ref().map_or(0, RenderJob::generation)
+    }
+
+    /// The description the worker took last, with its generation.
+    pub fn worker_desc(&self) -> Option<(u64, SceneDesc)> {
+        self.job.as_ref().and_then(RenderJob::running_desc)
+    }
+
+    /// How many renders the worker actually started.
+    pub fn renders_started(&self) -> u64 {
+        self.job.as_ref().map_or(0, RenderJob::renders_started)
+    }
+
+    /// Blocks until the latest render ended (tests only; the UI never
+    /// waits). False on timeout.
+    pub fn wait_for_render(&self, timeout: Duration) -> bool {
+        self.job.as_ref().is_some_and(|j| j.wait(timeout))
+    }
+
+    /// The latest render's linear image, once it finished.
+    pub fn finished_film(&self) -> Option<Film> {
+        match self.job.as_ref()?.state() {
+            JobState::Finished(f) => Some((*f.film).clone()),
+            _ => None,
+        }
+    }
+
+    pub fn render_state(&self) -> Option<JobState> {
+        self.job.as_ref().map(RenderJob::state)
+    }
+
+    /// What the texture shows (sRGB bytes as uploaded).
+    pub fn shown_image(&self) -> &ColorImage {
+        &self.shown
+    }
+
+    pub fn banner(&self) -> Option<&str> {
+        self.banner.as_deref()
+    }
+
+    pub fn notice(&self) -> Option<&str> {
+        self.notice.as_deref()
+    }
+
+    pub fn pick(&self) -> Option<&PickInfo> {
+        self.pick.as_ref()
+    }
+
+    /// Waits for running saves (tests only) and shows their results.
+    pub fn wait_for_saves(&mut self, timeout: Duration) {
+        let results = self.io.wait_all(timeout);
+        self.show_results(results);
+    }
+
+    /// Test hook: the next render panics in a worker thread.
+    pub fn inject_worker_panic(&self) {
+        if let Some(j) = &self.job {
+            j.inject_panic();
+        }
+    }
+
+    // ----- actions -------------------------------------------------------
+
+    /// Cancels the running render and starts one of the current settings.
+    pub fn restart(&mut self) {
+        let Some(job) = &self.job else { return };
+        let desc = self.view.apply(&self.desc, false);
+        let size = (desc.camera.width, desc.camera.height);
+        self.progress = Progress::new(desc.render.sampling);
+        let generation = job.restart(desc);
+        self.timings.on_change(generation, size);
+        let shown_size = [size.0 as usize, size.1 as usize];
+        if self.shown.size != shown_size {
+            // A new size: start from an empty picture of it.
+            self.shown = ColorImage::filled(shown_size, EMPTY);
+            if let Some(t) = &mut self.texture {
+                t.set(self.shown.clone(), TextureOptions::LINEAR);
+            }
+        }
+    }
+
+    /// Opens a scene file; on failure the banner shows why and the current
+    /// scene stays.
+    pub fn open_scene(&mut self, ctx: &egui::Context, path: &Path) {
+        match SceneDesc::load(path) {
+            Ok(desc) => {
+                self.view = ViewSettings::for_scene(&desc);
+                self.home_camera = desc.camera.clone();
+                self.file_desc = Some(desc.clone());
+                self.desc = desc;
+                self.scene_path = Some(path.to_path_buf());
+                self.watch(ctx);
+                self.banner = None;
+                self.pick = None;
+                self.notice = Some(format!("opened {}", path.display()));
+                self.restart();
+            }
+            Err(e) => self.show_error(e.to_string()),
+        }
+    }
+
+    /// Reads the watched file again: the camera is kept unless the file's
+    /// camera changed; a bad file only shows the banner.
+    fn reload(&mut self) {
+        let Some(path) = self.scene_path.clone() else {
+            return;
+        };
+        match SceneDesc::load(&path) {
+            Ok(mut desc) => {
+                if self
+                    .file_desc
+                    .as_ref()
+                    .is_some_and(|old| old.camera == desc.camera)
+                {
+                    desc.camera = self.desc.camera.clone();
+                } else {
+                    self.home_camera = desc.camera.clone();
+                }
+                self.file_desc = Some(desc.clone());
+                self.desc = desc;
+                self.banner = None;
+                self.notice = Some(format!("reloaded {}", path.display()));
+                self.restart();
+            }
+            Err(e) => self.show_error(e.to_string()),
+        }
+    }
+
+    fn watch(&mut self, ctx: &egui::Context) {
+        self.watcher = None;
+        if let Some(path) = &self.scene_path {
+            match SceneWatcher::new(path, ctx.clone()) {
+                Ok(w) => self.watcher = Some(w),
+                Err(e) => self.notice = Some(e),
+            }
+        }
+    }
+
+    /// Writes the image at the scene's full resolution: the finished image
+    /// on screen if it is that, else a fresh render on a background thread.
+    pub fn save_png(&mut self, ctx: &egui::Context, mut path: PathBuf) {
+        if path.extension().is_none() {
+            path.set_extension("png");
+        }
+        let full = self.view.apply(&self.desc, true);
+        let film = match self.job.as_ref().map(RenderJob::state) {
+            Some(JobState::Finished(f)) if f.desc == full => Some(f.film.clone()),
+            _ => None,
+        };
+        self.io.save_png(ctx, full, film, path);
+    }
+
+    /// Writes the settings as a scene file that renders to the same image.
+    pub fn save_scene(&mut self, ctx: &egui::Context, mut path: PathBuf) {
+        if path.extension().is_none() {
+            path.set_extension("json");
+        }
+        let full = self.view.apply(&self.desc, true);
+        self.io.save_scene(ctx, &full, path);
+    }
+
+    fn reset_view(&mut self) {
+        self.desc.camera = self.home_camera.clone();
+        self.restart();
+    }
+
+    /// Shows an error that stays until dismissed or fixed.
+    fn show_error(&mut self, message: String) {
+        self.banner = Some(message);
+        self.banner_from_render = false;
+    }
+
+    fn show_results(&mut self, results: Vec<Result<String, String>>) {
+        for r in results {
+            match r {
+                Ok(msg) => self.notice = Some(msg),
+                Err(e) => self.show_error(e),
+            }
+        }
+    }
+
+    fn open_dialog(&mut self, purpose: Purpose) {
+        let suggested = match purpose {
+            Purpose::SavePng => PathBuf::from("penumbra.png"),
+            Purpose::SaveScene => self
+                .scene_path
+                .clone()
+                .unwrap_or_else(|| PathBuf::from("scene.json")),
+            Purpose::OpenScene => self.scene_path.clone().unwrap_or_default(),
+        };
+        self.dialog = Some(PathDialog::new(purpose, &suggested));
+    }
+
+    /// The open path dialog, if any (tests fill in its path).
+    pub fn dialog_mut(&mut self) -> Option<&mut PathDialog> {
+        self.dialog.as_mut()
+    }
+
+    // ----- the frame -----------------------------------------------------
+
+    /// Draws one frame. `cpu_usage` is eframe's CPU time of the previous
+    /// frame, when known (for `--log-timings`).
+    pub fn show(&mut self, ui: &mut Ui, cpu_usage: Option<f32>) {
+        let frame_start = Instant::now();
+        self.timings.begin_frame();
+        let ctx = ui.ctx().clone();
+        self.start(&ctx);
+        self.poll_inputs(&ctx);
+        self.stream_tiles();
+        self.check_render_end();
+
+        let mut changed = false;
+        let mut action = None;
+
+        if let Some(msg) = self.banner.clone() {
+            egui::Panel::top("banner")
+                .frame(
+                    egui::Frame::new()
+                        .fill(Color32::from_rgb(120, 24, 24))
+                        .inner_margin(6.0),
+                )
+                .show(ui, |ui| {
+                    ui.horizontal(|ui| {
+                        ui.colored_label(Color32::WHITE, format!("Error: {msg}"));
+                        if ui.small_button("Dismiss").clicked() {
+                            self.banner = None;
+                        }
+                    });
+                });
+        }
+        egui::Panel::bottom("status").show(ui, |ui| {
+            let state = self
+                .job
+                .as_ref()
+                .map_or(JobState::Running, RenderJob::state);
+            status_ui(ui, &self.progress, &state, self.io.busy());
+            if let Some(n) = &self.notice {
+                ui.label(egui::RichText::new(n).small().weak());
+            }
+        });
+        egui::Panel::left("controls")
+            .default_size(360.0)
+            .show(ui, |ui| {
+                egui::ScrollArea::vertical().show(ui, |ui| {
+                    if let Some(p) = &self.scene_path {
+                        ui.label(egui::RichText::new(p.display().to_string()).strong());
+                    } else {
+                        ui.label(egui::RichText::new("built-in seed room").strong());
+                    }
+                    let out = controls_ui(ui, &mut self.controls, &mut self.desc, &mut self.view);
+                    changed |= out.changed;
+                    action = out.action;
+                });
+            });
+        egui::CentralPanel::no_frame()
+            .frame(egui::Frame::new().fill(EMPTY))
+            .show(ui, |ui| changed |= self.image_ui(ui));
+
+        if ctx.input_mut(|i| i.consume_key(Modifiers::COMMAND, Key::S)) {
+            action = Some(Action::SavePng);
+        }
+        match action {
+            Some(Action::OpenScene) => self.open_dialog(Purpose::OpenScene),
+            Some(Action::SavePng) => self.open_dialog(Purpose::SavePng),
+            Some(Action::SaveScene) => self.open_dialog(Purpose::SaveScene),
+            Some(Action::ResetView) => self.reset_view(),
+            None => {}
+        }
+        if let Some(d) = &mut self.dialog {
+            match d.show(&ctx) {
+                DialogResult::Open => {}
+                DialogResult::Cancelled => self.dialog = None,
+                DialogResult::Chosen(purpose, path) => {
+                    self.dialog = None;
+                    match purpose {
+                        Purpose::OpenScene => self.open_scene(&ctx, &path),
+                        Purpose::SavePng => self.save_png(&ctx, path),
+                        Purpose::SaveScene => self.save_scene(&ctx, path),
+                    }
+                }
+            }
+        }
+        if changed {
+            self.pick = None;
+            self.restart();
+        }
+        if self.timings.wants_frame() {
+            ctx.request_repaint();
+        }
+        let rendering = self.progress.finished.is_none() && self.job.is_some();
+        self.timings
+            .end_frame(frame_start.elapsed(), cpu_usage, rendering);
+    }
+
+    /// First frame: the worker, the texture, the watcher, the first render.
+    fn start(&mut self, ctx: &egui::Context) {
+        if self.job.is_some() {
+            return;
+        }
+        self.job = Some(RenderJob::new(ctx.clone()));
+        self.texture = Some(ctx.load_texture("render", self.shown.clone(), TextureOptions::LINEAR));
+        self.watch(ctx);
+        self.restart();
+    }
+
+    /// Dropped files, the watched file, finished saves, the wiggle.
+    fn poll_inputs(&mut self, ctx: &egui::Context) {
+        let dropped: Vec<PathBuf> = ctx.input(|i| {
+            i.raw
+                .dropped_files
+                .iter()
+                .map(|f| f.path().to_path_buf())
+                .collect()
+        });
+        if let Some(path) = dropped.first() {
+            self.open_scene(ctx, path);
+        }
+        if let Some(w) = &self.watcher {
+            match w.poll() {
+                Ok(true) => self.reload(),
+                Ok(false) => {}
+                Err(wait) => ctx.request_repaint_after(wait),
+            }
+        }
+        let results = self.io.poll();
+        self.show_results(results);
+        if let Some((every, last, count)) = &mut self.wiggle {
+            if last.elapsed() >= *every && *count < 6 {
+                *last = Instant::now();
+                *count += 1;
+                // Alternate the ambient strength: a real slider change.
+                let t = &mut self.desc.render.terms.ambient;
+                *t = if *count % 2 == 1 { *t * 0.9 } else { *t / 0.9 };
+                self.restart();
+            }
+            if let Some((every, last, count)) = self.wiggle
+                && count < 6
+            {
+                ctx.request_repaint_after(every.saturating_sub(last.elapsed()));
+            }
+        }
+    }
+
+    /// Copies the finished tiles into the texture, rectangle by rectangle.
+    fn stream_tiles(&mut self) {
+        let Some(job) = &self.job else { return };
+        let tiles = job.take_tiles();
+        let Some(texture) = &mut self.texture else {
+            return;
+        };
+        for t in tiles {
+            let (x, y, w, h) = (
+                t.rect.x as usize,
+                t.rect.y as usize,
+                t.rect.w as usize,
+                t.rect.h as usize,
+            );
+            if x + w > self.shown.size[0] || y + h > self.shown.size[1] {
+                continue;
+            }
+            for row in 0..h {
+                let dst = (y + row) * self.shown.size[0] + x;
+                self.shown.pixels[dst..dst + w].copy_from_slice(&t.pixels[row * w..(row + 1) * w]);
+            }
+            self.progress.on_tile(&t);
+            self.timings.on_upload(t.generation);
+            let image = ColorImage::new([w, h], t.pixels);
+            texture.set_partial([x, y], image, TextureOptions::LINEAR);
+        }
+    }
+
+    /// The latest render's end: its figures, or its error in the banner.
+    fn check_render_end(&mut self) {
+        let Some(job) = &self.job else { return };
+        let generation = job.generation();
+        if self.handled == generation {
+            return;
+        }
+        match job.state() {
+            JobState::Finished(f) => {
+                self.progress.finished = Some((f.elapsed, f.traced_rays));
+                self.progress.tiles_done = self.progress.tiles_total;
+                self.handled = generation;
+                if std::mem::take(&mut self.banner_from_render) {
+                    self.banner = None;
+                }
+            }
+            JobState::Failed(msg) => {
+                self.banner = Some(msg);
+                self.banner_from_render = true;
+                self.progress.finished = Some((self.progress.started.elapsed(), 0));
+                self.handled = generation;
+            }
+            JobState::Running | JobState::Cancelled => {}
+        }
+    }
+
+    /// The image, fitted to the panel, with mouse camera control; true if
+    /// the camera moved.
+    fn image_ui(&mut self, ui: &mut Ui) -> bool {
+        let area = ui.available_rect_before_wrap();
+        let response = ui.allocate_rect(area, Sense::click_and_drag());
+        let [w, h] = self.shown.size;
+        let fit = (area.width() / w as f32).min(area.height() / h as f32);
+        let rect =
+            egui::Rect::from_center_size(area.center(), egui::vec2(w as f32, h as f32) * fit);
+        if let Some(t) = &self.texture {
+            ui.painter().image(
+                t.id(),
+                rect,
+                egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0)),
+                Color32::WHITE,
+            );
+        }
+        let moved = camera_input(ui, &response, &mut self.desc.camera, rect.height());
+        if response.double_clicked()
+            && let Some(pos) = response.interact_pointer_pos().or(response.hover_pos())
+            && rect.contains(pos)
+        {
+            let px = (((pos.x - rect.min.x) / fit) as u32).min(w as u32 - 1);
+            let py = (((pos.y - rect.min.y) / fit) as u32).min(h as u32 - 1);
+            self.pick = self.pick_at(px, py);
+        }
+        if let Some(p) = &self.pick {
+            let text = format!(
+                "pixel ({}, {}): {}{}\nlinear RGB {}",
+                p.pixel.0,
+                p.pixel.1,
+                p.what,
+                p.material
+                    .as_ref()
+                    .map(|m| format!(", material \"{m}\""))
+                    .unwrap_or_default(),
+                p.linear_rgb
+                    .map(|c| format!("({:.4}, {:.4}, {:.4})", c[0], c[1], c[2]))
+                    .unwrap_or_else(|| "not rendered yet".into()),
+            );
+            egui::Area::new(egui::Id::unique("penumbra-pick"))
+                .fixed_pos(rect.left_top() + egui::vec2(8.0, 8.0))
+                .show(ui.ctx(), |ui| {
+                    egui::Frame::popup(ui.style()).show(ui, |ui| {
+                        ui.label(text);
+                        if ui.small_button("close").clicked() {
+                            self.pick = None;
+                        }
+                    });
+                });
+        }
+        moved
+    }
+
+    /// What the rendered scene shows at a pixel of the image.
+    fn pick_at(&self, px: u32, py: u32) -> Option<PickInfo> {
+        let job = self.job.as_ref()?;
+        let scene = job.scene()?;
+        let hit = scene.closest_hit(&scene.camera.pixel_ray(px, py));
+        let (what, material) = match hit {
+            Some((HitTarget::Object(i), _)) => (
+                format!("objects[{i}] ({})", scene.desc.objects[i as usize].kind()),
+                Some(scene.material_name(i).to_string()),
+            ),
+            Some((HitTarget::Light, _)) => ("the light".to_string(), None),
+            None => ("background".to_string(), None),
+        };
+        Some(PickInfo {
+            pixel: (px, py),
+            what,
+            material,
+            linear_rgb: job.pixel(px, py).map(|c| c.to_array()),
+        })
+    }
+}
+
+impl eframe::App for Viewer {
+    fn ui(&mut self, ui: &mut Ui, frame: &mut eframe::Frame) {
+        self.show(ui, frame.info().cpu_usage);
+    }
+}

@@ -1,0 +1,227 @@
+//! The bench's logic: sweep rows and CSV, error against ray count, the
+//! reference cache and the sphere generator. Tiny images keep it fast.
+
+use std::process::Command;
+
+use penumbra::cli::bench::reference::{reference, reference_key};
+use penumbra::cli::bench::sweep::{CSV_COLUMNS, SweepPlan, csv, run_sweep};
+use penumbra::render::generate::{ROOM_MAX, ROOM_MIN, sphere_radius, spheres_in_room};
+use penumbra::render::scene::SEED_ROOM_JSON;
+use penumbra::render::scene_file::ObjectDesc;
+use penumbra::render::{AreaLightModel, Sampling, Scene, SceneDesc};
+
+fn tiny_room(width: u32, height: u32) -> SceneDesc {
+    let mut d = SceneDesc::from_json(SEED_ROOM_JSON).unwrap();
+    d.camera.width = width;
+    d.camera.height = height;
+    d
+}
+
+/// End to end through the CLI: one CSV line per pattern × count × model,
+/// every line with every column, and the plot written.
+#[test]
+fn quick_sweep_writes_every_configuration() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_penumbra"))
+        .args(["bench", "--quick", "--width", "16", "--height", "9"])
+        .args(["--counts", "1,4", "--runs", "1", "--reference-rays", "64"])
+        .arg("--cache")
+        .arg(dir.path().join("cache"))
+        .arg("--out")
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = std::fs::read_to_string(dir.path().join("bench-seed-room.csv")).unwrap();
+    let lines: Vec<&str> = text.lines().collect();
+    assert_eq!(lines[0], CSV_COLUMNS.join(","));
+    // Patterns × 2 counts × models × adaptive off and on.
+    let expected = Sampling::ALL.len() * 2 * AreaLightModel::ALL.len() * 2;
+    assert_eq!(lines.len(), 1 + expected);
+    let col = |name: &str| CSV_COLUMNS.iter().position(|c| *c == name).unwrap();
+    let mut seen = std::collections::HashSet::new();
+    for line in &lines[1..] {
+        let f: Vec<&str> = line.split(',').collect();
+        assert_eq!(f.len(), CSV_COLUMNS.len(), "{line}");
+        assert_eq!((f[col("width")], f[col("height")]), ("16", "9"));
+        assert!(f[col("time_s")].parse::<f64>().unwrap() > 0.0);
+        assert!(f[col("cpu_s")].parse::<f64>().unwrap() >= 0.0);
+        assert!(f[col("rays_traced")].parse::<u64>().unwrap() >= 16 * 9);
+        assert!(f[col("rmse")].parse::<f64>().unwrap().is_finite());
+        seen.insert((
+            f[col("sampling")],
+            f[col("model")],
+            f[col("adaptive")],
+            f[col("shadow_rays")],
+        ));
+    }
+    assert_eq!(seen.len(), expected, "every configuration once");
+    let png = std::fs::read(dir.path().join("bench-seed-room.png")).unwrap();
+    assert_eq!(&png[1..4], b"PNG");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("load average"), "{stdout}");
+}
+
+#[test]
+fn scaling_prints_time_per_sphere_count_and_the_ratio() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_penumbra"))
+        .args(["bench", "--spheres", "10,50", "--scaling", "--runs", "1"])
+        .args(["--width", "16", "--height", "9", "--save-scenes"])
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let rows: Vec<&str> = stdout
+        .lines()
+        .filter(|l| l.trim_start().starts_with("10 ") || l.trim_start().starts_with("50 "))
+        .collect();
+    assert_eq!(rows.len(), 2, "{stdout}");
+    assert!(stdout.contains("time ratio N=50 / N=10"), "{stdout}");
+    let saved = std::fs::read_to_string(dir.path().join("spheres-50.json")).unwrap();
+    assert_eq!(
+        SceneDesc::from_json(&saved).unwrap(),
+        {
+            let mut d = spheres_in_room(50, 1);
+            d.camera.width = 16;
+            d.camera.height = 9;
+            d
+        },
+        "the saved scene is the one timed"
+    );
+}
+
+#[test]
+fn error_falls_with_stratified_ray_count() {
+    let dir = tempfile::tempdir().unwrap();
+    let desc = tiny_room(48, 27);
+    let plan = SweepPlan {
+        samplings: vec![Sampling::Stratified],
+        models: vec![AreaLightModel::Sampled],
+        reference_rays: 1024,
+        ..SweepPlan::new(&[1, 64], dir.path())
+    };
+    let rows = run_sweep(&desc, &plan, &mut |_| {}).unwrap();
+    assert_eq!(rows.len(), 2);
+    let (r1, r64) = (&rows[0], &rows[1]);
+    assert_eq!((r1.shadow_rays, r64.shadow_rays), (1, 64));
+    assert!(
+        r64.rmse < r1.rmse / 3.0,
+        "rmse {} at 1 ray, {} at 64",
+        r1.rmse,
+        r64.rmse
+    );
+    assert!(r64.psnr > r1.psnr);
+    // More shadow rays are traced (or answered) at 64 per hit.
+    assert!(r64.stats.effective() > 10 * r1.stats.effective());
+    let text = csv("tiny", &desc, &rows);
+    assert_eq!(text.lines().count(), 3);
+}
+
+#[test]
+fn skipping_off_gives_the_same_image() {
+    let dir = tempfile::tempdir().unwrap();
+    let plan = SweepPlan {
+        samplings: vec![Sampling::Grid],
+        models: vec![AreaLightModel::Sampled],
+        reference_rays: 16,
+        no_skip: true,
+        ..SweepPlan::new(&[16], dir.path())
+    };
+    let rows = run_sweep(&tiny_room(32, 18), &plan, &mut |_| {}).unwrap();
+    let n = rows[0].no_skip.expect("measured with skipping off");
+    assert_eq!(n.rmse_vs_skip, 0.0);
+    // Skipping answers shadow rays without tracing them.
+    assert!(rows[0].stats.shadow_skipped() > 0);
+    assert!(n.stats.shadow > rows[0].stats.shadow);
+}
+
+#[test]
+fn reference_is_cached_by_scene() {
+    let dir = tempfile::tempdir().unwrap();
+    let desc = tiny_room(12, 8);
+    let model = AreaLightModel::Sampled;
+    let first = reference(&desc, model, 16, dir.path(), false).unwrap();
+    assert!(!first.cached);
+    let modified = std::fs::metadata(&first.path).unwrap().modified().unwrap();
+    let again = reference(&desc, model, 16, dir.path(), false).unwrap();
+    assert!(again.cached);
+    assert_eq!(again.path, first.path);
+    assert_eq!(again.film, first.film);
+    assert_eq!(
+        std::fs::metadata(&again.path).unwrap().modified().unwrap(),
+        modified,
+        "a cache hit does not rewrite the file"
+    );
+
+    // The settings the sweep varies do not change the key; the scene does.
+    let mut swept = desc.clone();
+    swept.render.shadow_rays = 4;
+    swept.render.sampling = Sampling::Random;
+    swept.render.seed = 99;
+    assert_eq!(
+        reference_key(&swept, model, 16),
+        reference_key(&desc, model, 16)
+    );
+    let mut moved = desc.clone();
+    moved.camera.position[0] += 0.5;
+    assert_ne!(
+        reference_key(&moved, model, 16),
+        reference_key(&desc, model, 16)
+    );
+    assert_ne!(
+        reference_key(&desc, AreaLightModel::NearestPoint, 16),
+        reference_key(&desc, model, 16)
+    );
+    assert_ne!(
+        reference_key(&desc, model, 64),
+        reference_key(&desc, model, 16)
+    );
+}
+
+#[test]
+fn generated_spheres_fill_the_room_without_touching_walls() {
+    for n in [1usize, 10, 1000] {
+        let desc = spheres_in_room(n, 7);
+        let spheres: Vec<_> = desc
+            .objects
+            .iter()
+            .filter_map(|o| match o {
+                ObjectDesc::Sphere(s) => Some(s),
+                _ => None,
+            })
+            .collect();
+        assert_eq!(spheres.len(), n);
+        assert!(
+            desc.objects
+                .iter()
+                .all(|o| matches!(o, ObjectDesc::Sphere(_) | ObjectDesc::Plane(_))),
+            "the seed room's boxes are gone"
+        );
+        let r = sphere_radius(n);
+        for s in &spheres {
+            assert_eq!(s.radius, r);
+            for i in 0..3 {
+                assert!(s.center[i] - s.radius > ROOM_MIN[i], "{s:?}");
+                assert!(s.center[i] + s.radius < ROOM_MAX[i], "{s:?}");
+            }
+        }
+        // Builds (valid scene, BVH past a handful of objects).
+        let scene = Scene::new(desc.clone()).unwrap();
+        assert_eq!(scene.bvh.is_empty(), n <= 8);
+        assert_eq!(spheres_in_room(n, 7), desc, "deterministic");
+    }
+    assert_ne!(spheres_in_room(10, 1), spheres_in_room(10, 2));
+    // Constant volume fraction: r ∝ N^(-1/3).
+    let ratio = sphere_radius(10) / sphere_radius(10_000);
+    assert!((ratio - 10.0).abs() < 1e-3, "{ratio}");
+}

@@ -1,0 +1,379 @@
+//! The viewer, driven headless by egui_kittest: no display, no GPU. Each
+//! test uses a tiny image so that renders take milliseconds.
+
+use std::path::Path;
+use std::time::{Duration, Instant};
+
+use egui::accesskit::Role;
+use egui_kittest::Harness;
+use egui_kittest::kittest::Queryable;
+use penumbra::app::render_job::JobState;
+use penumbra::app::{Viewer, ViewerOptions};
+use penumbra::render::film::encode_srgb8;
+use penumbra::render::scene::SEED_ROOM_JSON;
+use penumbra::render::{Film, Scene, SceneDesc, render_image};
+
+const WAIT: Duration = Duration::from_secs(60);
+
+/// The seed room at 64×36 with few shadow rays.
+fn small_room() -> SceneDesc {
+    let mut d = SceneDesc::from_json(SEED_ROOM_JSON).unwrap();
+    d.camera.width = 64;
+    d.camera.height = 36;
+    d.render.shadow_rays = 16;
+    d
+}
+
+fn harness(options: ViewerOptions) -> Harness<'static, Viewer> {
+    Harness::builder()
+        .with_size([1280.0, 960.0])
+        // Real frame times, so that two clicks make a double-click.
+        .with_step_dt(1.0 / 60.0)
+        .build_ui_state(|ui, v: &mut Viewer| v.show(ui, None), Viewer::new(options))
+}
+
+/// Waits for the latest render to end, then runs a frame so its last
+/// tiles reach the texture.
+fn settle(h: &mut Harness<'static, Viewer>) {
+    assert!(h.state().wait_for_render(WAIT), "render did not finish");
+    h.step();
+}
+
+fn core_render(desc: &SceneDesc) -> Film {
+    render_image(&Scene::new(desc.clone()).unwrap())
+}
+
+/// The sRGB bytes the texture should hold for a film.
+fn assert_shows(v: &Viewer, film: &Film) {
+    let shown = v.shown_image();
+    assert_eq!(shown.size, [film.width as usize, film.height as usize]);
+    for (i, (s, p)) in shown.pixels.iter().zip(&film.pixels).enumerate() {
+        let [r, g, b] = encode_srgb8(*p);
+        assert_eq!([s.r(), s.g(), s.b()], [r, g, b], "pixel {i}");
+    }
+}
+
+fn finished(v: &Viewer) -> Film {
+    match v.render_state() {
+        Some(JobState::Finished(f)) => (*f.film).clone(),
+        other => panic!("render did not finish: {other:?}"),
+    }
+}
+
+#[test]
+fn first_frame_renders_the_scene_into_the_texture() {
+    let mut h = harness(ViewerOptions::new(small_room()));
+    settle(&mut h);
+    let film = finished(h.state());
+    assert_eq!(film, core_render(&small_room()));
+    assert_shows(h.state(), &film);
+    // The status bar: 16 shadow rays = a preview pass and one full pass.
+    h.get_by_label("pass 2 of 2");
+    h.get_by_label("16 samples/hit");
+    h.get_by_label_contains("Mray/s");
+}
+
+#[test]
+fn slider_move_restarts_the_render_with_the_new_value() {
+    let mut h = harness(ViewerOptions::new(small_room()));
+    settle(&mut h);
+    let before = h.state().render_generation();
+
+    h.get_by_role_and_label(Role::Slider, "Shadow rays")
+        .set_value_accesskit(4.0);
+    h.step();
+
+    let v = h.state();
+    assert_eq!(v.desc().render.shadow_rays, 4);
+    assert!(v.render_generation() > before, "no restart");
+    settle(&mut h);
+    let (generation, desc) = h.state().worker_desc().unwrap();
+    assert_eq!(generation, h.state().render_generation());
+    assert_eq!(desc.render.shadow_rays, 4);
+    let mut expected = small_room();
+    expected.render.shadow_rays = 4;
+    let film = finished(h.state());
+    assert_eq!(film, core_render(&expected));
+    assert_shows(h.state(), &film);
+}
+
+#[test]
+fn rapid_changes_leave_only_the_last_render() {
+    let mut h = harness(ViewerOptions::new(small_room()));
+    for k in 1..=20 {
+        h.state_mut()
+            .edit(|d, _| d.render.terms.ambient = k as f64 / 10.0);
+    }
+    settle(&mut h);
+    let (_, desc) = h.state().worker_desc().unwrap();
+    assert_eq!(desc.render.terms.ambient, 2.0);
+    // Stale requests were dropped, not queued: 21 requests, few renders.
+    let started = h.state().renders_started();
+    assert!(started <= 10, "{started} renders started for 21 requests");
+    let mut expected = small_room();
+    expected.render.terms.ambient = 2.0;
+    assert_eq!(finished(h.state()), core_render(&expected));
+}
+
+#[test]
+fn ambient_only_equals_the_cores_ambient_only_render() {
+    let mut h = harness(ViewerOptions::new(small_room()));
+    settle(&mut h);
+    let full = finished(h.state());
+
+    h.get_by_role_and_label(Role::CheckBox, "Diffuse").click();
+    h.step();
+    h.get_by_role_and_label(Role::CheckBox, "Specular").click();
+    h.step();
+    assert!(!h.state().view_settings().diffuse && !h.state().view_settings().specular);
+    settle(&mut h);
+
+    let mut ambient_only = small_room();
+    ambient_only.render.terms.diffuse = 0.0;
+    ambient_only.render.terms.specular = 0.0;
+    let expected = core_render(&ambient_only);
+    let film = finished(h.state());
+    assert_eq!(film, expected);
+    assert_ne!(film, full);
+    assert_shows(h.state(), &film);
+    // The strengths are kept for when the terms come back on.
+    assert_eq!(h.state().desc().render.terms.diffuse, 1.0);
+}
+
+#[test]
+fn shadows_toggle_and_reflections_toggle_reach_the_renderer() {
+    let mut h = harness(ViewerOptions::new(small_room()));
+    settle(&mut h);
+    h.get_by_role_and_label(Role::CheckBox, "Shadows").click();
+    h.step();
+    h.get_by_role_and_label(Role::CheckBox, "Reflections")
+        .click();
+    h.step();
+    settle(&mut h);
+    let mut expected = small_room();
+    expected.render.shadows = false;
+    expected.render.max_depth = 1;
+    assert_eq!(finished(h.state()), core_render(&expected));
+}
+
+#[test]
+fn sampling_model_and_adaptive_controls_reach_the_renderer() {
+    let mut h = harness(ViewerOptions::new(small_room()));
+    settle(&mut h);
+    h.get_by_role_and_label(Role::CheckBox, "Adaptive shadow rays")
+        .click();
+    h.step();
+    h.state_mut().edit(|d, _| {
+        d.render.sampling = penumbra::render::Sampling::Stratified;
+        d.render.area_light_model = penumbra::render::AreaLightModel::NearestPoint;
+    });
+    settle(&mut h);
+    let mut expected = small_room();
+    expected.render.adaptive = true;
+    expected.render.sampling = penumbra::render::Sampling::Stratified;
+    expected.render.area_light_model = penumbra::render::AreaLightModel::NearestPoint;
+    assert_eq!(finished(h.state()), core_render(&expected));
+}
+
+#[test]
+fn ctrl_s_exports_a_full_size_png_that_decodes() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("shot.png");
+    let mut h = harness(ViewerOptions::new(small_room()));
+    // Preview at half size: the export must still be the scene's size.
+    h.get_by_role_and_label(Role::Slider, "Resolution scale")
+        .set_value_accesskit(0.5);
+    h.step();
+    settle(&mut h);
+    assert_eq!(h.state().shown_image().size, [32, 18]);
+
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::S);
+    h.step();
+    h.state_mut()
+        .dialog_mut()
+        .expect("the save dialog opens")
+        .path = out.display().to_string();
+    h.step();
+    h.get_by_role_and_label(Role::Button, "Save").click();
+    h.step();
+    h.state_mut().wait_for_saves(WAIT);
+
+    let img = image::open(&out).expect("the PNG decodes").into_rgb8();
+    assert_eq!(img.dimensions(), (64, 36));
+    let expected = core_render(&small_room());
+    assert_eq!(img.into_raw(), expected.to_srgb8());
+    assert!(h.state().notice().unwrap().contains("shot.png"));
+    assert!(h.state().banner().is_none());
+}
+
+#[test]
+fn a_failed_export_is_shown_not_panicked() {
+    let mut h = harness(ViewerOptions::new(small_room()));
+    settle(&mut h);
+    let ctx = h.ctx.clone();
+    h.state_mut()
+        .save_png(&ctx, "/nonexistent-dir/x/out.png".into());
+    h.state_mut().wait_for_saves(WAIT);
+    h.step();
+    let banner = h.state().banner().expect("an error banner").to_string();
+    assert!(banner.contains("out.png"), "{banner}");
+    h.get_by_label_contains("nonexistent-dir");
+}
+
+#[test]
+fn saved_scene_loads_again_to_the_same_image() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("saved.json");
+    let mut h = harness(ViewerOptions::new(small_room()));
+    h.state_mut().edit(|d, view| {
+        view.specular = false;
+        view.reflections = false;
+        d.render.shininess_override = Some(7.0);
+        d.light.corner[0] = -1.5;
+    });
+    settle(&mut h);
+    let shown = finished(h.state());
+    let ctx = h.ctx.clone();
+    h.state_mut().save_scene(&ctx, path.clone());
+    h.state_mut().wait_for_saves(WAIT);
+    let loaded = SceneDesc::load(&path).unwrap();
+    assert_eq!(core_render(&loaded), shown);
+}
+
+fn write(path: &Path, text: &str) {
+    // Write and rename, as editors do (the watcher must see this too).
+    let tmp = path.with_extension("tmp");
+    std::fs::write(&tmp, text).unwrap();
+    std::fs::rename(&tmp, path).unwrap();
+}
+
+/// Steps frames until `done` or a timeout.
+fn step_until(h: &mut Harness<'static, Viewer>, done: impl Fn(&Viewer) -> bool) {
+    let start = Instant::now();
+    while !done(h.state()) {
+        assert!(start.elapsed() < Duration::from_secs(20), "timed out");
+        h.step();
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+#[test]
+fn a_broken_scene_file_shows_a_banner_and_keeps_the_old_image() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("room.json");
+    let good = small_room().to_json();
+    write(&path, &good);
+    let mut options = ViewerOptions::new(SceneDesc::load(&path).unwrap());
+    options.scene_path = Some(path.clone());
+    let mut h = harness(options);
+    settle(&mut h);
+    let image = h.state().shown_image().clone();
+    let generation = h.state().render_generation();
+
+    // The sphere's radius made negative: the loader names the field.
+    let broken = good.replacen("\"radius\": 1.0", "\"radius\": -1.0", 1);
+    assert_ne!(broken, good);
+    write(&path, &broken);
+    step_until(&mut h, |v| v.banner().is_some());
+    let banner = h.state().banner().unwrap().to_string();
+    assert!(
+        banner.contains("room.json") && banner.contains("radius"),
+        "{banner}"
+    );
+    h.get_by_label_contains("radius");
+    assert_eq!(h.state().render_generation(), generation, "no new render");
+    assert_eq!(h.state().shown_image(), &image);
+    assert_eq!(h.state().desc(), &small_room());
+
+    // Fixed on disk: reloaded, banner gone, the new scene rendered.
+    let mut fixed = small_room();
+    fixed.materials.get_mut("red").unwrap().diffuse = [0.2, 0.2, 0.8];
+    write(&path, &fixed.to_json());
+    step_until(&mut h, |v| v.banner().is_none());
+    settle(&mut h);
+    assert_eq!(finished(h.state()), core_render(&fixed));
+}
+
+#[test]
+fn reload_keeps_the_camera_when_the_file_did_not_change_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("room.json");
+    write(&path, &small_room().to_json());
+    let mut options = ViewerOptions::new(SceneDesc::load(&path).unwrap());
+    options.scene_path = Some(path.clone());
+    let mut h = harness(options);
+    settle(&mut h);
+    h.state_mut().edit(|d, _| d.camera.position[0] = 1.0);
+    let mut changed = small_room();
+    changed.render.shadow_rays = 4;
+    write(&path, &changed.to_json());
+    step_until(&mut h, |v| v.desc().render.shadow_rays == 4);
+    assert_eq!(h.state().desc().camera.position[0], 1.0);
+}
+
+#[test]
+fn a_panicking_worker_shows_the_error_and_the_viewer_goes_on() {
+    let mut h = harness(ViewerOptions::new(small_room()));
+    settle(&mut h);
+    h.state().inject_worker_panic();
+    h.state_mut().edit(|d, _| d.render.terms.ambient = 0.5);
+    settle(&mut h);
+    let banner = h.state().banner().expect("an error banner").to_string();
+    assert!(banner.contains("panicked"), "{banner}");
+
+    h.state_mut().edit(|d, _| d.render.terms.ambient = 0.7);
+    settle(&mut h);
+    let mut expected = small_room();
+    expected.render.terms.ambient = 0.7;
+    assert_eq!(finished(h.state()), core_render(&expected));
+}
+
+#[test]
+fn dragging_the_image_orbits_the_camera_and_double_click_picks() {
+    let mut h = harness(ViewerOptions::new(small_room()));
+    settle(&mut h);
+    let before = h.state().desc().camera.clone();
+    let generation = h.state().render_generation();
+    // The image area: right of the side panel, above the status bar.
+    let centre = egui::pos2(800.0, 450.0);
+    h.drag_at(centre);
+    h.step();
+    h.hover_at(centre + egui::vec2(40.0, 0.0));
+    h.step();
+    h.drop_at(centre + egui::vec2(40.0, 0.0));
+    h.step();
+    let after = h.state().desc().camera.clone();
+    assert_ne!(after.position, before.position, "orbit");
+    assert_eq!(after.look_at, before.look_at);
+    assert!(h.state().render_generation() > generation);
+
+    h.get_by_role_and_label(Role::Button, "Reset view").click();
+    h.step();
+    assert_eq!(h.state().desc().camera, before);
+    settle(&mut h);
+
+    // Double-click the middle of the image: the back wall is there.
+    h.event(egui::Event::PointerMoved(centre));
+    h.step();
+    // Two clicks 50 ms apart (frame times set explicitly).
+    let t0 = h.ctx.input(|i| i.time) + 1.0;
+    for (k, pressed) in [true, false, true, false].into_iter().enumerate() {
+        h.input_mut().time = Some(t0 + 0.05 * k as f64);
+        h.input_mut().events.push(egui::Event::PointerButton {
+            pos: centre,
+            button: egui::PointerButton::Primary,
+            pressed,
+            modifiers: egui::Modifiers::NONE,
+        });
+        if k < 3 {
+            h.step();
+        }
+    }
+    h.step();
+    let pick = h.state().pick().expect("double-click shows a pick").clone();
+    assert!(pick.what.contains("objects["), "{pick:?}");
+    assert!(pick.material.is_some());
+    let film = finished(h.state());
+    let (x, y) = pick.pixel;
+    assert_eq!(pick.linear_rgb, Some(film.get(x, y).to_array()));
+}

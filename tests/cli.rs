@@ -53,6 +53,15 @@ fn render_writes_a_png_of_the_requested_size_and_a_summary() {
     assert!(summary.contains("2304 camera"), "{summary}");
     assert!(summary.contains("Mray/s"), "{summary}");
     assert_eq!(files_in(&dir), vec!["room.png"], "no temporary files left");
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        let mode = std::fs::metadata(&out).unwrap().permissions().mode() & 0o777;
+        assert_eq!(
+            mode, 0o644,
+            "a new image is readable by others, like any new file"
+        );
+    }
 
     // The built-in scene is used without a scene argument; EXR keeps linear values.
     let exr = dir.join("room.exr");

@@ -38,6 +38,20 @@ fn the_seed_room_round_trips() {
 }
 
 #[test]
+fn saved_scenes_read_back_bit_for_bit() {
+    let mut desc = SceneDesc::from_json(SEED_ROOM_JSON).unwrap();
+    // Numbers with 17 significant digits, as generators and editors write.
+    desc.camera.position = [0.1 + 0.2, 1.0 / 3.0, -14.000000000000002];
+    desc.light.corner[1] = 7.99 * (1.0 + f64::EPSILON);
+    let again = SceneDesc::from_json(&desc.to_json()).unwrap();
+    assert_eq!(
+        again.camera.position.map(f64::to_bits),
+        desc.camera.position.map(f64::to_bits)
+    );
+    assert_eq!(again, desc);
+}
+
+#[test]
 fn unknown_keys_are_refused() {
     assert_error(
         |v| v["camera"]["fov"] = json!(40),

@@ -50,9 +50,20 @@ pub fn write_atomic(
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
     };
-    let tmp = tempfile::Builder::new()
-        .prefix(".penumbra-")
-        .suffix(".part")
+    let mut builder = tempfile::Builder::new();
+    builder.prefix(".penumbra-").suffix(".part");
+    // The new file keeps an existing file's permissions, or gets the usual
+    // rw-r--r-- (tempfile's own default is owner-only).
+    #[cfg(unix)]
+    builder.permissions(
+        std::fs::metadata(path)
+            .map(|m| m.permissions())
+            .unwrap_or_else(|_| {
+                use std::os::unix::fs::PermissionsExt;
+                std::fs::Permissions::from_mode(0o644)
+            }),
+    );
+    let tmp = builder
         .tempfile_in(dir)
         .map_err(|e| fail(format!("cannot create a file in {}: {e}", dir.display())))?;
     let mut out = BufWriter::new(tmp.reopen().map_err(|e| fail(e.to_string()))?);

@@ -3,7 +3,7 @@
 
 use super::rng::Rng;
 use super::scene_file::Sampling;
-use super::sobol::{rotated_grid, sobol_2d};
+use super::sobol::{rotated_grid, scrambled_point, sobol_table};
 
 /// Side of the grid used by the grid-based patterns: ⌊√shadow_rays⌋.
 pub fn grid_side(shadow_rays: u32) -> u32 {
@@ -27,6 +27,8 @@ pub struct Pattern {
     pub shadow_rays: u32,
     side: u32,
     count: usize,
+    /// Unscrambled Sobol' points, for the `sobol` pattern.
+    sobol: Vec<(u32, u32)>,
 }
 
 impl Pattern {
@@ -36,6 +38,11 @@ impl Pattern {
             shadow_rays,
             side: grid_side(shadow_rays),
             count: points_per_hit(sampling, shadow_rays),
+            sobol: if sampling == Sampling::Sobol {
+                sobol_table(points_per_hit(sampling, shadow_rays))
+            } else {
+                Vec::new()
+            },
         }
     }
 
@@ -89,9 +96,10 @@ impl Pattern {
                 }
             }
             Sampling::Sobol => {
-                let seed = rng.next_u64() as u32;
-                for k in 0..self.count {
-                    (a[k], b[k]) = sobol_2d(k as u32, seed);
+                let seeds = rng.next_u64();
+                let (sx, sy) = (seeds as u32, (seeds >> 32) as u32);
+                for (k, &entry) in self.sobol.iter().enumerate() {
+                    (a[k], b[k]) = scrambled_point(entry, sx, sy);
                 }
             }
             Sampling::RotatedGrid => {

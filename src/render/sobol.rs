@@ -91,6 +91,30 @@ pub fn sobol_2d(index: u32, seed: u32) -> (f32, f32) {
     (to_unit(sx), to_unit(sy))
 }
 
+/// The first `count` unscrambled Sobol' points with their bits reversed:
+/// the per-pattern half of [`scrambled_point`], computed once per render.
+pub fn sobol_table(count: usize) -> Vec<(u32, u32)> {
+    (0..count as u32)
+        .map(|i| {
+            let (x, y) = sobol_u32(i);
+            (x.reverse_bits(), y.reverse_bits())
+        })
+        .collect()
+}
+
+/// A [`sobol_table`] entry, Owen-scrambled in each dimension with its own
+/// seed, in [0,1)². Points `0..2^m` of a table scrambled with one pair of
+/// seeds form a (0, m, 2) net, as Owen scrambling preserves nets. Cheaper
+/// than [`sobol_2d`] (no index shuffle, no per-point Sobol' evaluation),
+/// which is what a renderer that takes every index of a prefix needs.
+#[inline]
+pub fn scrambled_point(entry: (u32, u32), seed_x: u32, seed_y: u32) -> (f32, f32) {
+    (
+        to_unit(laine_karras_permutation(entry.0, seed_x).reverse_bits()),
+        to_unit(laine_karras_permutation(entry.1, seed_y).reverse_bits()),
+    )
+}
+
 /// Point (i, j) of an n×n grid of cell centres shifted toroidally by
 /// (shift_u, shift_v) ∈ [0,1)² (a Cranley–Patterson rotation; draw one
 /// shift per pixel): ((i + ½)/n + shift_u mod 1, (j + ½)/n + shift_v mod 1),
@@ -209,5 +233,26 @@ mod tests {
             (mx - 0.5).abs() < 0.02 && (my - 0.5).abs() < 0.02,
             "{mx} {my}"
         );
+    }
+
+    #[test]
+    fn scrambled_table_points_are_nets() {
+        let table = sobol_table(256);
+        for seed in [1u32, 77, 0xdead_beef] {
+            let pts: Vec<(f32, f32)> = table
+                .iter()
+                .map(|&e| scrambled_point(e, hash(seed), hash(seed ^ 1)))
+                .collect();
+            // Each cell of the 16×16 grid holds exactly one of the 256 points.
+            let mut cells = [0u8; 256];
+            for &(x, y) in &pts {
+                assert!((0.0..1.0).contains(&x) && (0.0..1.0).contains(&y));
+                cells[(y * 16.0) as usize * 16 + (x * 16.0) as usize] += 1;
+            }
+            assert!(cells.iter().all(|&c| c == 1), "seed {seed}");
+        }
+        let a = scrambled_point(table[3], 1, 2);
+        let b = scrambled_point(table[3], 3, 4);
+        assert_ne!(a, b);
     }
 }

@@ -14,6 +14,7 @@
 pub mod plot;
 pub mod reference;
 pub mod scaling;
+pub mod slopes;
 pub mod sweep;
 pub mod target;
 
@@ -111,6 +112,10 @@ pub struct BenchArgs {
     /// grid rays, depth 4; skip on against off; peak memory).
     #[arg(long)]
     pub target: bool,
+    /// Fit the slope of log RMSE against log shadow rays in penumbra
+    /// regions for each pattern (diffuse term, camera-ray hits).
+    #[arg(long)]
+    pub slopes: bool,
 }
 
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, clap::ValueEnum)]
@@ -127,6 +132,8 @@ pub fn bench(args: &BenchArgs) -> Result<(), CliError> {
     let result = pool.install(|| {
         if args.target {
             target::run(args)
+        } else if args.slopes {
+            slopes::run(args)
         } else if args.scaling {
             scaling::run(args)
         } else {

@@ -4,8 +4,9 @@
 //! a scene that is accepted must render to finite pixels. The size, shadow
 //! rays and depth are capped here so that each run takes microseconds.
 //!
-//! Run (stable toolchain):
-//! `RUSTC_BOOTSTRAP=1 cargo fuzz run load_render fuzz/corpus/load_render fuzz/seeds -- -dict=fuzz/scene.dict`
+//! Run from the repository root (stable toolchain), seeded with the
+//! example and stress scenes and a dictionary of the format's keys:
+//! `RUSTC_BOOTSTRAP=1 cargo fuzz run -s none load_render fuzz/corpus/load_render scenes scenes/stress -- -dict=fuzz/scene.dict -max_len=8192 -max_total_time=600`
 
 #![no_main]
 

@@ -166,10 +166,12 @@ impl From<ModelArg> for AreaLightModel {
     }
 }
 
-fn parse_vec3(s: &str) -> Result<[f64; 3], String> {
+/// Three comma-separated finite numbers (`names` says which), each at
+/// least `min`.
+fn parse_triple(s: &str, names: &str, min: f64) -> Result<[f64; 3], String> {
     let parts: Vec<&str> = s.split(',').collect();
     if parts.len() != 3 {
-        return Err("expected three comma-separated numbers: x,y,z".into());
+        return Err(format!("expected three comma-separated numbers: {names}"));
     }
     let mut out = [0.0; 3];
     for (o, p) in out.iter_mut().zip(parts) {
@@ -177,12 +179,22 @@ fn parse_vec3(s: &str) -> Result<[f64; 3], String> {
             .trim()
             .parse()
             .map_err(|_| format!("{p:?} is not a number"))?;
-        *o = v;
-        if !v.is_finite() {
-            return Err(format!("{p} is not a finite number"));
+        if !(v.is_finite() && v >= min) {
+            return Err(format!(
+                "{p} is out of range, expected a finite number >= {min}"
+            ));
         }
+        *o = v;
     }
     Ok(out)
+}
+
+fn parse_vec3(s: &str) -> Result<[f64; 3], String> {
+    parse_triple(s, "x,y,z", f64::MIN)
+}
+
+fn parse_terms(s: &str) -> Result<[f64; 3], String> {
+    parse_triple(s, "ambient,diffuse,specular", 0.0)
 }
 
 fn parse_scale(s: &str) -> Result<f64, String> {
@@ -194,25 +206,6 @@ fn parse_scale(s: &str) -> Result<f64, String> {
         return Err(format!("{s} is out of range, expected a number > 0"));
     }
     Ok(v)
-}
-
-fn parse_terms(s: &str) -> Result<[f64; 3], String> {
-    let parts: Vec<&str> = s.split(',').collect();
-    if parts.len() != 3 {
-        return Err("expected three comma-separated numbers: ambient,diffuse,specular".into());
-    }
-    let mut out = [0.0; 3];
-    for (o, p) in out.iter_mut().zip(parts) {
-        let v: f64 = p
-            .trim()
-            .parse()
-            .map_err(|_| format!("{p:?} is not a number"))?;
-        if !(v.is_finite() && v >= 0.0) {
-            return Err(format!("{p} is out of range, expected a number >= 0"));
-        }
-        *o = v;
-    }
-    Ok(out)
 }
 
 /// A failed command: the message for stderr and the exit code.

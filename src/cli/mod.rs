@@ -180,8 +180,13 @@ fn parse_triple(s: &str, names: &str, min: f64) -> Result<[f64; 3], String> {
             .parse()
             .map_err(|_| format!("{p:?} is not a number"))?;
         if !(v.is_finite() && v >= min) {
+            let bound = if min > f64::MIN {
+                format!(" >= {min}")
+            } else {
+                String::new()
+            };
             return Err(format!(
-                "{p} is out of range, expected a finite number >= {min}"
+                "{p} is out of range, expected a finite number{bound}"
             ));
         }
         *o = v;

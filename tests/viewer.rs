@@ -377,3 +377,228 @@ fn dragging_the_image_orbits_the_camera_and_double_click_picks() {
     let (x, y) = pick.pixel;
     assert_eq!(pick.linear_rgb, Some(film.get(x, y).to_array()));
 }
+
+// ----- reference and error readout ---------------------------------------
+
+use penumbra::app::reference::{Match, ViewMode, reference_desc};
+use penumbra::render::compare::{compare, diff_image};
+use penumbra::render::output::write_film;
+
+/// Writes a linear EXR (exact values, unlike an 8-bit PNG).
+fn write_exr(dir: &Path, name: &str, film: &Film) -> std::path::PathBuf {
+    let path = dir.join(name);
+    write_film(film, &path).unwrap();
+    path
+}
+
+/// Waits for the reference task and then for the comparison, with a frame
+/// after each so that the viewer takes and shows the results.
+fn settle_reference(h: &mut Harness<'static, Viewer>) {
+    assert!(h.state_mut().wait_for_reference(WAIT), "no reference");
+    h.step();
+    assert!(h.state().wait_for_error(WAIT), "no comparison");
+    h.step();
+}
+
+/// The status bar's text for a comparison.
+fn readout_label(film: &Film, reference: &Film) -> String {
+    let c = compare(film, reference).unwrap();
+    format!("RMSE {:.3e} · PSNR {:.2} dB", c.rmse, c.psnr)
+}
+
+#[test]
+fn loading_the_cores_own_render_as_reference_reads_rmse_zero() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = write_exr(dir.path(), "same.exr", &core_render(&small_room()));
+    let mut h = harness(ViewerOptions::new(small_room()));
+    settle(&mut h);
+
+    h.get_by_role_and_label(Role::Button, "Load reference…")
+        .click();
+    h.step();
+    h.state_mut()
+        .dialog_mut()
+        .expect("the load dialog opens")
+        .path = path.display().to_string();
+    h.step();
+    h.get_by_role_and_label(Role::Button, "Load").click();
+    h.step();
+    settle_reference(&mut h);
+
+    assert_eq!(h.state().reference_match(), Some(Match::Same));
+    let shown = h.state().error_shown().expect("a readout");
+    assert_eq!(shown.comparison.rmse, 0.0);
+    assert_eq!(shown.pass, None, "the finished image was compared");
+    h.get_by_label("RMSE 0 · PSNR inf dB");
+    assert!(h.state().banner().is_none());
+}
+
+#[test]
+fn a_reference_of_more_shadow_rays_reads_the_cores_rmse_and_error_image() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut converged = small_room();
+    converged.render.shadow_rays = 256;
+    converged.render.sampling = penumbra::render::Sampling::Stratified;
+    let reference = core_render(&converged);
+    let path = write_exr(dir.path(), "ref.exr", &reference);
+    let mut h = harness(ViewerOptions::new(small_room()));
+    settle(&mut h);
+    let ctx = h.ctx.clone();
+    h.state_mut().load_reference(&ctx, path);
+    h.step();
+    settle_reference(&mut h);
+
+    let film = finished(h.state());
+    let expected = compare(&film, &reference).unwrap();
+    assert!(expected.rmse > 0.0);
+    let shown = h.state().error_shown().expect("a readout").clone();
+    assert_eq!(shown.comparison, expected);
+    h.get_by_label(&readout_label(&film, &reference));
+
+    // The error view: the core's false-colour image, black where equal.
+    assert!(h.query_by_label_contains("white = ").is_none());
+    h.get_by_label("Error").click();
+    // New overlays are measured in an invisible first frame.
+    h.step();
+    h.step();
+    assert_eq!(h.state().view_mode(), ViewMode::Error);
+    let (rgb, scale) = diff_image(&film, &reference, None).unwrap();
+    assert_eq!(shown.scale, scale);
+    let img = &shown.image;
+    assert_eq!(img.size, [64, 36]);
+    let mut coloured = 0;
+    for (i, p) in img.pixels.iter().enumerate() {
+        assert_eq!([p.r(), p.g(), p.b()], rgb[3 * i..3 * i + 3], "pixel {i}");
+        if film.pixels[i] == reference.pixels[i] {
+            assert_eq!(*p, egui::Color32::BLACK, "pixel {i}");
+        } else if (film.pixels[i] - reference.pixels[i]).abs().max_element() > 0.1 * scale {
+            assert_ne!(*p, egui::Color32::BLACK, "pixel {i}");
+            coloured += 1;
+        }
+    }
+    assert!(coloured > 0, "no visible difference");
+    h.get_by_label(&format!("white = {scale:.1e}"));
+
+    // Two stops of exposure: white at a quarter of the largest difference.
+    h.get_by_role_and_label(Role::Slider, "Error exposure")
+        .set_value_accesskit(2.0);
+    h.step();
+    assert!(h.state().wait_for_error(WAIT));
+    h.step();
+    let brighter = h.state().error_shown().unwrap();
+    assert_eq!(brighter.scale, scale / 4.0);
+    assert_eq!(brighter.comparison, expected);
+    h.get_by_label(&format!("white = {:.1e}", scale / 4.0));
+}
+
+#[test]
+fn a_reference_of_another_size_is_not_compared() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut half = small_room();
+    half.camera.width = 32;
+    half.camera.height = 18;
+    let path = write_exr(dir.path(), "half.exr", &core_render(&half));
+    let mut h = harness(ViewerOptions::new(small_room()));
+    settle(&mut h);
+    let ctx = h.ctx.clone();
+    h.state_mut().load_reference(&ctx, path);
+    h.step();
+    settle_reference(&mut h);
+    assert_eq!(h.state().reference_match(), Some(Match::SizeDiffers));
+    h.get_by_label("reference: size differs");
+    assert!(h.query_by_label_contains("RMSE").is_none());
+    assert!(h.state().error_shown().is_none());
+
+    // At half the resolution the sizes agree: compared, and equal.
+    h.get_by_role_and_label(Role::Slider, "Resolution scale")
+        .set_value_accesskit(0.5);
+    h.step();
+    settle(&mut h);
+    assert!(h.state().wait_for_error(WAIT));
+    h.step();
+    assert_eq!(h.state().reference_match(), Some(Match::Same));
+    h.get_by_label("RMSE 0 · PSNR inf dB");
+}
+
+#[test]
+fn computing_a_reference_in_the_background_then_reads_the_error() {
+    let mut room = small_room();
+    room.camera.width = 32;
+    room.camera.height = 18;
+    let mut h = harness(ViewerOptions::new(room.clone()));
+    settle(&mut h);
+    h.get_by_role_and_label(Role::Button, "Compute reference")
+        .click();
+    h.step();
+    assert!(h.state().reference_busy());
+    settle_reference(&mut h);
+    assert!(!h.state().reference_busy());
+
+    // The converged render of the image on screen.
+    let converged = reference_desc(&room);
+    assert_eq!(converged.render.shadow_rays, 4096);
+    assert_eq!(
+        converged.render.sampling,
+        penumbra::render::Sampling::Stratified
+    );
+    let reference = h.state().reference().expect("a reference").film.clone();
+    assert_eq!(*reference, core_render(&converged));
+    let film = finished(h.state());
+    assert_eq!(
+        h.state().error_shown().unwrap().comparison,
+        compare(&film, &reference).unwrap()
+    );
+    h.get_by_label(&readout_label(&film, &reference));
+
+    // Fewer shadow rays: the same reference, a larger error.
+    h.get_by_role_and_label(Role::Slider, "Shadow rays")
+        .set_value_accesskit(4.0);
+    h.step();
+    settle(&mut h);
+    assert!(h.state().wait_for_error(WAIT));
+    h.step();
+    assert_eq!(h.state().reference_match(), Some(Match::Same));
+    let fewer = finished(h.state());
+    assert!(compare(&fewer, &reference).unwrap().rmse > compare(&film, &reference).unwrap().rmse);
+    h.get_by_label(&readout_label(&fewer, &reference));
+
+    // Another scene: the reference no longer applies.
+    h.state_mut().edit(|d, _| d.light.corner[0] += 0.5);
+    h.step();
+    assert_eq!(h.state().reference_match(), Some(Match::SettingsDiffer));
+    h.get_by_label("reference: settings differ");
+}
+
+#[test]
+fn a_reference_computation_is_cancelled_by_the_button_or_a_scene_change() {
+    let mut room = small_room();
+    // Large enough to take seconds at 4096 shadow rays.
+    room.camera.width = 320;
+    room.camera.height = 180;
+    room.render.shadow_rays = 1;
+    let mut h = harness(ViewerOptions::new(room));
+    settle(&mut h);
+
+    h.get_by_role_and_label(Role::Button, "Compute reference")
+        .click();
+    h.step();
+    assert!(h.state().reference_busy());
+    // Only the estimator changes: the reference still applies.
+    h.state_mut().edit(|d, _| d.render.shadow_rays = 2);
+    h.step();
+    assert!(h.state().reference_busy());
+    h.get_by_role_and_label(Role::Button, "Cancel").click();
+    h.step();
+    assert!(!h.state().reference_busy());
+    assert_eq!(h.state().notice(), Some("reference cancelled"));
+
+    h.get_by_role_and_label(Role::Button, "Compute reference")
+        .click();
+    h.step();
+    assert!(h.state().reference_busy());
+    h.state_mut().edit(|d, _| d.camera.position[0] += 0.1);
+    h.step();
+    assert!(!h.state().reference_busy());
+    assert!(h.state().notice().unwrap().contains("cancelled"));
+    assert!(h.state().reference().is_none());
+}

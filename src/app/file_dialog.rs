@@ -10,6 +10,8 @@ pub enum Purpose {
     OpenScene,
     SavePng,
     SaveScene,
+    /// A reference image (PNG or EXR) for the error readout.
+    OpenReference,
 }
 
 impl Purpose {
@@ -18,19 +20,26 @@ impl Purpose {
             Purpose::OpenScene => "Open scene",
             Purpose::SavePng => "Save PNG",
             Purpose::SaveScene => "Save scene",
+            Purpose::OpenReference => "Load reference",
         }
     }
     fn button(self) -> &'static str {
         match self {
             Purpose::OpenScene => "Open",
+            Purpose::OpenReference => "Load",
             _ => "Save",
         }
     }
-    fn extension(self) -> &'static str {
+    /// The file kinds listed; the first is the name field's hint.
+    fn extensions(self) -> &'static [&'static str] {
         match self {
-            Purpose::SavePng => "png",
-            _ => "json",
+            Purpose::SavePng => &["png"],
+            Purpose::OpenReference => &["exr", "png"],
+            _ => &["json"],
         }
+    }
+    fn opens(self) -> bool {
+        matches!(self, Purpose::OpenScene | Purpose::OpenReference)
     }
 }
 
@@ -61,7 +70,7 @@ impl PathDialog {
             Some(p) if p.is_dir() => p.to_path_buf(),
             _ => cwd,
         };
-        let name = if purpose == Purpose::OpenScene && !full.is_file() {
+        let name = if purpose.opens() && !full.is_file() {
             String::new()
         } else {
             full.file_name()
@@ -86,15 +95,17 @@ impl PathDialog {
         if self.listed.as_ref() == Some(&self.dir) {
             return;
         }
-        let ext = self.purpose.extension();
+        let exts = self.purpose.extensions();
         let mut entries: Vec<(String, bool)> = std::fs::read_dir(&self.dir)
             .map(|rd| {
                 rd.filter_map(|e| e.ok())
                     .filter_map(|e| {
                         let name = e.file_name().to_string_lossy().into_owned();
                         let is_dir = e.file_type().ok()?.is_dir();
+                        let lower = name.to_ascii_lowercase();
                         let shown = !name.starts_with('.')
-                            && (is_dir || name.to_ascii_lowercase().ends_with(&format!(".{ext}")));
+                            && (is_dir
+                                || exts.iter().any(|ext| lower.ends_with(&format!(".{ext}"))));
                         shown.then_some((name, is_dir))
                     })
                     .take(2000)
@@ -159,7 +170,7 @@ impl PathDialog {
                     let edit = ui.add(
                         egui::TextEdit::singleline(&mut self.path)
                             .desired_width(320.0)
-                            .hint_text(format!("name.{}", self.purpose.extension())),
+                            .hint_text(format!("name.{}", self.purpose.extensions()[0])),
                     );
                     if !self.focused {
                         // Type the name right away (over the suggested

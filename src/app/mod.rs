@@ -6,11 +6,15 @@
 //! - [`settings`]: viewer toggles that map onto the scene description.
 //! - [`file_dialog`], [`export`], [`watch`]: files in and out.
 //! - [`timings`]: the `--log-timings` figures.
+//! - [`reference`], [`error_view`]: the converged reference and the live
+//!   error readout against it.
 
 pub mod camera_control;
 pub mod controls;
+pub mod error_view;
 pub mod export;
 pub mod file_dialog;
+pub mod reference;
 pub mod render_job;
 pub mod settings;
 pub mod status;

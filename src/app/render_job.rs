@@ -227,6 +227,28 @@ impl RenderJob {
     pub fn inject_panic(&self) {
         self.inner.lock().panic_next = true;
     }
+
+    /// A handle that copies the image being rendered from another thread
+    /// (the error readout's worker), so the UI never copies it.
+    pub fn film_reader(&self) -> FilmReader {
+        FilmReader(self.inner.clone())
+    }
+}
+
+/// Reads the linear image of a generation as far as it is rendered.
+#[derive(Clone)]
+pub struct FilmReader(Arc<Inner>);
+
+impl FilmReader {
+    /// A copy of `generation`'s image; `None` once a newer request replaced
+    /// it.
+    pub fn read(&self, generation: u64) -> Option<Film> {
+        let s = self.0.lock();
+        match &s.film {
+            Some((g, f)) if *g == generation && s.latest == generation => Some(f.clone()),
+            _ => None,
+        }
+    }
 }
 
 impl Drop for RenderJob {
@@ -249,7 +271,7 @@ impl Drop for RenderJob {
 /// The viewer's own rayon pool, one thread per core, each at a lower
 /// scheduling priority than the UI thread: the render takes every idle
 /// cycle, but a UI frame never waits behind it for a core.
-fn render_pool() -> Option<rayon::ThreadPool> {
+pub(super) fn render_pool() -> Option<rayon::ThreadPool> {
     rayon::ThreadPoolBuilder::new()
         .thread_name(|i| format!("penumbra-tile-{i}"))
         .start_handler(|_| lower_priority())

@@ -1,8 +1,10 @@
 //! The status bar: pass k of n, shadow samples per hit, elapsed time, ray
-//! throughput and the current pass's progress.
+//! throughput, the error against the reference and the current pass's
+//! progress.
 
 use std::time::{Duration, Instant};
 
+use super::error_view::Readout;
 use super::render_job::{JobState, TileMsg};
 use crate::render::Sampling;
 use crate::render::sampling::points_per_hit;
@@ -56,6 +58,7 @@ pub fn status_ui(
     progress: &Progress,
     state: &JobState,
     exporting: Option<&str>,
+    reference: Option<&Readout>,
 ) {
     ui.horizontal(|ui| {
         match state {
@@ -99,6 +102,10 @@ pub fn status_ui(
             }
         }
         ui.separator();
+        if let Some(r) = reference {
+            r.ui(ui);
+            ui.separator();
+        }
         if let Some(what) = exporting {
             ui.spinner();
             ui.label(what);

@@ -4,16 +4,30 @@
 //! One road for every parameter: a control edits `desc` (or `view`), then
 //! [`Viewer::restart`] renders `view.apply(&desc)` on the worker. Nothing
 //! renders on the UI thread, and nothing here waits for the worker.
+//!
+//! The error readout follows the same road: the reference is made or read
+//! on its own thread, and each finished pass is compared with it on the
+//! compare thread; the UI only shows the figures and uploads the image.
 
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use egui::{Color32, ColorImage, Key, Modifiers, Sense, TextureHandle, TextureOptions, Ui};
+use egui::{
+    Color32, ColorImage, ImageData, Key, Modifiers, Sense, TextureHandle, TextureOptions, Ui,
+};
 
 use super::camera_control::camera_input;
 use super::controls::{Action, ControlsState, controls_ui};
+use super::error_view::{
+    ErrorJob, ErrorRequest, ErrorShown, ImageSource, Readout, legend_ui, readout_text,
+};
 use super::export::IoTasks;
 use super::file_dialog::{DialogResult, PathDialog, Purpose};
+use super::reference::{
+    Match, Origin, RefAction, RefPanel, Reference, ReferenceTask, TaskKind, TaskOutcome, ViewMode,
+    reference_desc, reference_ui, same_limit,
+};
 use super::render_job::{JobState, RenderJob};
 use super::settings::ViewSettings;
 use super::status::{Progress, status_ui};
@@ -86,6 +100,25 @@ pub struct Viewer {
     pick: Option<PickInfo>,
     timings: Timings,
     wiggle: Option<(Duration, Instant, u32)>,
+    /// The reference of the error readout.
+    reference: Option<Reference>,
+    /// A reference being computed or read.
+    ref_task: Option<ReferenceTask>,
+    /// How the reference relates to the image on screen (set on restart).
+    ref_match: Option<Match>,
+    /// Id of the latest reference.
+    ref_ids: u64,
+    view_mode: ViewMode,
+    /// Stops below the largest difference shown as white.
+    error_exposure: f32,
+    errors: Option<ErrorJob>,
+    /// The latest readout and its error image.
+    error: Option<ErrorShown>,
+    error_texture: Option<TextureHandle>,
+    /// Tiles received of the pass being streamed: (generation, pass, count).
+    pass_tiles: (u64, usize, usize),
+    /// The latest pass complete on screen: (generation, pass, pass count).
+    last_pass: Option<(u64, usize, usize)>,
 }
 
 impl Viewer {
@@ -116,6 +149,17 @@ impl Viewer {
             pick: None,
             timings: Timings::new(options.log_timings),
             wiggle: options.wiggle.map(|d| (d, Instant::now(), 0)),
+            reference: None,
+            ref_task: None,
+            ref_match: None,
+            ref_ids: 0,
+            view_mode: ViewMode::Image,
+            error_exposure: 0.0,
+            errors: None,
+            error: None,
+            error_texture: None,
+            pass_tiles: (0, 0, 0),
+            last_pass: None,
         }
     }
 
@@ -204,6 +248,46 @@ impl Viewer {
         }
     }
 
+    pub fn reference(&self) -> Option<&Reference> {
+        self.reference.as_ref()
+    }
+
+    /// How the reference relates to the image on screen.
+    pub fn reference_match(&self) -> Option<Match> {
+        self.ref_match
+    }
+
+    /// A reference is being computed or read.
+    pub fn reference_busy(&self) -> bool {
+        self.ref_task.is_some()
+    }
+
+    /// Blocks until the reference task ended (tests only); the next frame
+    /// takes its result. False on timeout.
+    pub fn wait_for_reference(&mut self, timeout: Duration) -> bool {
+        self.ref_task.as_mut().is_none_or(|t| t.wait(timeout))
+    }
+
+    /// Blocks until the requested comparison is done (tests only); the
+    /// next frame shows it. False on timeout.
+    pub fn wait_for_error(&self, timeout: Duration) -> bool {
+        self.errors.as_ref().is_none_or(|e| e.wait(timeout))
+    }
+
+    /// The latest readout and error image (possibly of an earlier image or
+    /// reference: see its `generation` and `reference_id`).
+    pub fn error_shown(&self) -> Option<&ErrorShown> {
+        self.error.as_ref()
+    }
+
+    pub fn view_mode(&self) -> ViewMode {
+        self.view_mode
+    }
+
+    pub fn set_view_mode(&mut self, mode: ViewMode) {
+        self.view_mode = mode;
+    }
+
     // ----- actions -------------------------------------------------------
 
     /// Cancels the running render and starts one of the current settings.
@@ -211,6 +295,18 @@ impl Viewer {
         let Some(job) = &self.job else { return };
         let desc = self.view.apply(&self.desc, false);
         let size = (desc.camera.width, desc.camera.height);
+        // A reference computed for another image is of no use: stop it.
+        if let Some(ReferenceTask {
+            kind: TaskKind::Compute(made),
+            ..
+        }) = &self.ref_task
+            && !same_limit(made, &desc)
+        {
+            self.ref_task = None;
+            self.notice = Some("reference cancelled: the image changed".into());
+        }
+        self.ref_match = self.reference.as_ref().map(|r| r.check(&desc));
+        self.last_pass = None;
         self.progress = Progress::new(desc.render.sampling);
         let generation = job.restart(desc);
         self.timings.on_change(generation, size);
@@ -304,6 +400,181 @@ impl Viewer {
         self.io.save_scene(ctx, &full, path);
     }
 
+    // ----- reference and error readout ----------------------------------
+
+    /// Starts computing the converged reference of the image on screen
+    /// (replacing a task under way).
+    pub fn compute_reference(&mut self, ctx: &egui::Context) {
+        let desc = reference_desc(&self.render_desc());
+        self.ref_task = Some(ReferenceTask::compute(ctx, desc));
+    }
+
+    /// Reads a reference from a PNG or EXR file in the background.
+    pub fn load_reference(&mut self, ctx: &egui::Context, path: PathBuf) {
+        self.ref_task = Some(ReferenceTask::load(ctx, path));
+    }
+
+    pub fn cancel_reference(&mut self) {
+        if self.ref_task.take().is_some() {
+            self.notice = Some("reference cancelled".into());
+        }
+    }
+
+    pub fn clear_reference(&mut self) {
+        self.reference = None;
+        self.ref_match = None;
+        self.error = None;
+        if let Some(e) = &self.errors {
+            e.cancel();
+        }
+    }
+
+    /// Takes the reference task's outcome, if it ended.
+    fn poll_reference(&mut self) {
+        let Some(outcome) = self.ref_task.as_mut().and_then(ReferenceTask::poll) else {
+            return;
+        };
+        let Some(task) = self.ref_task.take() else {
+            return;
+        };
+        match outcome {
+            TaskOutcome::Done(film, elapsed) => {
+                let origin = match &task.kind {
+                    TaskKind::Compute(desc) => Origin::Computed {
+                        desc: desc.clone(),
+                        elapsed,
+                    },
+                    TaskKind::Load(path) => Origin::Loaded(path.clone()),
+                };
+                self.ref_ids += 1;
+                let r = Reference {
+                    film: Arc::new(film),
+                    origin,
+                    id: self.ref_ids,
+                };
+                self.notice = Some(format!("reference {}", r.describe()));
+                self.ref_match = Some(r.check(&self.render_desc()));
+                self.reference = Some(r);
+                self.refresh_error();
+            }
+            TaskOutcome::Cancelled => self.notice = Some("reference cancelled".into()),
+            TaskOutcome::Failed(msg) => self.show_error(msg),
+        }
+    }
+
+    /// Asks the compare thread for the readout of the newest image: the
+    /// finished render, else the render as far as its last complete pass.
+    fn refresh_error(&mut self) {
+        let (Some(job), Some(errors)) = (&self.job, &self.errors) else {
+            return;
+        };
+        let Some(r) = self
+            .reference
+            .as_ref()
+            .filter(|_| self.ref_match == Some(Match::Same))
+        else {
+            errors.cancel();
+            return;
+        };
+        let generation = job.generation();
+        let (image, pass) = match job.state() {
+            JobState::Finished(f) => (ImageSource::Film(f.film.clone()), None),
+            _ => match self.last_pass {
+                Some((g, k, n)) if g == generation => {
+                    (ImageSource::Snapshot(job.film_reader()), Some((k, n)))
+                }
+                _ => return,
+            },
+        };
+        errors.request(ErrorRequest {
+            generation,
+            pass,
+            image,
+            reference: r.film.clone(),
+            reference_id: r.id,
+            exposure: self.error_exposure,
+        });
+    }
+
+    /// Shows a comparison the compare thread finished.
+    fn poll_error(&mut self, ctx: &egui::Context) {
+        let Some(shown) = self.errors.as_ref().and_then(ErrorJob::take) else {
+            return;
+        };
+        let image = ImageData::Color(shown.image.clone());
+        match &mut self.error_texture {
+            Some(t) => t.set(image, TextureOptions::LINEAR),
+            None => {
+                self.error_texture = Some(ctx.load_texture("error", image, TextureOptions::LINEAR))
+            }
+        }
+        self.error = Some(shown);
+    }
+
+    /// The readout of a reference that matches the image on screen.
+    fn current_error(&self) -> Option<&ErrorShown> {
+        let r = self.reference.as_ref()?;
+        self.error
+            .as_ref()
+            .filter(|e| e.reference_id == r.id && self.ref_match == Some(Match::Same))
+    }
+
+    /// The status bar's entry for the reference.
+    fn readout(&self) -> Option<Readout> {
+        let Some(r) = &self.reference else {
+            let task = self.ref_task.as_ref()?;
+            return Some(Readout {
+                text: format!("reference {:.0}%", task.fraction() * 100.0),
+                stale: true,
+                hover: "computing the reference".into(),
+            });
+        };
+        let (w, h) = (r.film.width, r.film.height);
+        Some(match self.ref_match? {
+            Match::SizeDiffers => Readout {
+                text: "reference: size differs".into(),
+                stale: false,
+                hover: format!(
+                    "The reference is {w}×{h}, the image {}×{}: not compared",
+                    self.shown.size[0], self.shown.size[1]
+                ),
+            },
+            Match::SettingsDiffer => Readout {
+                text: "reference: settings differ".into(),
+                stale: false,
+                hover: "The reference was computed for another scene, camera or toggles: \
+                        not compared (compute it again)"
+                    .into(),
+            },
+            Match::Same => match self.current_error() {
+                Some(e) => {
+                    let mut text = readout_text(&e.comparison);
+                    if let Some((k, n)) = e.pass {
+                        text.push_str(&format!(" (pass {} of {n})", k + 1));
+                    }
+                    let c = &e.comparison;
+                    Readout {
+                        text,
+                        stale: e.generation != self.render_generation(),
+                        hover: format!(
+                            "Against the reference ({}), linear RGB, peak 1.\n\
+                             Largest difference {:.3e} at pixel ({}, {}).",
+                            r.describe(),
+                            c.max_diff,
+                            c.max_at.0,
+                            c.max_at.1
+                        ),
+                    }
+                }
+                None => Readout {
+                    text: "RMSE …".into(),
+                    stale: true,
+                    hover: "Compared once a pass of the render is complete".into(),
+                },
+            },
+        })
+    }
+
     fn reset_view(&mut self) {
         self.desc.camera = self.home_camera.clone();
         self.restart();
@@ -332,6 +603,10 @@ impl Viewer {
                 .clone()
                 .unwrap_or_else(|| PathBuf::from("scene.json")),
             Purpose::OpenScene => self.scene_path.clone().unwrap_or_default(),
+            Purpose::OpenReference => match self.reference.as_ref().map(|r| &r.origin) {
+                Some(Origin::Loaded(p)) => p.clone(),
+                _ => PathBuf::from("reference.exr"),
+            },
         };
         self.dialog = Some(PathDialog::new(purpose, &suggested));
     }
@@ -353,9 +628,13 @@ impl Viewer {
         self.poll_inputs(&ctx);
         self.stream_tiles();
         self.check_render_end();
+        self.poll_reference();
+        self.poll_error(&ctx);
 
         let mut changed = false;
         let mut action = None;
+        let mut ref_action = None;
+        let mut exposure_changed = false;
 
         if let Some(msg) = self.banner.clone() {
             egui::Panel::top("banner")
@@ -378,7 +657,8 @@ impl Viewer {
                 .job
                 .as_ref()
                 .map_or(JobState::Running, RenderJob::state);
-            status_ui(ui, &self.progress, &state, self.io.busy());
+            let readout = self.readout();
+            status_ui(ui, &self.progress, &state, self.io.busy(), readout.as_ref());
             if let Some(n) = &self.notice {
                 ui.label(egui::RichText::new(n).small().weak());
             }
@@ -395,6 +675,16 @@ impl Viewer {
                     let out = controls_ui(ui, &mut self.controls, &mut self.desc, &mut self.view);
                     changed |= out.changed;
                     action = out.action;
+                    let panel = RefPanel {
+                        task: self.ref_task.as_ref(),
+                        reference: self.reference.as_ref(),
+                        matched: self.ref_match,
+                        image_size: self.shown.size,
+                    };
+                    let out =
+                        reference_ui(ui, panel, &mut self.view_mode, &mut self.error_exposure);
+                    ref_action = out.action;
+                    exposure_changed = out.exposure_changed;
                 });
             });
         egui::CentralPanel::no_frame()
@@ -411,6 +701,16 @@ impl Viewer {
             Some(Action::ResetView) => self.reset_view(),
             None => {}
         }
+        match ref_action {
+            Some(RefAction::Compute) => self.compute_reference(&ctx),
+            Some(RefAction::Load) => self.open_dialog(Purpose::OpenReference),
+            Some(RefAction::Cancel) => self.cancel_reference(),
+            Some(RefAction::Clear) => self.clear_reference(),
+            None => {}
+        }
+        if exposure_changed {
+            self.refresh_error();
+        }
         if let Some(d) = &mut self.dialog {
             match d.show(&ctx) {
                 DialogResult::Open => {}
@@ -421,6 +721,7 @@ impl Viewer {
                         Purpose::OpenScene => self.open_scene(&ctx, &path),
                         Purpose::SavePng => self.save_png(&ctx, path),
                         Purpose::SaveScene => self.save_scene(&ctx, path),
+                        Purpose::OpenReference => self.load_reference(&ctx, path),
                     }
                 }
             }
@@ -443,6 +744,7 @@ impl Viewer {
             return;
         }
         self.job = Some(RenderJob::new(ctx.clone()));
+        self.errors = Some(ErrorJob::new(ctx.clone()));
         self.texture = Some(ctx.load_texture("render", self.shown.clone(), TextureOptions::LINEAR));
         self.watch(ctx);
         self.restart();
@@ -458,7 +760,13 @@ impl Viewer {
                 .collect()
         });
         if let Some(path) = dropped.first() {
-            self.open_scene(ctx, path);
+            let ext = path.extension().map(|e| e.to_ascii_lowercase());
+            if ext.as_ref().is_some_and(|e| e == "png" || e == "exr") {
+                // An image dropped on the window is a reference.
+                self.load_reference(ctx, path.clone());
+            } else {
+                self.open_scene(ctx, path);
+            }
         }
         if let Some(w) = &self.watcher {
             match w.poll() {
@@ -493,7 +801,20 @@ impl Viewer {
         let Some(texture) = &mut self.texture else {
             return;
         };
+        let mut pass_done = false;
         for t in tiles {
+            // Passes run one after the other: the last tile of one is on
+            // screen when as many tiles as it has arrived. (The final pass
+            // is compared when the render is reported finished.)
+            let key = (t.generation, t.pass_index);
+            if (self.pass_tiles.0, self.pass_tiles.1) != key {
+                self.pass_tiles = (key.0, key.1, 0);
+            }
+            self.pass_tiles.2 += 1;
+            if self.pass_tiles.2 == t.tiles_total && t.pass_index + 1 < t.pass_count {
+                self.last_pass = Some((t.generation, t.pass_index, t.pass_count));
+                pass_done = true;
+            }
             let (x, y, w, h) = (
                 t.rect.x as usize,
                 t.rect.y as usize,
@@ -512,6 +833,9 @@ impl Viewer {
             let image = ColorImage::new([w, h], t.pixels);
             texture.set_partial([x, y], image, TextureOptions::LINEAR);
         }
+        if pass_done {
+            self.refresh_error();
+        }
     }
 
     /// The latest render's end: its figures, or its error in the banner.
@@ -529,6 +853,7 @@ impl Viewer {
                 if std::mem::take(&mut self.banner_from_render) {
                     self.banner = None;
                 }
+                self.refresh_error();
             }
             JobState::Failed(msg) => {
                 self.banner = Some(msg);
@@ -549,13 +874,43 @@ impl Viewer {
         let fit = (area.width() / w as f32).min(area.height() / h as f32);
         let rect =
             egui::Rect::from_center_size(area.center(), egui::vec2(w as f32, h as f32) * fit);
-        if let Some(t) = &self.texture {
+        let error = self
+            .current_error()
+            .filter(|e| self.view_mode == ViewMode::Error && e.image.size == self.shown.size);
+        let texture = match error {
+            Some(_) => self.error_texture.as_ref(),
+            None => self.texture.as_ref(),
+        };
+        if let Some(t) = texture {
             ui.painter().image(
                 t.id(),
                 rect,
                 egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0)),
                 Color32::WHITE,
             );
+        }
+        if self.view_mode == ViewMode::Error {
+            let scale = error.map(|e| e.scale);
+            let why = match (&self.reference, self.ref_match) {
+                _ if scale.is_some() => "",
+                (None, _) => "Error view: no reference (compute or load one)",
+                (_, Some(Match::SizeDiffers)) => "Error view: the reference's size differs",
+                (_, Some(Match::SettingsDiffer)) => {
+                    "Error view: the reference was made for other settings"
+                }
+                _ => "Error view: comparing…",
+            };
+            egui::Area::new(egui::Id::unique("penumbra-error-legend"))
+                .pivot(egui::Align2::LEFT_BOTTOM)
+                .fixed_pos(rect.left_bottom() + egui::vec2(8.0, -8.0))
+                .show(ui.ctx(), |ui| {
+                    egui::Frame::popup(ui.style()).show(ui, |ui| match scale {
+                        Some(s) => legend_ui(ui, s),
+                        None => {
+                            ui.label(why);
+                        }
+                    });
+                });
         }
         let moved = camera_input(ui, &response, &mut self.desc.camera, rect.height());
         if response.double_clicked()

@@ -28,6 +28,7 @@ fi
 cargo build --release --quiet
 bin=$PWD/target/release/penumbra
 mkdir -p "$(dirname "$out")"
+[[ $out == /* ]] || out=$PWD/$out
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 
@@ -51,5 +52,5 @@ chmod +x "$tmp/inner.sh"
 
 # Software rendering: no GPU on CI or in containers.
 LIBGL_ALWAYS_SOFTWARE=1 xvfb-run -a -s "-screen 0 1600x900x24" \
-    "$tmp/inner.sh" "$PWD/$out" "$wait_s" "$bin" "$@"
+    "$tmp/inner.sh" "$out" "$wait_s" "$bin" "$@"
 echo "wrote $out"

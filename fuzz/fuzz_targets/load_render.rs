@@ -10,39 +10,19 @@
 
 #![no_main]
 
+mod common;
+
 use libfuzzer_sys::fuzz_target;
-use penumbra::render::{RenderOptions, Scene, SceneDesc};
+use penumbra::render::SceneDesc;
 
 fuzz_target!(|data: &[u8]| {
     let Ok(text) = std::str::from_utf8(data) else {
         return;
     };
-    let Ok(mut desc) = SceneDesc::from_json(text) else {
+    let Ok(desc) = SceneDesc::from_json(text) else {
         return;
     };
-    desc.camera.width = desc.camera.width.min(8);
-    desc.camera.height = desc.camera.height.min(8);
-    desc.render.shadow_rays = desc.render.shadow_rays.min(16);
-    desc.render.max_depth = desc.render.max_depth.min(4);
-    let scene = Scene::new(desc).expect("a validated scene stays valid with smaller caps");
-    let options = RenderOptions {
-        threads: Some(1),
-        ..RenderOptions::default()
-    };
-    let report = penumbra::render::render(
-        &scene,
-        &options,
-        &penumbra::render::CancelToken::new(),
-        &|_| {},
-    )
-    .expect("not cancelled");
-    if let Some((i, p)) = report
-        .film
-        .pixels
-        .iter()
-        .enumerate()
-        .find(|(_, p)| !p.is_finite())
-    {
+    if let Some((i, p)) = common::first_non_finite_pixel(desc) {
         panic!("non-finite pixel {i}: {p:?}");
     }
 });

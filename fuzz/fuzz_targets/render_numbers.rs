@@ -12,8 +12,10 @@
 
 #![no_main]
 
+mod common;
+
 use libfuzzer_sys::fuzz_target;
-use penumbra::render::{RenderOptions, Scene, SceneDesc};
+use penumbra::render::SceneDesc;
 use serde_json::Value;
 
 const BASES: [&str; 6] = [
@@ -77,32 +79,10 @@ fuzz_target!(|data: &[u8]| {
     };
     let mut v: Value = serde_json::from_str(BASES[which as usize % BASES.len()]).unwrap();
     mutate(&mut v, &mut rest.iter().copied());
-    let Ok(mut desc) = SceneDesc::from_json(&v.to_string()) else {
+    let Ok(desc) = SceneDesc::from_json(&v.to_string()) else {
         return;
     };
-    desc.camera.width = desc.camera.width.min(8);
-    desc.camera.height = desc.camera.height.min(8);
-    desc.render.shadow_rays = desc.render.shadow_rays.min(16);
-    desc.render.max_depth = desc.render.max_depth.min(4);
-    let scene = Scene::new(desc.clone()).expect("a validated scene stays valid with smaller caps");
-    let options = RenderOptions {
-        threads: Some(1),
-        ..RenderOptions::default()
-    };
-    let report = penumbra::render::render(
-        &scene,
-        &options,
-        &penumbra::render::CancelToken::new(),
-        &|_| {},
-    )
-    .expect("not cancelled");
-    if let Some((i, p)) = report
-        .film
-        .pixels
-        .iter()
-        .enumerate()
-        .find(|(_, p)| !p.is_finite())
-    {
+    if let Some((i, p)) = common::first_non_finite_pixel(desc.clone()) {
         panic!("non-finite pixel {i}: {p:?}\n{}", desc.to_json());
     }
 });

@@ -392,3 +392,22 @@ fn sampled_and_analytic_models_converge_to_one_image() {
     let c = penumbra::render::compare::compare(&sampled, &analytic).unwrap();
     assert!(c.rmse < 2e-3, "rmse {:e}", c.rmse);
 }
+
+#[test]
+fn tile_updates_count_the_rays_of_the_render() {
+    let scene = common::build(common::seed_room(80, 45));
+    let rays = std::sync::atomic::AtomicU64::new(0);
+    let report = render(
+        &scene,
+        &RenderOptions {
+            progressive: true,
+            ..Default::default()
+        },
+        &CancelToken::new(),
+        &|t| {
+            rays.fetch_add(t.rays, std::sync::atomic::Ordering::Relaxed);
+        },
+    )
+    .unwrap();
+    assert_eq!(rays.into_inner(), report.stats.traced());
+}

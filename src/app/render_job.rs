@@ -28,6 +28,8 @@ pub struct TileMsg {
     pub shadow_rays: u32,
     pub tiles_done: usize,
     pub tiles_total: usize,
+    /// Rays traced for the tile.
+    pub rays: u64,
 }
 
 /// How the render of one generation ended (or that it has not). Cheap to
@@ -384,6 +386,7 @@ fn run_one(inner: &Inner, req: &Request, panic_now: bool) -> Result<Option<Rende
                 shadow_rays: t.pass.shadow_rays,
                 tiles_done: t.tiles_done,
                 tiles_total: t.tiles_total,
+                rays: t.rays,
             });
         }
         inner.repaint.request_repaint();

@@ -19,6 +19,8 @@ pub struct Progress {
     pub shadow_rays: u32,
     pub tiles_done: usize,
     pub tiles_total: usize,
+    /// Rays traced by the tiles received so far (all passes).
+    pub rays: u64,
     /// Set when the render ended: its time and rays traced (all passes).
     pub finished: Option<(Duration, u64)>,
 }
@@ -33,11 +35,13 @@ impl Progress {
             shadow_rays: 0,
             tiles_done: 0,
             tiles_total: 0,
+            rays: 0,
             finished: None,
         }
     }
 
     pub fn on_tile(&mut self, t: &TileMsg) {
+        self.rays += t.rays;
         // Tiles of one pass arrive in any order; keep the furthest.
         if (t.pass_index, t.tiles_done) >= (self.pass_index, self.tiles_done)
             || self.pass_count == 0
@@ -89,18 +93,11 @@ pub fn status_ui(
         };
         ui.label(format!("{:.2} s", elapsed.as_secs_f64()));
         ui.separator();
-        match progress.finished {
-            Some((d, rays)) => {
-                ui.label(format!(
-                    "{:.1} Mray/s",
-                    rays as f64 / d.as_secs_f64().max(1e-9) / 1e6
-                ));
-            }
-            None => {
-                ui.label("— Mray/s")
-                    .on_hover_text("Shown when the render finishes");
-            }
-        }
+        let (time, rays) = progress.finished.unwrap_or((elapsed, progress.rays));
+        ui.label(format!(
+            "{:.1} Mray/s",
+            rays as f64 / time.as_secs_f64().max(1e-9) / 1e6
+        ));
         ui.separator();
         if let Some(r) = reference {
             r.ui(ui);

@@ -101,6 +101,8 @@ pub struct TileUpdate<'a> {
     /// Tiles of this pass finished so far (this one included), and in all.
     pub tiles_done: usize,
     pub tiles_total: usize,
+    /// Rays traced for this tile (for a live rays-per-second readout).
+    pub rays: u64,
 }
 
 /// How to run a render.
@@ -231,6 +233,7 @@ fn render_in_pool(
                     break;
                 }
                 let rect = tiles[i];
+                let traced_before = scratch.stats.traced();
                 if !render_tile(&tracer, rect, pass.block, cancel, &mut scratch, &mut pixels) {
                     break;
                 }
@@ -246,6 +249,7 @@ fn render_in_pool(
                     pixels: &pixels,
                     tiles_done,
                     tiles_total: tiles.len(),
+                    rays: scratch.stats.traced() - traced_before,
                 });
             }
             *stats.lock().unwrap_or_else(|e| e.into_inner()) += scratch.stats;

@@ -138,6 +138,32 @@ fn wrong_types_are_refused() {
 }
 
 #[test]
+fn arrays_in_place_of_objects_are_refused() {
+    assert_error(
+        |v| v["render"]["terms"] = json!([1, 0, 0]),
+        "render.terms",
+        "expected an object",
+    );
+    assert_error(
+        |v| {
+            v["materials"]["red"] =
+                json!([[0.8, 0.2, 0.2], [0.8, 0.2, 0.2], [0.3, 0.3, 0.3], 20, 0])
+        },
+        "materials.red",
+        "expected an object",
+    );
+    assert_error(
+        |v| v["camera"] = json!([[0, 4, -14], [0, 3.5, 0], [0, 1, 0], 36, 960, 540]),
+        "camera",
+        "expected an object",
+    );
+    let e = Scene::from_json("[1, {}, {}, {}, {}, []]")
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("expected an object"), "{e}");
+}
+
+#[test]
 fn non_finite_numbers_are_refused() {
     let text = SEED_ROOM_JSON.replace(r#""fov_y_deg": 36"#, r#""fov_y_deg": NaN"#);
     let e = Scene::from_json(&text).unwrap_err().to_string();

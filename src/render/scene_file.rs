@@ -353,6 +353,42 @@ fn path_error<E: std::fmt::Display>(
     SceneError::new(path, err.into_inner().to_string())
 }
 
+/// Refuses an array where the format has an object (a section, a material).
+fn require_objects(tree: &Value) -> Result<(), SceneError> {
+    let object = |path: &str, v: Option<&Value>| match v {
+        Some(v) if !v.is_object() => Err(SceneError::new(
+            path,
+            format!("invalid type: {}, expected an object", kind_of(v)),
+        )),
+        _ => Ok(()),
+    };
+    object("", Some(tree))?;
+    for section in ["camera", "render", "light", "materials"] {
+        object(section, tree.get(section))?;
+    }
+    object(
+        "render.terms",
+        tree.get("render").and_then(|r| r.get("terms")),
+    )?;
+    if let Some(Value::Object(materials)) = tree.get("materials") {
+        for (name, m) in materials {
+            object(&format!("materials.{name}"), Some(m))?;
+        }
+    }
+    Ok(())
+}
+
+fn kind_of(v: &Value) -> &'static str {
+    match v {
+        Value::Null => "null",
+        Value::Bool(_) => "boolean",
+        Value::Number(_) => "number",
+        Value::String(_) => "string",
+        Value::Array(_) => "array",
+        Value::Object(_) => "object",
+    }
+}
+
 fn parse_object(index: usize, value: Value) -> Result<ObjectDesc, SceneError> {
     let path = format!("objects[{index}]");
     let Value::Object(mut map) = value else {
@@ -393,8 +429,15 @@ impl SceneDesc {
     /// Parses and validates a scene from JSON text.
     pub fn from_json(text: &str) -> Result<SceneDesc, SceneError> {
         let mut de = serde_json::Deserializer::from_str(text);
-        let raw: RawScene =
-            serde_path_to_error::deserialize(&mut de).map_err(|e| path_error("", e))?;
+        let typed: Result<RawScene, _> =
+            serde_path_to_error::deserialize(&mut de).map_err(|e| path_error("", e));
+        // serde's derive also reads a struct from an array of its fields in
+        // order ("terms": [1, 0, 0]); the format has objects only. Checked
+        // first, as the more basic mistake, whenever the JSON is well formed.
+        if let Ok(tree) = serde_json::from_str::<Value>(text) {
+            require_objects(&tree)?;
+        }
+        let raw = typed?;
         de.end().map_err(|e| SceneError::new("", e.to_string()))?;
         if raw.objects.len() > limits::MAX_OBJECTS {
             return Err(SceneError::new(

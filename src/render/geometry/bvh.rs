@@ -249,23 +249,6 @@ impl Bvh {
             }
         }
     }
-
-    /// Depth of the deepest leaf (for tests and statistics).
-    pub fn depth(&self) -> usize {
-        fn walk(b: &Bvh, n: usize) -> usize {
-            let node = &b.nodes[n];
-            if node.count > 0 {
-                1
-            } else {
-                1 + walk(b, node.first as usize).max(walk(b, node.first as usize + 1))
-            }
-        }
-        if self.nodes.is_empty() {
-            0
-        } else {
-            walk(self, 0)
-        }
-    }
 }
 
 #[inline]

@@ -72,13 +72,6 @@ impl Shape {
             Shape::Sphere(s) => Some(s.bounds()),
         }
     }
-
-    /// Whether a ray leaving this surface on the side the normal points to
-    /// can never meet it again (true for every primitive here: they are
-    /// convex or flat). Shadow rays rely on it to skip their own surface.
-    pub fn is_convex(&self) -> bool {
-        true
-    }
 }
 
 /// The first of `near <= far` (entry and exit of a convex shape) inside

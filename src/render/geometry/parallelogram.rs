@@ -72,10 +72,6 @@ impl Parallelogram {
         self.corner + (self.edge_u + self.edge_v) * 0.5
     }
 
-    pub fn area(&self) -> f64 {
-        self.edge_u.cross(self.edge_v).length()
-    }
-
     /// Signed distance of a point from the plane, positive on the normal's
     /// side.
     #[inline]

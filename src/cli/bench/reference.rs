@@ -78,15 +78,16 @@ pub fn reference(
     let (w, h) = (desc.camera.width, desc.camera.height);
     if !fresh && path.exists() {
         // A cache entry of the wrong size (or unreadable) is rendered again.
-        if let Ok(film) = read_film(&path) {
-            if (film.width, film.height) == (w, h) && !film.has_non_finite() {
-                return Ok(Reference {
-                    film,
-                    path,
-                    cached: true,
-                    elapsed: Duration::ZERO,
-                });
-            }
+        if let Ok(film) = read_film(&path)
+            && (film.width, film.height) == (w, h)
+            && !film.has_non_finite()
+        {
+            return Ok(Reference {
+                film,
+                path,
+                cached: true,
+                elapsed: Duration::ZERO,
+            });
         }
     }
     std::fs::create_dir_all(cache_dir).map_err(|e| {

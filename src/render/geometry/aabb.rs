@@ -60,14 +60,15 @@ impl Aabb {
         }
     }
 
-    /// Slab test: whether the ray meets the box for some t in [0, t_max].
-    /// `inv_dir` is `1 / ray.dir`; NaN from 0·∞ is discarded by min/max.
+    /// Slab test: where the ray enters the box, if it meets it for some t
+    /// in [0, t_max]. `inv_dir` is `1 / ray.dir`; NaN from 0·∞ is discarded
+    /// by min/max.
     #[inline]
-    pub fn hit(&self, ray: &Ray, inv_dir: DVec3, t_max: f64) -> bool {
+    pub fn entry(&self, ray: &Ray, inv_dir: DVec3, t_max: f64) -> Option<f64> {
         let t0 = (self.min - ray.origin) * inv_dir;
         let t1 = (self.max - ray.origin) * inv_dir;
         let near = t0.min(t1).max_element().max(0.0);
         let far = t0.max(t1).min_element().min(t_max);
-        near <= far
+        (near <= far).then_some(near)
     }
 }

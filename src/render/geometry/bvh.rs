@@ -163,9 +163,7 @@ impl Bvh {
         let mut stack = [0u32; 64];
         let mut sp = 0;
         let mut node = 0usize;
-        if !self.nodes[0].bounds.hit(ray, inv, t_max) {
-            return None;
-        }
+        self.nodes[0].bounds.entry(ray, inv, t_max)?;
         loop {
             let n = &self.nodes[node];
             if n.count > 0 {
@@ -177,8 +175,8 @@ impl Bvh {
                 }
             } else {
                 let (l, r) = (n.first as usize, n.first as usize + 1);
-                let dl = entry(&self.nodes[l].bounds, ray, inv, t_max);
-                let dr = entry(&self.nodes[r].bounds, ray, inv, t_max);
+                let dl = self.nodes[l].bounds.entry(ray, inv, t_max);
+                let dr = self.nodes[r].bounds.entry(ray, inv, t_max);
                 match (dl, dr) {
                     (Some(a), Some(b)) => {
                         let (near, far) = if a <= b { (l, r) } else { (r, l) };
@@ -205,7 +203,7 @@ impl Bvh {
                 }
                 sp -= 1;
                 node = stack[sp] as usize;
-                if entry(&self.nodes[node].bounds, ray, inv, t_max).is_some() {
+                if self.nodes[node].bounds.entry(ray, inv, t_max).is_some() {
                     break;
                 }
             }
@@ -249,13 +247,4 @@ impl Bvh {
             }
         }
     }
-}
-
-#[inline]
-fn entry(b: &Aabb, ray: &Ray, inv: DVec3, t_max: f64) -> Option<f64> {
-    let t0 = (b.min - ray.origin) * inv;
-    let t1 = (b.max - ray.origin) * inv;
-    let near = t0.min(t1).max_element().max(0.0);
-    let far = t0.max(t1).min_element().min(t_max);
-    (near <= far).then_some(near)
 }

@@ -1,6 +1,9 @@
 //! Helpers shared by the integration tests.
 #![allow(dead_code)]
 
+use std::path::Path;
+use std::process::{Command, Output};
+
 use penumbra::render::{Scene, SceneDesc};
 
 /// The seed room description, resized.
@@ -18,4 +21,22 @@ pub fn build(desc: SceneDesc) -> Scene {
 /// A scene from JSON text, panicking with the loader's message.
 pub fn scene_json(text: &str) -> Scene {
     Scene::from_json(text).unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// Runs the `penumbra` binary with `args`.
+pub fn penumbra(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_penumbra"))
+        .args(args)
+        .output()
+        .expect("runs")
+}
+
+/// The names of the files in `dir`, sorted.
+pub fn files_in(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    v.sort();
+    v
 }

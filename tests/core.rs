@@ -337,6 +337,79 @@ fn skipping_work_does_not_change_the_image() {
     }
 }
 
+/// Many objects: shadow rays walk the light-frame BVH as packets, keeping
+/// only the rays that can meet each box; the image must be the one tracing
+/// every ray against every object gives, for grids, for patterns drawn per
+/// hit point, for more rays than one packet holds, and in adaptive mode.
+#[test]
+fn shadow_packets_give_the_image_of_tracing_everything() {
+    use penumbra::render::generate::spheres_in_room;
+    use penumbra::render::scene::PACKET_THRESHOLD;
+    assert!(
+        common::build(spheres_in_room(PACKET_THRESHOLD - 1, 3))
+            .shadow_bvh
+            .is_none()
+    );
+    let cases = [
+        (1000, Sampling::Grid, 64, false),
+        (300, Sampling::Random, 100, false),
+        (300, Sampling::Sobol, 16, false),
+        (300, Sampling::Stratified, 64, true),
+    ];
+    for (n, sampling, rays, adaptive) in cases {
+        let mut desc = spheres_in_room(n, 3);
+        desc.camera.width = 96;
+        desc.camera.height = 54;
+        desc.render.sampling = sampling;
+        desc.render.shadow_rays = rays;
+        desc.render.adaptive = adaptive;
+        let fast = common::build(desc.clone());
+        assert!(fast.shadow_bvh.is_some(), "{n} spheres use packets");
+        let mut slow = common::build(desc);
+        slow.settings.skip = false;
+        let a = render_with(&fast, RenderOptions::default());
+        let b = render_with(&slow, RenderOptions::default());
+        assert!(
+            a.film == b.film,
+            "{n} spheres, {sampling:?}, {rays} rays: images differ"
+        );
+        // The packets leave out most ray-object tests, and some rays
+        // entirely: every box they could meet lies elsewhere.
+        assert!(
+            a.stats.shadow < b.stats.shadow,
+            "{:?} vs {:?}",
+            a.stats,
+            b.stats
+        );
+    }
+}
+
+/// Hundreds of spheres around one centre land in one leaf of the binary
+/// BVH; the packets' 4-wide tree splits it, and the image is still exact.
+#[test]
+fn concentric_spheres_render_exactly_with_packets() {
+    let mut desc = penumbra::render::generate::spheres_in_room(0, 1);
+    for i in 0..300 {
+        desc.objects
+            .push(penumbra::render::scene_file::ObjectDesc::Sphere(
+                penumbra::render::scene_file::SphereDesc {
+                    center: [0.5, 2.0, 1.0],
+                    radius: 0.2 + 0.004 * i as f64,
+                    material: "red".into(),
+                },
+            ));
+    }
+    desc.camera.width = 64;
+    desc.camera.height = 36;
+    let fast = common::build(desc.clone());
+    assert!(fast.shadow_bvh.is_some());
+    let mut slow = common::build(desc);
+    slow.settings.skip = false;
+    let a = render_with(&fast, RenderOptions::default());
+    let b = render_with(&slow, RenderOptions::default());
+    assert!(a.film == b.film, "images differ");
+}
+
 #[test]
 fn srgb_encoding_rounds_correctly() {
     use penumbra::render::film::{decode_channel, encode_channel};

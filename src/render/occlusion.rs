@@ -26,8 +26,10 @@
 
 use glam::{DVec3, Vec3};
 
-use super::geometry::{Aabb, Shape};
+use super::geometry::{Aabb, Shape, Slot};
+use super::light_frame::{Eye, LightFrame, OccluderBvh};
 use super::math::avx2_dispatch;
+use super::ray_packet::{PACKET, RayBins};
 use super::scene::Scene;
 use super::stats::RayStats;
 
@@ -63,6 +65,11 @@ pub struct ShadowBuffers {
     /// The fixed pattern whose points `a` and `b` already hold, if any.
     pub filled: Option<(super::scene_file::Sampling, u32)>,
     occluders: Vec<Candidate>,
+    /// The light points binned per packet of 64 rays, and the fixed pattern
+    /// they were binned for (a pattern drawn per hit point is binned anew).
+    bins: Vec<RayBins>,
+    bins_for: Option<(super::scene_file::Sampling, u32)>,
+    scratch: PacketScratch,
 }
 
 /// A possible occluder of one hit point.
@@ -93,6 +100,9 @@ impl ShadowBuffers {
             term_f: v(0.0),
             filled: None,
             occluders: Vec::with_capacity(16),
+            bins: Vec::with_capacity(points.div_ceil(PACKET)),
+            bins_for: None,
+            scratch: PacketScratch::default(),
         }
     }
 }
@@ -100,9 +110,8 @@ impl ShadowBuffers {
 /// An object as seen from one hit point, in f32 relative to it.
 #[derive(Debug, Clone, Copy)]
 enum Occluder {
-    /// `oc`: centre − p; `c2`: |p − c|² − r² (0 when hit from inside: p is
-    /// on the sphere).
-    Sphere { oc: Vec3, c2: f32, inside: bool },
+    /// `oc`: centre − p; `r2`: the radius squared.
+    Sphere { oc: Vec3, r2: f32, inside: bool },
     /// `origin`: p in the box's frame; `cos`, `sin`: its rotation about y.
     Cuboid {
         origin: Vec3,
@@ -126,19 +135,11 @@ enum Occluder {
 impl Occluder {
     fn new(shape: &Shape, p: DVec3, inside: bool) -> Occluder {
         match shape {
-            Shape::Sphere(s) => {
-                let oc = s.centre - p;
-                let c2 = if inside {
-                    0.0
-                } else {
-                    oc.length_squared() - s.radius * s.radius
-                };
-                Occluder::Sphere {
-                    oc: oc.as_vec3(),
-                    c2: c2 as f32,
-                    inside,
-                }
-            }
+            Shape::Sphere(s) => Occluder::Sphere {
+                oc: (s.centre - p).as_vec3(),
+                r2: (s.radius * s.radius) as f32,
+                inside,
+            },
             Shape::Cuboid(c) => Occluder::Cuboid {
                 origin: c.to_local(p - c.centre).as_vec3(),
                 half: c.half.as_vec3(),
@@ -163,26 +164,32 @@ impl Occluder {
     }
 
     /// Clears `vis[j]` for every ray that this occluder blocks.
-    fn block(&self, dx: &[f32], dy: &[f32], dz: &[f32], vis: &mut [f32]) {
-        block(self, dx, dy, dz, vis)
+    fn block(&self, d: Dirs, vis: &mut [f32]) {
+        block(self, d, vis)
     }
 
     #[inline(always)]
-    fn block_generic(&self, dx: &[f32], dy: &[f32], dz: &[f32], vis: &mut [f32]) {
+    fn block_generic(&self, d: Dirs, vis: &mut [f32]) {
         let n = vis.len();
-        let (dx, dy, dz) = (&dx[..n], &dy[..n], &dz[..n]);
+        let (dx, dy, dz) = (&d.x[..n], &d.y[..n], &d.z[..n]);
         match *self {
-            Occluder::Sphere { oc, c2, inside } => {
+            Occluder::Sphere { oc, r2, inside } => {
                 for j in 0..n {
                     let (x, y, z) = (dx[j], dy[j], dz[j]);
                     let a = x * x + y * y + z * z;
                     let b = oc.x * x + oc.y * y + oc.z * z;
-                    let disc = b * b - a * c2;
+                    // disc = b² − a(|oc|² − r²) = a(r² − |e|²), e the centre's
+                    // offset from the ray's closest point: computed from e
+                    // (Ray Tracing Gems, ch. 7), it keeps its precision for
+                    // a small sphere far away, where b² and a|oc|² cancel.
+                    let t = b / a;
+                    let (ex, ey, ez) = (oc.x - x * t, oc.y - y * t, oc.z - z * t);
+                    let disc = a * (r2 - (ex * ex + ey * ey + ez * ez));
                     // Roots t = (b ± √disc) / a. Outside: the near root, in
-                    // (0, 1) iff b > 0 and b − a < √disc. Inside: the exit,
-                    // b + √disc < a.
+                    // (0, 1) iff b > 0 and b − a < √disc. Inside (p is on
+                    // the sphere, disc = b²): the exit, b + |b| < a.
                     let blocked = if inside {
-                        b + disc.max(0.0).sqrt() < a * RAY_END
+                        b + b.abs() < a * RAY_END
                     } else {
                         let s = b - a * RAY_END;
                         disc >= 0.0 && b > 0.0 && (s < 0.0 || s * s < disc)
@@ -243,7 +250,12 @@ impl Occluder {
     /// Whether this occluder blocks the single ray `d`.
     fn blocks(&self, d: Vec3) -> bool {
         let mut v = [1.0];
-        self.block(&[d.x], &[d.y], &[d.z], &mut v);
+        let dirs = Dirs {
+            x: &[d.x],
+            y: &[d.y],
+            z: &[d.z],
+        };
+        self.block(dirs, &mut v);
         v[0] == 0.0
     }
 }
@@ -412,17 +424,71 @@ pub fn visibility(
             return;
         }
     }
-    // Traces rays (directions and visibility as parallel slices) against the
-    // candidates; returns whether there was any candidate at all.
-    let occluders = &buf.occluders;
-    let trace = |dx: &[f32], dy: &[f32], dz: &[f32], vis: &mut [f32]| -> bool {
-        let mut traced = !occluders.is_empty();
-        for c in occluders {
-            c.occ.block(dx, dy, dz, vis);
+    // With many objects, shadow rays walk the light-frame BVH as packets
+    // whose nodes keep only the rays that can meet them.
+    let packets = scene.shadow_bvh.as_ref().filter(|_| skip).map(|sb| {
+        let p = sb.frame.local(q.point);
+        // Wider than the rounding of the f32 ray tests by orders of
+        // magnitude (their decisions move by ~1e-6 of the distances), so
+        // no ray the full test would find blocked is left out.
+        let margin = 1e-4 * (p.abs().max_element() + light.edge_u.length() + light.edge_v.length());
+        Packets {
+            sb,
+            eye: Eye::new(p, margin),
+            object: q.object,
+            inside: q.inside,
+            point: q.point,
         }
+    });
+
+    // Traces rays (directions and visibility as parallel slices) against the
+    // candidates; returns how many facing rays met a candidate test.
+    let occluders = &buf.occluders;
+    let trace = |rays: Rays, facing: u64, bins: Option<&[RayBins]>| -> u64 {
+        let Rays {
+            a,
+            b,
+            d,
+            vis,
+            scratch,
+            count,
+        } = rays;
+        let mut tested = if occluders.is_empty() { 0 } else { facing };
+        for c in occluders {
+            c.occ.block(d.range(0..count), &mut vis[..count]);
+        }
+        if let Some(pk) = &packets {
+            let mut own_bins;
+            for (k, start) in (0..count).step_by(PACKET).enumerate() {
+                let n = PACKET.min(count - start);
+                let bins = match bins {
+                    Some(bins) => &bins[k],
+                    None => {
+                        own_bins =
+                            RayBins::new(&pk.sb.frame, &a[start..start + n], &b[start..start + n]);
+                        &own_bins
+                    }
+                };
+                let end = (start + n).next_multiple_of(8);
+                let r = pk.packet(
+                    scene,
+                    bins,
+                    [&a[start..start + n], &b[start..start + n]],
+                    d.range(start..end),
+                    &mut vis[start..end],
+                    scratch,
+                );
+                if occluders.is_empty() {
+                    tested += r.count_ones() as u64;
+                }
+            }
+            return tested;
+        }
+        let mut traced = !occluders.is_empty();
         // The BVH, nearest nodes first, each leaf's objects blocking rays at
         // once, until no ray is left (an any-hit traversal for the whole
         // packet; the result does not depend on the order).
+        let (d, vis) = (d.range(0..count), &mut vis[..count]);
         if !scene.bvh.is_empty() && (!skip || vis.iter().any(|&v| v != 0.0)) {
             scene.bvh.visit_near_first(
                 q.point,
@@ -432,12 +498,12 @@ pub fn visibility(
                         return true;
                     };
                     traced = true;
-                    c.occ.block(dx, dy, dz, vis);
+                    c.occ.block(d, vis);
                     !skip || vis.iter().any(|&v| v != 0.0)
                 },
             );
         }
-        traced
+        if traced { facing } else { 0 }
     };
 
     if scene.settings.adaptive && count >= 4 * ADAPTIVE_PROBES {
@@ -465,19 +531,33 @@ pub fn visibility(
                 }
             }
         }
-        let mut probe = [[0.0f32; ADAPTIVE_PROBES]; 4];
+        let mut probe = [[0.0f32; ADAPTIVE_PROBES]; 6];
         let mut facing_probes = 0.0;
         for (k, &(_, j)) in nearest.iter().enumerate() {
-            probe[0][k] = buf.dx[j];
-            probe[1][k] = buf.dy[j];
-            probe[2][k] = buf.dz[j];
-            probe[3][k] = buf.vis[j];
+            probe[0][k] = buf.a[j];
+            probe[1][k] = buf.b[j];
+            probe[2][k] = buf.dx[j];
+            probe[3][k] = buf.dy[j];
+            probe[4][k] = buf.dz[j];
+            probe[5][k] = buf.vis[j];
             facing_probes += buf.vis[j];
         }
-        let [px, py, pz, pvis] = &mut probe;
-        let traced = trace(px, py, pz, pvis);
+        let [pa, pb, px, py, pz, pvis] = &mut probe;
+        let rays = Rays {
+            a: pa,
+            b: pb,
+            d: Dirs {
+                x: px,
+                y: py,
+                z: pz,
+            },
+            vis: pvis,
+            scratch: &mut PacketScratch::default(),
+            count: ADAPTIVE_PROBES,
+        };
+        let traced = trace(rays, facing_probes as u64, None) > 0;
         let visible: f32 = pvis.iter().sum();
-        if !traced {
+        if !traced && packets.is_none() {
             stats.shadow_unoccluded += facing;
             return;
         }
@@ -491,13 +571,253 @@ pub fn visibility(
         }
     }
 
-    let (dx, dy, dz) = (&buf.dx[..count], &buf.dy[..count], &buf.dz[..count]);
-    let traced = trace(dx, dy, dz, &mut buf.vis[..count]);
-    if traced {
-        stats.shadow += facing;
-    } else {
-        stats.shadow_unoccluded += facing;
+    // The packets' bins depend only on the light points: a fixed pattern's
+    // serve every hit point of the tile.
+    let bins = match &packets {
+        Some(pk) => {
+            if buf.filled.is_none() || buf.bins_for != buf.filled {
+                buf.bins.clear();
+                for start in (0..count).step_by(PACKET) {
+                    let end = (start + PACKET).min(count);
+                    buf.bins.push(RayBins::new(
+                        &pk.sb.frame,
+                        &buf.a[start..end],
+                        &buf.b[start..end],
+                    ));
+                }
+                buf.bins_for = buf.filled;
+            }
+            Some(&buf.bins[..])
+        }
+        None => None,
+    };
+    let rays = Rays {
+        a: &buf.a,
+        b: &buf.b,
+        d: Dirs {
+            x: &buf.dx,
+            y: &buf.dy,
+            z: &buf.dz,
+        },
+        vis: &mut buf.vis,
+        scratch: &mut buf.scratch,
+        count,
+    };
+    let tested = trace(rays, facing, bins);
+    stats.shadow += tested;
+    stats.shadow_unoccluded += facing - tested;
+}
+
+/// Shadow rays as parallel slices: light points, directions, visibility.
+/// The slices reach past `count` to a multiple of 8 (padding rays are
+/// invisible).
+struct Rays<'a> {
+    a: &'a [f32],
+    b: &'a [f32],
+    d: Dirs<'a>,
+    vis: &'a mut [f32],
+    scratch: &'a mut PacketScratch,
+    count: usize,
+}
+
+/// One hit point's shadow rays against the light-frame BVH.
+struct Packets<'a> {
+    sb: &'a OccluderBvh,
+    /// The hit point in the light's frame.
+    eye: Eye,
+    point: DVec3,
+    object: u32,
+    inside: bool,
+}
+
+impl Packets<'_> {
+    /// Traces up to 64 rays (slices of whole chunks of 8) through the
+    /// light-frame BVH; returns the rays tested against at least one
+    /// object. `stack` is scratch space.
+    #[allow(clippy::too_many_arguments)]
+    fn packet(
+        &self,
+        scene: &Scene,
+        bins: &RayBins,
+        ab: [&[f32]; 2],
+        d: Dirs,
+        vis: &mut [f32],
+        scratch: &mut PacketScratch,
+    ) -> u64 {
+        packet(self, scene, bins, ab, d, vis, scratch)
     }
+}
+
+avx2_dispatch!(
+    #[allow(clippy::too_many_arguments)]
+    fn packet(pk: &Packets, scene: &Scene, bins: &RayBins, ab: [&[f32]; 2], d: Dirs, vis: &mut [f32], scratch: &mut PacketScratch) -> u64
+        => packet_generic
+);
+
+/// Rays left in a packet below which they walk the tree one by one: a
+/// slab test per ray and box is then cheaper than the footprints.
+const SOLO: u32 = 1;
+
+/// Scratch space of the packet traversal.
+#[derive(Debug, Default)]
+pub struct PacketScratch {
+    /// Nodes to visit, with the rays that may meet each.
+    stack: Vec<(u32, u64)>,
+    /// Nodes to visit by one ray.
+    solo: Vec<u32>,
+}
+
+// Lanes of parallel arrays: index loops are what vectorizes.
+#[allow(clippy::needless_range_loop)]
+#[inline(always)]
+fn packet_generic(
+    pk: &Packets,
+    scene: &Scene,
+    bins: &RayBins,
+    ab: [&[f32]; 2],
+    d: Dirs,
+    vis: &mut [f32],
+    scratch: &mut PacketScratch,
+) -> u64 {
+    let PacketScratch { stack, solo } = scratch;
+    let mut live = live_rays(vis) & bins.all;
+    let tree = &pk.sb.tree;
+    if live == 0 || tree.nodes.is_empty() {
+        return 0;
+    }
+    let mut tested = 0;
+    // Tests object i against the rays `m` (and whichever share their chunks
+    // of 8); returns the rays still live. Every answer is the exact f32
+    // test, so the order of the tests changes nothing but the time.
+    let mut test = |i: u32, m: u64, live: u64| -> u64 {
+        let inside = i == pk.object && pk.inside;
+        if i == pk.object && !inside {
+            return live;
+        }
+        tested |= m;
+        let occ = Occluder::new(&scene.objects[i as usize].shape, pk.point, inside);
+        // The chunks from the first to the last ray to test, in one call.
+        let first = m.trailing_zeros() as usize / 8 * 8;
+        let past = (64 - m.leading_zeros() as usize).div_ceil(8) * 8;
+        let r = first..past;
+        let v = &mut vis[r.clone()];
+        occ.block(d.range(r), v);
+        let span = (u64::MAX >> (64 - (past - first))) << first;
+        live & (!span | (live_rays(v) << first))
+    };
+
+    // Depth-first; each entry holds the rays that may meet the node.
+    stack.clear();
+    stack.push((0, live));
+    while let Some((index, rays)) = stack.pop() {
+        let rays = rays & live;
+        if rays == 0 {
+            continue;
+        }
+        if rays.count_ones() <= SOLO {
+            // Each ray alone through this subtree, nearest boxes first.
+            let mut each = rays;
+            while each != 0 {
+                let j = each.trailing_zeros() as usize;
+                each &= each - 1;
+                let ray = pk
+                    .eye
+                    .segment(pk.sb.frame.light_point(ab[0][j] as f64, ab[1][j] as f64));
+                solo.clear();
+                solo.push(index);
+                'walk: while let Some(n) = solo.pop() {
+                    let node = &tree.nodes[n as usize];
+                    let (hit, near) = ray.hits(node);
+                    let mut next = [(0.0f64, 0u32); 4];
+                    let mut n_next = 0;
+                    for s in 0..4 {
+                        if !hit[s] {
+                            continue;
+                        }
+                        match node.slot(s) {
+                            Slot::Empty => {}
+                            Slot::Node(c) => {
+                                next[n_next] = (near[s], c);
+                                n_next += 1;
+                            }
+                            Slot::Object(i) => {
+                                live = test(i, 1 << j, live);
+                                if live == 0 {
+                                    return tested;
+                                }
+                                if live & (1 << j) == 0 {
+                                    break 'walk;
+                                }
+                            }
+                        }
+                    }
+                    let next = &mut next[..n_next];
+                    sort_far_first(next);
+                    solo.extend(next.iter().map(|&(_, c)| c));
+                }
+            }
+            continue;
+        }
+        let node = &tree.nodes[index as usize];
+        let feet = LightFrame::footprints(&pk.eye, node);
+        let masks = bins.rays_in4(&feet);
+        let mut next = [(0.0f64, (0u32, 0u64)); 4];
+        let mut n_next = 0;
+        for s in 0..4 {
+            let m = masks[s] & rays & live;
+            if m == 0 {
+                continue;
+            }
+            match node.slot(s) {
+                Slot::Empty => {}
+                Slot::Node(c) => {
+                    next[n_next] = (feet.near[s], (c, m));
+                    n_next += 1;
+                }
+                Slot::Object(i) => {
+                    live = test(i, m, live);
+                    if live == 0 {
+                        return tested;
+                    }
+                }
+            }
+        }
+        // Push the farthest first so that the nearest is visited next.
+        let next = &mut next[..n_next];
+        sort_far_first(next);
+        stack.extend(next.iter().map(|&(_, c)| c));
+    }
+    tested
+}
+
+/// Sorts up to four children by distance, farthest first (so that the
+/// nearest is popped next): an insertion sort the compiler unrolls.
+#[inline(always)]
+fn sort_far_first<T: Copy>(v: &mut [(f64, T)]) {
+    for i in 1..v.len() {
+        let x = v[i];
+        let mut k = i;
+        while k > 0 && v[k - 1].0 < x.0 {
+            v[k] = v[k - 1];
+            k -= 1;
+        }
+        v[k] = x;
+    }
+}
+
+/// Bit j set where `vis[j]` is not 0 (at most 64 rays, whole chunks of 8:
+/// each chunk becomes one compare and one move-mask).
+#[inline(always)]
+fn live_rays(vis: &[f32]) -> u64 {
+    let mut m = 0;
+    for (c, chunk) in vis.chunks_exact(8).enumerate() {
+        let mut byte = 0u64;
+        for (i, &v) in chunk.iter().enumerate() {
+            byte |= ((v != 0.0) as u64) << i;
+        }
+        m |= byte << (8 * c);
+    }
+    m
 }
 
 avx2_dispatch!(
@@ -544,10 +864,29 @@ fn light_directions_generic(
 
 avx2_dispatch!(
     /// Clears `vis[j]` for every ray that `occ` blocks.
-    fn block(occ: &Occluder, dx: &[f32], dy: &[f32], dz: &[f32], vis: &mut [f32]) => block_generic
+    fn block(occ: &Occluder, d: Dirs, vis: &mut [f32]) => block_generic
 );
 
 #[inline(always)]
-fn block_generic(occ: &Occluder, dx: &[f32], dy: &[f32], dz: &[f32], vis: &mut [f32]) {
-    occ.block_generic(dx, dy, dz, vis)
+fn block_generic(occ: &Occluder, d: Dirs, vis: &mut [f32]) {
+    occ.block_generic(d, vis)
+}
+
+/// Directions of shadow rays as parallel slices (unnormalized: from the
+/// hit point to the light point).
+#[derive(Clone, Copy)]
+struct Dirs<'a> {
+    x: &'a [f32],
+    y: &'a [f32],
+    z: &'a [f32],
+}
+
+impl<'a> Dirs<'a> {
+    fn range(self, r: std::ops::Range<usize>) -> Dirs<'a> {
+        Dirs {
+            x: &self.x[r.clone()],
+            y: &self.y[r.clone()],
+            z: &self.z[r],
+        }
+    }
 }

@@ -5,6 +5,7 @@
 
 mod aabb;
 mod bvh;
+mod bvh4;
 mod cuboid;
 mod offset;
 mod parallelogram;
@@ -13,7 +14,8 @@ mod ray;
 mod sphere;
 
 pub use aabb::Aabb;
-pub use bvh::Bvh;
+pub use bvh::{Bvh, NodeContent};
+pub use bvh4::{Bvh4, Node4, Slot};
 pub use cuboid::Cuboid;
 pub use offset::spawn_origin;
 pub use parallelogram::Parallelogram;

@@ -1,0 +1,287 @@
+//! A 4-wide BVH: every node keeps the boxes of its (up to) four children
+//! side by side, one array per axis and side, so that one pass of vector
+//! code handles all four. Built by collapsing a binary [`Bvh`]; a child is
+//! either a node or a single object, so objects need no separate leaf pass.
+
+use super::Aabb;
+use super::bvh::{Bvh, NodeContent};
+
+/// One child of a [`Node4`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Slot {
+    Empty,
+    /// Index of a node.
+    Node(u32),
+    /// Object id.
+    Object(u32),
+}
+
+/// Four child boxes in f32 (rounded outwards, so each holds what its f64
+/// box held) and the children: 112 bytes, two cache lines.
+#[derive(Debug, Clone)]
+#[repr(C, align(128))]
+pub struct Node4 {
+    /// `min[axis][slot]`; an empty slot has the inverted box
+    /// (+∞ … −∞), which every overlap test rejects.
+    pub min: [[f32; 4]; 3],
+    pub max: [[f32; 4]; 3],
+    /// Packed [`Slot`]s: see [`Node4::slot`].
+    slots: [u32; 4],
+}
+
+/// Packing of a [`Slot`] in a `u32`: objects have the top bit set.
+const OBJECT: u32 = 1 << 31;
+const EMPTY: u32 = u32::MAX;
+
+impl Node4 {
+    /// An empty node.
+    pub fn empty() -> Node4 {
+        Node4 {
+            min: [[f32::INFINITY; 4]; 3],
+            max: [[f32::NEG_INFINITY; 4]; 3],
+            slots: [EMPTY; 4],
+        }
+    }
+
+    #[inline]
+    pub fn slot(&self, s: usize) -> Slot {
+        match self.slots[s] {
+            EMPTY => Slot::Empty,
+            v if v & OBJECT != 0 => Slot::Object(v & !OBJECT),
+            v => Slot::Node(v),
+        }
+    }
+
+    /// Sets child `s` and its box (rounded outwards to f32).
+    pub fn set(&mut self, s: usize, slot: Slot, b: &Aabb) {
+        self.slots[s] = match slot {
+            Slot::Empty => EMPTY,
+            Slot::Node(n) => {
+                assert!(n < OBJECT, "node index {n} out of range");
+                n
+            }
+            Slot::Object(o) => {
+                assert!(o < OBJECT - 1, "object id {o} out of range");
+                o | OBJECT
+            }
+        };
+        for axis in 0..3 {
+            self.min[axis][s] = round_down(b.min[axis]);
+            self.max[axis][s] = round_up(b.max[axis]);
+        }
+    }
+}
+
+/// The largest f32 ≤ x (x itself if it is ±∞).
+fn round_down(x: f64) -> f32 {
+    let y = x as f32;
+    if (y as f64) > x { y.next_down() } else { y }
+}
+
+/// The smallest f32 ≥ x.
+fn round_up(x: f64) -> f32 {
+    let y = x as f32;
+    if (y as f64) < x { y.next_up() } else { y }
+}
+
+#[derive(Debug, Clone, Default)]
+pub struct Bvh4 {
+    /// The root is node 0 (none for an empty tree).
+    pub nodes: Vec<Node4>,
+}
+
+/// A child while collapsing: a node of the binary tree, an object, or a
+/// group of children (part of a binary leaf holding more than four).
+#[derive(Clone)]
+enum Pending {
+    Node(u32),
+    Object(u32),
+    Group(Vec<(Aabb, Pending)>),
+}
+
+impl Bvh4 {
+    /// Collapses `bvh`; `object_bounds[id]` are the boxes it was built from.
+    pub fn from_binary(bvh: &Bvh, object_bounds: &[Aabb]) -> Bvh4 {
+        let mut tree = Bvh4::default();
+        if !bvh.is_empty() {
+            tree.collapse(bvh, object_bounds, Self::expand(bvh, object_bounds, 0));
+        }
+        tree
+    }
+
+    /// The children a binary node stands for.
+    fn expand(bvh: &Bvh, object_bounds: &[Aabb], node: u32) -> Vec<(Aabb, Pending)> {
+        match bvh.node(node).1 {
+            NodeContent::Leaf(objects) => objects
+                .iter()
+                .map(|&o| (object_bounds[o as usize], Pending::Object(o)))
+                .collect(),
+            NodeContent::Inner(children) => children
+                .iter()
+                .map(|&c| (bvh.node(c).0, Pending::Node(c)))
+                .collect(),
+        }
+    }
+
+    /// Adds a node over `children`; returns its index.
+    fn collapse(
+        &mut self,
+        bvh: &Bvh,
+        object_bounds: &[Aabb],
+        mut children: Vec<(Aabb, Pending)>,
+    ) -> u32 {
+        if children.len() > 4 {
+            // A large leaf (SAH keeps up to 8 objects, and any number whose
+            // centres coincide): four groups, each a node of its own.
+            let per = children.len().div_ceil(4);
+            let mut groups = Vec::with_capacity(4);
+            while !children.is_empty() {
+                let rest = children.split_off(per.min(children.len()));
+                let group = std::mem::replace(&mut children, rest);
+                let b = group.iter().fold(Aabb::EMPTY, |b, c| b.union(c.0));
+                groups.push((b, Pending::Group(group)));
+            }
+            children = groups;
+        }
+        // Open the largest child while its content still fits: the tree
+        // gets about half as deep, and leaves dissolve into objects.
+        loop {
+            let size = |p: &Pending| match p {
+                Pending::Node(n) => match bvh.node(*n).1 {
+                    NodeContent::Leaf(objects) => objects.len(),
+                    NodeContent::Inner(_) => 2,
+                },
+                Pending::Group(g) => g.len(),
+                Pending::Object(_) => usize::MAX,
+            };
+            let Some((k, _)) = children
+                .iter()
+                .enumerate()
+                .filter(|(_, (_, p))| size(p) != usize::MAX && children.len() - 1 + size(p) <= 4)
+                .max_by(|a, b| a.1.0.surface_area().total_cmp(&b.1.0.surface_area()))
+            else {
+                break;
+            };
+            let (_, opened) = children.swap_remove(k);
+            match opened {
+                Pending::Node(n) => children.extend(Self::expand(bvh, object_bounds, n)),
+                Pending::Group(g) => children.extend(g),
+                Pending::Object(_) => unreachable!("objects do not open"),
+            }
+        }
+        let index = self.nodes.len() as u32;
+        self.nodes.push(Node4::empty());
+        for (s, (b, p)) in children.into_iter().enumerate() {
+            let slot = match p {
+                Pending::Object(o) => Slot::Object(o),
+                Pending::Node(n) => {
+                    let content = Self::expand(bvh, object_bounds, n);
+                    Slot::Node(self.collapse(bvh, object_bounds, content))
+                }
+                Pending::Group(g) => Slot::Node(self.collapse(bvh, object_bounds, g)),
+            };
+            self.nodes[index as usize].set(s, slot, &b);
+        }
+        index
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::DVec3;
+
+    use super::*;
+
+    /// Many objects with one centre make one binary leaf; the 4-wide tree
+    /// splits it into nodes of at most four.
+    #[test]
+    fn a_large_leaf_becomes_nodes_of_four() {
+        let bounds: Vec<Aabb> = (1..=300)
+            .map(|i| Aabb::new(DVec3::splat(-(i as f64)), DVec3::splat(i as f64)))
+            .collect();
+        let items: Vec<(u32, Aabb)> = bounds
+            .iter()
+            .enumerate()
+            .map(|(i, b)| (i as u32, *b))
+            .collect();
+        let tree = Bvh4::from_binary(&Bvh::build(&items), &bounds);
+        let objects: Vec<u32> = tree
+            .nodes
+            .iter()
+            .flat_map(|n| (0..4).map(|s| n.slot(s)))
+            .filter_map(|s| match s {
+                Slot::Object(o) => Some(o),
+                _ => None,
+            })
+            .collect();
+        assert_eq!(objects.len(), 300);
+        let mut sorted = objects.clone();
+        sorted.sort_unstable();
+        sorted.dedup();
+        assert_eq!(sorted.len(), 300);
+    }
+
+    #[test]
+    fn f32_boxes_round_outwards() {
+        for x in [0.1, -0.1, 1e9 + 0.5, -3e-40, 7.0, 1e300] {
+            assert!(
+                (round_down(x) as f64) <= x && (round_up(x) as f64) >= x,
+                "{x}"
+            );
+        }
+        assert_eq!(round_down(f64::INFINITY), f32::INFINITY);
+        assert_eq!(round_up(f64::NEG_INFINITY), f32::NEG_INFINITY);
+    }
+
+    #[test]
+    fn collapse_keeps_every_object_once_inside_its_parents_boxes() {
+        let mut bounds = Vec::new();
+        for i in 0..1000u32 {
+            let h = |k: u32| ((i.wrapping_mul(2654435761).rotate_left(k) % 1000) as f64) / 100.0;
+            let c = DVec3::new(h(0), h(7), h(13));
+            bounds.push(Aabb::new(c - 0.05, c + 0.05));
+        }
+        let items: Vec<(u32, Aabb)> = bounds
+            .iter()
+            .enumerate()
+            .map(|(i, b)| (i as u32, *b))
+            .collect();
+        let tree = Bvh4::from_binary(&Bvh::build(&items), &bounds);
+        let mut seen = vec![0; bounds.len()];
+        // Walk from the root, checking each slot's box holds what is below.
+        fn walk(tree: &Bvh4, n: u32, bounds: &[Aabb], seen: &mut [u32]) -> Aabb {
+            let node = &tree.nodes[n as usize];
+            let mut all = Aabb::EMPTY;
+            for s in 0..4 {
+                let corner =
+                    |v: &[[f32; 4]; 3]| DVec3::new(v[0][s] as f64, v[1][s] as f64, v[2][s] as f64);
+                let slot_box = Aabb::new(corner(&node.min), corner(&node.max));
+                let inner = match node.slot(s) {
+                    Slot::Empty => continue,
+                    Slot::Object(o) => {
+                        seen[o as usize] += 1;
+                        bounds[o as usize]
+                    }
+                    Slot::Node(c) => walk(tree, c, bounds, seen),
+                };
+                assert!(slot_box.min.cmple(inner.min).all() && slot_box.max.cmpge(inner.max).all());
+                all = all.union(slot_box);
+            }
+            all
+        }
+        walk(&tree, 0, &bounds, &mut seen);
+        assert!(seen.iter().all(|&n| n == 1));
+        // Four-wide: far fewer nodes than the binary tree's ~2N/4·2.
+        assert!(tree.nodes.len() < 500, "{}", tree.nodes.len());
+        let full = tree
+            .nodes
+            .iter()
+            .flat_map(|n| (0..4).map(|s| n.slot(s)))
+            .filter(|s| *s != Slot::Empty)
+            .count();
+        assert!(
+            full as f64 > 3.0 * tree.nodes.len() as f64,
+            "mostly full nodes"
+        );
+    }
+}

@@ -169,11 +169,12 @@ impl LightFrame {
 #[derive(Debug, Clone, Copy)]
 pub struct Segment {
     /// The origin moved by +margin and −margin: the offsets of a box's low
-    /// and high faces, so the box is tested grown by the margin.
-    lo: [f64; 3],
-    hi: [f64; 3],
-    /// 1 / direction, clamped to ±1e300 so that 0·∞ never occurs.
-    inv: [f64; 3],
+    /// and high faces, so the box is tested grown by the margin (which
+    /// dwarfs the f32 rounding of these values and of the test).
+    lo: [f32; 3],
+    hi: [f32; 3],
+    /// 1 / direction, clamped to ±1e30 so that 0·∞ never occurs.
+    inv: [f32; 3],
 }
 
 impl Segment {
@@ -182,23 +183,23 @@ impl Segment {
     // Lanes of parallel arrays: index loops are what vectorizes.
     #[allow(clippy::needless_range_loop)]
     #[inline(always)]
-    pub fn hits(&self, node: &Node4) -> ([bool; 4], [f64; 4]) {
-        let max = |a: f64, b: f64| if a > b { a } else { b };
-        let min = |a: f64, b: f64| if a < b { a } else { b };
-        let mut near = [0.0f64; 4];
-        let mut far = [1.0f64; 4];
+    pub fn hits(&self, node: &Node4) -> ([bool; 4], [f32; 4]) {
+        let max = |a: f32, b: f32| if a > b { a } else { b };
+        let min = |a: f32, b: f32| if a < b { a } else { b };
+        let mut near = [0.0f32; 4];
+        let mut far = [1.0f32; 4];
         for axis in 0..3 {
             for s in 0..4 {
-                let t0 = (node.min[axis][s] as f64 - self.lo[axis]) * self.inv[axis];
-                let t1 = (node.max[axis][s] as f64 - self.hi[axis]) * self.inv[axis];
+                let t0 = (node.min[axis][s] - self.lo[axis]) * self.inv[axis];
+                let t1 = (node.max[axis][s] - self.hi[axis]) * self.inv[axis];
                 near[s] = max(near[s], min(t0, t1));
                 far[s] = min(far[s], max(t0, t1));
             }
         }
-        // Widened by 4 ulps against the rounding above (Ize 2013).
+        // Widened against the rounding above (Ize 2013).
         let mut hit = [false; 4];
         for s in 0..4 {
-            hit[s] = near[s] <= far[s] * (1.0 + 4.0 * f64::EPSILON);
+            hit[s] = near[s] <= far[s] * (1.0 + 1e-6);
         }
         (hit, near)
     }
@@ -231,9 +232,9 @@ impl Eye {
         let d = [x - self.p.x, y - self.p.y, -self.p.z];
         let p = self.p.to_array();
         Segment {
-            lo: p.map(|c| c + self.margin),
-            hi: p.map(|c| c - self.margin),
-            inv: d.map(|c| (1.0 / c).clamp(-1e300, 1e300)),
+            lo: p.map(|c| (c + self.margin) as f32),
+            hi: p.map(|c| (c - self.margin) as f32),
+            inv: d.map(|c| (1.0 / c).clamp(-1e30, 1e30) as f32),
         }
     }
 }

@@ -656,7 +656,7 @@ avx2_dispatch!(
 
 /// Rays left in a packet below which they walk the tree one by one: a
 /// slab test per ray and box is then cheaper than the footprints.
-const SOLO: u32 = 1;
+const SOLO: u32 = 2;
 
 /// Scratch space of the packet traversal.
 #[derive(Debug, Default)]
@@ -728,7 +728,7 @@ fn packet_generic(
                 'walk: while let Some(n) = solo.pop() {
                     let node = &tree.nodes[n as usize];
                     let (hit, near) = ray.hits(node);
-                    let mut next = [(0.0f64, 0u32); 4];
+                    let mut next = [(0.0f32, 0u32); 4];
                     let mut n_next = 0;
                     for s in 0..4 {
                         if !hit[s] {
@@ -793,7 +793,7 @@ fn packet_generic(
 /// Sorts up to four children by distance, farthest first (so that the
 /// nearest is popped next): an insertion sort the compiler unrolls.
 #[inline(always)]
-fn sort_far_first<T: Copy>(v: &mut [(f64, T)]) {
+fn sort_far_first<K: PartialOrd + Copy, T: Copy>(v: &mut [(K, T)]) {
     for i in 1..v.len() {
         let x = v[i];
         let mut k = i;

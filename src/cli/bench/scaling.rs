@@ -3,7 +3,7 @@
 use std::time::Instant;
 
 use super::{BenchArgs, CliError, build, scenes, si, timed};
-use crate::render::generate::sphere_radius;
+use crate::render::generate::{VOLUME_FRACTION, sphere_radius};
 
 /// One scene size's measurement.
 #[derive(Debug, Clone, Copy)]
@@ -15,6 +15,15 @@ pub struct ScalingRow {
     /// Median CPU seconds of all threads (NaN if unknown).
     pub cpu_s: f64,
     pub rays_traced: u64,
+    /// Median wall time with shadow rays switched off: camera and mirror
+    /// rays only, the closest-hit work of the BVH.
+    pub no_shadow_s: f64,
+}
+
+/// Mean distance a ray travels between spheres of radius `r` filling
+/// [`VOLUME_FRACTION`] of the room: 4r / 3φ.
+fn free_path(r: f64) -> f64 {
+    4.0 * r / (3.0 * VOLUME_FRACTION)
 }
 
 pub fn run(args: &BenchArgs) -> Result<(), CliError> {
@@ -39,9 +48,10 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
         );
     }
     println!(
-        "{:>8} {:>8} {:>9} {:>10} {:>9} {:>9} {:>7} {:>10} {:>9} {:>9}",
+        "{:>8} {:>8} {:>9} {:>9} {:>10} {:>9} {:>9} {:>7} {:>10} {:>9} {:>9} {:>12}",
         "spheres",
         "radius",
+        "free path",
         "build ms",
         "render ms",
         "cpu ms",
@@ -49,7 +59,8 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
         "Mray/s",
         "cpu ns/ray",
         "vs first",
-        "cpu vs first"
+        "cpu vs first",
+        "no-shadow ms"
     );
     let mut rows: Vec<ScalingRow> = Vec::new();
     for (scene, &n) in scenes.iter().zip(counts) {
@@ -57,6 +68,9 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
         let built = build(&scene.desc, true)?;
         let build_s = start.elapsed().as_secs_f64();
         let t = timed(&built, runs);
+        let mut dark = built.clone();
+        dark.settings.shadows = false;
+        let no_shadow = timed(&dark, runs);
         let row = ScalingRow {
             spheres: n,
             radius: sphere_radius(n as usize),
@@ -64,12 +78,14 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
             time_s: t.median().as_secs_f64(),
             cpu_s: t.median_cpu().map_or(f64::NAN, |c| c.as_secs_f64()),
             rays_traced: t.report.final_stats.traced(),
+            no_shadow_s: no_shadow.median().as_secs_f64(),
         };
         let first = rows.first().copied().unwrap_or(row);
         println!(
-            "{:>8} {:>8.4} {:>9.2} {:>10.2} {:>9.2} {:>9} {:>7.1} {:>10.1} {:>8.2}× {:>8.2}×",
+            "{:>8} {:>8.4} {:>9.2} {:>9.2} {:>10.2} {:>9.2} {:>9} {:>7.1} {:>10.1} {:>8.2}× {:>8.2}× {:>12.2}",
             row.spheres,
             row.radius,
+            free_path(row.radius),
             row.build_s * 1e3,
             row.time_s * 1e3,
             row.cpu_s * 1e3,
@@ -77,7 +93,8 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
             row.rays_traced as f64 / row.time_s / 1e6,
             row.cpu_s * 1e9 / row.rays_traced.max(1) as f64,
             row.time_s / first.time_s,
-            row.cpu_s / first.cpu_s
+            row.cpu_s / first.cpu_s,
+            row.no_shadow_s * 1e3
         );
         rows.push(row);
     }
@@ -92,6 +109,15 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
             lo.spheres,
             hi.time_s / lo.time_s,
             hi.cpu_s / lo.cpu_s
+        );
+        println!(
+            "without shadow rays (camera and mirror rays: the BVH's closest hits): {:.2} wall",
+            hi.no_shadow_s / lo.no_shadow_s
+        );
+        println!(
+            "(the spheres fill {:.0} % of the room at every N, so a ray's free path shrinks as N^(-1/3): \
+             a shadow ray that reaches the light passes ever more spheres on the way)",
+            VOLUME_FRACTION * 100.0
         );
     }
     Ok(())

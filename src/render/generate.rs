@@ -3,10 +3,10 @@
 //! spheres, deterministic from a seed.
 //!
 //! The spheres' radius shrinks as N^(-1/3) so that together they fill a
-//! roughly constant fraction of the room whatever N is: the image keeps a
-//! similar amount of covered surface and shadow, and the render time
-//! measures how the acceleration structure scales rather than how much
-//! more there is to see.
+//! constant fraction of the room whatever N is. Their cross-sections add up
+//! to more as N grows (N·r² ∝ N^(1/3)): a ray's free path between spheres
+//! shrinks as N^(-1/3), so larger N means more covered surface, darker
+//! shadows and shadow rays that pass more spheres on their way to the light.
 
 use super::rng::Rng;
 use super::scene::SEED_ROOM_JSON;

@@ -192,6 +192,38 @@ fn the_room_matches_at_every_scale_and_far_from_the_origin() {
     }
 }
 
+/// The shadow packets (used from 256 objects on) keep their margins
+/// relative to the scene: at any scale and far from the origin they give
+/// the image that testing every ray against every object gives.
+#[test]
+fn shadow_packets_are_exact_at_every_scale() {
+    let mut base = penumbra::render::generate::spheres_in_room(400, 11);
+    base.camera.width = 80;
+    base.camera.height = 45;
+    base.render.shadow_rays = 16;
+    let cases = [
+        ("scale 1e-3", base.clone().scaled(1e-3)),
+        ("scale 1e5", base.clone().scaled(1e5)),
+        (
+            "scale 1e3, translated 1e6",
+            base.clone().scaled(1e3).translated([1e6, -1e6, 1e6]),
+        ),
+    ];
+    for (what, desc) in cases {
+        let fast = Scene::new(desc.clone()).unwrap();
+        assert!(fast.shadow_bvh.is_some(), "{what}: packets in use");
+        let mut slow = Scene::new(desc).unwrap();
+        slow.settings.skip = false;
+        let a = render_image(&fast);
+        let b = render_image(&slow);
+        assert!(
+            a.pixels.iter().all(|p| p.is_finite()),
+            "{what}: non-finite pixels"
+        );
+        assert!(a == b, "{what}: packets change the image");
+    }
+}
+
 /// Renders a scene and the same scene with the light moved by `delta` and
 /// by `-delta` (relative to its size), for each delta: the configuration
 /// with points exactly in the light's plane or on its edge must be the limit

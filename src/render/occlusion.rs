@@ -470,7 +470,8 @@ pub fn visibility(
                     }
                 };
                 let end = (start + n).next_multiple_of(8);
-                let r = pk.packet(
+                let r = packet(
+                    pk,
                     scene,
                     bins,
                     [&a[start..start + n], &b[start..start + n]],
@@ -630,25 +631,10 @@ struct Packets<'a> {
     inside: bool,
 }
 
-impl Packets<'_> {
-    /// Traces up to 64 rays (slices of whole chunks of 8) through the
-    /// light-frame BVH; returns the rays tested against at least one
-    /// object. `stack` is scratch space.
-    #[allow(clippy::too_many_arguments)]
-    fn packet(
-        &self,
-        scene: &Scene,
-        bins: &RayBins,
-        ab: [&[f32]; 2],
-        d: Dirs,
-        vis: &mut [f32],
-        scratch: &mut PacketScratch,
-    ) -> u64 {
-        packet(self, scene, bins, ab, d, vis, scratch)
-    }
-}
-
 avx2_dispatch!(
+    /// Traces up to 64 rays (light points `ab`, directions and visibility
+    /// as slices of whole chunks of 8) through the light-frame BVH; returns
+    /// the rays tested against at least one object.
     #[allow(clippy::too_many_arguments)]
     fn packet(pk: &Packets, scene: &Scene, bins: &RayBins, ab: [&[f32]; 2], d: Dirs, vis: &mut [f32], scratch: &mut PacketScratch) -> u64
         => packet_generic

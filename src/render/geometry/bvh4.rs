@@ -192,6 +192,16 @@ mod tests {
 
     use super::*;
 
+    /// The 4-wide tree over objects with these bounds (ids 0, 1, …).
+    fn tree_of(bounds: &[Aabb]) -> Bvh4 {
+        let items: Vec<(u32, Aabb)> = bounds
+            .iter()
+            .enumerate()
+            .map(|(i, b)| (i as u32, *b))
+            .collect();
+        Bvh4::from_binary(&Bvh::build(&items), bounds)
+    }
+
     /// Many objects with one centre make one binary leaf; the 4-wide tree
     /// splits it into nodes of at most four.
     #[test]
@@ -199,12 +209,7 @@ mod tests {
         let bounds: Vec<Aabb> = (1..=300)
             .map(|i| Aabb::new(DVec3::splat(-(i as f64)), DVec3::splat(i as f64)))
             .collect();
-        let items: Vec<(u32, Aabb)> = bounds
-            .iter()
-            .enumerate()
-            .map(|(i, b)| (i as u32, *b))
-            .collect();
-        let tree = Bvh4::from_binary(&Bvh::build(&items), &bounds);
+        let tree = tree_of(&bounds);
         let objects: Vec<u32> = tree
             .nodes
             .iter()
@@ -241,12 +246,7 @@ mod tests {
             let c = DVec3::new(h(0), h(7), h(13));
             bounds.push(Aabb::new(c - 0.05, c + 0.05));
         }
-        let items: Vec<(u32, Aabb)> = bounds
-            .iter()
-            .enumerate()
-            .map(|(i, b)| (i as u32, *b))
-            .collect();
-        let tree = Bvh4::from_binary(&Bvh::build(&items), &bounds);
+        let tree = tree_of(&bounds);
         let mut seen = vec![0; bounds.len()];
         // Walk from the root, checking each slot's box holds what is below.
         fn walk(tree: &Bvh4, n: u32, bounds: &[Aabb], seen: &mut [u32]) -> Aabb {

@@ -5,7 +5,9 @@ use std::process::Command;
 
 use penumbra::cli::bench::reference::{reference, reference_key};
 use penumbra::cli::bench::sweep::{CSV_COLUMNS, SweepPlan, csv, run_sweep};
-use penumbra::render::generate::{ROOM_MAX, ROOM_MIN, sphere_radius, spheres_in_room};
+use penumbra::render::generate::{
+    Layout, ROOM_MAX, ROOM_MIN, floor_sphere_radius, generate, sphere_radius, spheres_in_room,
+};
 use penumbra::render::scene::SEED_ROOM_JSON;
 use penumbra::render::scene_file::ObjectDesc;
 use penumbra::render::{AreaLightModel, Sampling, Scene, SceneDesc};
@@ -87,6 +89,7 @@ fn scaling_prints_time_per_sphere_count_and_the_ratio() {
         .collect();
     assert_eq!(rows.len(), 2, "{stdout}");
     assert!(stdout.contains("time ratio N=50 / N=10"), "{stdout}");
+    assert!(stdout.contains("without shadow rays"), "{stdout}");
     let saved = std::fs::read_to_string(dir.path().join("spheres-50.json")).unwrap();
     assert_eq!(
         SceneDesc::from_json(&saved).unwrap(),
@@ -224,4 +227,56 @@ fn generated_spheres_fill_the_room_without_touching_walls() {
     // Constant volume fraction: r ∝ N^(-1/3).
     let ratio = sphere_radius(10) / sphere_radius(10_000);
     assert!((ratio - 10.0).abs() < 1e-3, "{ratio}");
+}
+
+#[test]
+fn floor_layout_lays_one_layer_on_the_floor() {
+    for n in [1usize, 10, 1000] {
+        let desc = generate(n, 7, Layout::Floor);
+        let r = floor_sphere_radius(n);
+        let spheres: Vec<_> = desc
+            .objects
+            .iter()
+            .filter_map(|o| match o {
+                ObjectDesc::Sphere(s) => Some(s),
+                _ => None,
+            })
+            .collect();
+        assert_eq!(spheres.len(), n);
+        for s in &spheres {
+            assert_eq!(s.radius, r);
+            let bottom = s.center[1] - s.radius;
+            assert!(bottom > ROOM_MIN[1] && bottom < ROOM_MIN[1] + 1e-5, "{s:?}");
+            for i in [0, 2] {
+                assert!(s.center[i] - s.radius > ROOM_MIN[i], "{s:?}");
+                assert!(s.center[i] + s.radius < ROOM_MAX[i], "{s:?}");
+            }
+        }
+        assert_eq!(generate(n, 7, Layout::Floor), desc, "deterministic");
+    }
+    // Constant floor coverage: r ∝ N^(-1/2).
+    let ratio = floor_sphere_radius(10) / floor_sphere_radius(10_000);
+    assert!((ratio - 1000f64.sqrt()).abs() < 1e-3, "{ratio}");
+    // The bench takes the layout.
+    let out = Command::new(env!("CARGO_BIN_EXE_penumbra"))
+        .args([
+            "bench",
+            "--spheres",
+            "10,20",
+            "--layout",
+            "floor",
+            "--scaling",
+        ])
+        .args(["--runs", "1", "--width", "16", "--height", "9"])
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success() && stdout.contains("Floor layout"),
+        "{stdout}"
+    );
+    assert!(
+        stdout.contains(&format!("{:.4}", floor_sphere_radius(20))),
+        "{stdout}"
+    );
 }

@@ -23,6 +23,22 @@ pub const ROOM_MAX: [f64; 3] = [5.0, 7.5, 5.0];
 /// (ignoring overlaps).
 pub const VOLUME_FRACTION: f64 = 0.05;
 
+/// Fraction of the floor the spheres of [`Layout::Floor`] cover (ignoring
+/// overlaps).
+pub const FLOOR_COVERAGE: f64 = 0.3;
+
+/// Where the generated spheres go.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Layout {
+    /// Anywhere in the room, filling [`VOLUME_FRACTION`] of it: the more
+    /// spheres, the denser the fog between the floor and the light.
+    #[default]
+    Volume,
+    /// One layer on the floor, covering [`FLOOR_COVERAGE`] of it: what a
+    /// shadow ray crosses stays the same whatever N is.
+    Floor,
+}
+
 /// Materials the spheres draw from, by name in the seed room; the mirror
 /// keeps some reflected rays in the workload.
 const MATERIALS: [&str; 6] = ["white", "red", "green", "steel", "sand", "mirror"];
@@ -45,25 +61,55 @@ pub fn sphere_radius(n: usize) -> f64 {
     round((3.0 * VOLUME_FRACTION * volume / (4.0 * std::f64::consts::PI * n.max(1) as f64)).cbrt())
 }
 
-/// The seed room with `n` random spheres instead of its boxes and sphere.
-/// The same `(n, seed)` always gives the same scene; every sphere lies
-/// strictly inside [`ROOM_MIN`]..[`ROOM_MAX`], touching no wall.
+/// Radius of each of `n` spheres covering [`FLOOR_COVERAGE`] of the floor.
+pub fn floor_sphere_radius(n: usize) -> f64 {
+    let area = (ROOM_MAX[0] - ROOM_MIN[0]) * (ROOM_MAX[2] - ROOM_MIN[2]);
+    round((FLOOR_COVERAGE * area / (std::f64::consts::PI * n.max(1) as f64)).sqrt())
+}
+
+/// The spheres' radius in a layout.
+pub fn radius(layout: Layout, n: usize) -> f64 {
+    match layout {
+        Layout::Volume => sphere_radius(n),
+        Layout::Floor => floor_sphere_radius(n),
+    }
+}
+
+/// The seed room with `n` random spheres instead of its boxes and sphere,
+/// anywhere in the room ([`Layout::Volume`]).
 pub fn spheres_in_room(n: usize, seed: u64) -> SceneDesc {
+    generate(n, seed, Layout::Volume)
+}
+
+/// The seed room with `n` random spheres laid out as asked. The same `(n,
+/// seed, layout)` always gives the same scene; every sphere lies strictly
+/// inside [`ROOM_MIN`]..[`ROOM_MAX`], touching no wall (nor the floor).
+pub fn generate(n: usize, seed: u64, layout: Layout) -> SceneDesc {
     let mut desc = SceneDesc::from_json(SEED_ROOM_JSON).expect("the built-in seed room is valid");
     desc.objects
         .retain(|o| matches!(o, ObjectDesc::Plane(_) | ObjectDesc::Rect(_)));
-    let radius = sphere_radius(n);
+    let radius = radius(layout, n);
     // Clearance for the rounding of the centres, so that no sphere touches
     // a wall.
     let clearance = radius + 2.0 * STEP;
+    let (lo, hi) = match layout {
+        Layout::Volume => (ROOM_MIN, ROOM_MAX),
+        // Resting just above the floor.
+        Layout::Floor => {
+            let y = ROOM_MIN[1] + clearance;
+            (
+                [ROOM_MIN[0], y - clearance, ROOM_MIN[2]],
+                [ROOM_MAX[0], y + clearance, ROOM_MAX[2]],
+            )
+        }
+    };
     let mut rng = Rng::new(seed);
     let mut uniform =
         |lo: f64, hi: f64| lo + (hi - lo) * (rng.next_u64() >> 11) as f64 / (1u64 << 53) as f64;
     desc.objects.reserve(n);
     for _ in 0..n {
-        let center: [f64; 3] = std::array::from_fn(|i| {
-            round(uniform(ROOM_MIN[i] + clearance, ROOM_MAX[i] - clearance))
-        });
+        let center: [f64; 3] =
+            std::array::from_fn(|i| round(uniform(lo[i] + clearance, hi[i] - clearance)));
         let material =
             MATERIALS[(uniform(0.0, MATERIALS.len() as f64) as usize).min(MATERIALS.len() - 1)];
         desc.objects.push(ObjectDesc::Sphere(SphereDesc {

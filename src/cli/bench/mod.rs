@@ -86,6 +86,10 @@ pub struct BenchArgs {
     /// Seed of the sphere generator.
     #[arg(long, default_value_t = 1)]
     pub sphere_seed: u64,
+    /// With --spheres: anywhere in the room (5 % of its volume; more
+    /// spheres make a denser fog) or one layer on the floor (30 % of it).
+    #[arg(long, value_enum, default_value_t = LayoutArg::Volume)]
+    pub layout: LayoutArg,
     /// With --spheres: also write each generated scene as DIR/spheres-N.json
     /// (to render or view it).
     #[arg(long, value_name = "DIR")]
@@ -160,6 +164,22 @@ pub fn load_average() -> String {
         .unwrap_or_else(|| "unknown".into())
 }
 
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum LayoutArg {
+    #[default]
+    Volume,
+    Floor,
+}
+
+impl From<LayoutArg> for generate::Layout {
+    fn from(l: LayoutArg) -> generate::Layout {
+        match l {
+            LayoutArg::Volume => generate::Layout::Volume,
+            LayoutArg::Floor => generate::Layout::Floor,
+        }
+    }
+}
+
 /// A scene to measure, with the name its output files get.
 pub struct BenchScene {
     pub name: String,
@@ -174,8 +194,11 @@ pub fn scenes(args: &BenchArgs) -> Result<Vec<BenchScene>, CliError> {
         Some(counts) => counts
             .iter()
             .map(|&n| BenchScene {
-                name: format!("spheres-{n}"),
-                desc: generate::spheres_in_room(n as usize, args.sphere_seed),
+                name: match args.layout {
+                    LayoutArg::Volume => format!("spheres-{n}"),
+                    LayoutArg::Floor => format!("floor-spheres-{n}"),
+                },
+                desc: generate::generate(n as usize, args.sphere_seed, args.layout.into()),
             })
             .collect(),
         None => {

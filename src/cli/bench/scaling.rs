@@ -3,7 +3,7 @@
 use std::time::Instant;
 
 use super::{BenchArgs, CliError, build, scenes, si, timed};
-use crate::render::generate::{VOLUME_FRACTION, sphere_radius};
+use crate::render::generate::{self, Layout, VOLUME_FRACTION};
 
 /// One scene size's measurement.
 #[derive(Debug, Clone, Copy)]
@@ -21,9 +21,9 @@ pub struct ScalingRow {
 }
 
 /// Mean distance a ray travels between spheres of radius `r` filling
-/// [`VOLUME_FRACTION`] of the room: 4r / 3φ.
-fn free_path(r: f64) -> f64 {
-    4.0 * r / (3.0 * VOLUME_FRACTION)
+/// [`VOLUME_FRACTION`] of the room: 4r / 3φ (none for the floor layout).
+fn free_path(layout: Layout, r: f64) -> Option<f64> {
+    (layout == Layout::Volume).then(|| 4.0 * r / (3.0 * VOLUME_FRACTION))
 }
 
 pub fn run(args: &BenchArgs) -> Result<(), CliError> {
@@ -34,10 +34,12 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
     };
     let runs = args.runs.unwrap_or(if args.quick { 1 } else { 5 });
     let scenes = scenes(args)?;
+    let layout = Layout::from(args.layout);
     if let Some(s) = scenes.first() {
         let r = &s.desc.render;
         println!(
-            "generated rooms (sphere seed {}): {}×{}, {} {} shadow rays, depth {}, {}; median of {runs} runs",
+            "generated rooms ({:?} layout, sphere seed {}): {}×{}, {} {} shadow rays, depth {}, {}; median of {runs} runs",
+            layout,
             args.sphere_seed,
             s.desc.camera.width,
             s.desc.camera.height,
@@ -73,7 +75,7 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
         let no_shadow = timed(&dark, runs);
         let row = ScalingRow {
             spheres: n,
-            radius: sphere_radius(n as usize),
+            radius: generate::radius(layout, n as usize),
             build_s,
             time_s: t.median().as_secs_f64(),
             cpu_s: t.median_cpu().map_or(f64::NAN, |c| c.as_secs_f64()),
@@ -82,10 +84,10 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
         };
         let first = rows.first().copied().unwrap_or(row);
         println!(
-            "{:>8} {:>8.4} {:>9.2} {:>9.2} {:>10.2} {:>9.2} {:>9} {:>7.1} {:>10.1} {:>8.2}× {:>8.2}× {:>12.2}",
+            "{:>8} {:>8.4} {:>9} {:>9.2} {:>10.2} {:>9.2} {:>9} {:>7.1} {:>10.1} {:>8.2}× {:>8.2}× {:>12.2}",
             row.spheres,
             row.radius,
-            free_path(row.radius),
+            free_path(layout, row.radius).map_or("-".into(), |f| format!("{f:.2}")),
             row.build_s * 1e3,
             row.time_s * 1e3,
             row.cpu_s * 1e3,
@@ -114,11 +116,14 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
             "without shadow rays (camera and mirror rays: the BVH's closest hits): {:.2} wall",
             hi.no_shadow_s / lo.no_shadow_s
         );
-        println!(
-            "(the spheres fill {:.0} % of the room at every N, so a ray's free path shrinks as N^(-1/3): \
-             a shadow ray that reaches the light passes ever more spheres on the way)",
-            VOLUME_FRACTION * 100.0
-        );
+        if layout == Layout::Volume {
+            println!(
+                "(the spheres fill {:.0} % of the room at every N, so a ray's free path shrinks as N^(-1/3): \
+                 a shadow ray that reaches the light passes ever more spheres on the way; \
+                 --layout floor keeps what a shadow ray crosses constant)",
+                VOLUME_FRACTION * 100.0
+            );
+        }
     }
     Ok(())
 }

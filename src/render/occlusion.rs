@@ -175,25 +175,7 @@ impl Occluder {
         match *self {
             Occluder::Sphere { oc, r2, inside } => {
                 for j in 0..n {
-                    let (x, y, z) = (dx[j], dy[j], dz[j]);
-                    let a = x * x + y * y + z * z;
-                    let b = oc.x * x + oc.y * y + oc.z * z;
-                    // disc = b² − a(|oc|² − r²) = a(r² − |e|²), e the centre's
-                    // offset from the ray's closest point: computed from e
-                    // (Ray Tracing Gems, ch. 7), it keeps its precision for
-                    // a small sphere far away, where b² and a|oc|² cancel.
-                    let t = b / a;
-                    let (ex, ey, ez) = (oc.x - x * t, oc.y - y * t, oc.z - z * t);
-                    let disc = a * (r2 - (ex * ex + ey * ey + ez * ez));
-                    // Roots t = (b ± √disc) / a. Outside: the near root, in
-                    // (0, 1) iff b > 0 and b − a < √disc. Inside (p is on
-                    // the sphere, disc = b²): the exit, b + |b| < a.
-                    let blocked = if inside {
-                        b + b.abs() < a * RAY_END
-                    } else {
-                        let s = b - a * RAY_END;
-                        disc >= 0.0 && b > 0.0 && (s < 0.0 || s * s < disc)
-                    };
+                    let blocked = sphere_blocks(oc, r2, inside, dx[j], dy[j], dz[j]);
                     vis[j] = if blocked { 0.0 } else { vis[j] };
                 }
             }
@@ -257,6 +239,32 @@ impl Occluder {
         };
         self.block(dirs, &mut v);
         v[0] == 0.0
+    }
+}
+
+/// Whether the ray (x, y, z) from the hit point meets the sphere (centre
+/// `oc` from the hit point, radius² `r2`) before [`RAY_END`]. One lane of
+/// the vector loop, and the scalar test of a lone ray: the same operations,
+/// so the same answer.
+#[inline(always)]
+fn sphere_blocks(oc: Vec3, r2: f32, inside: bool, x: f32, y: f32, z: f32) -> bool {
+    let a = x * x + y * y + z * z;
+    let b = oc.x * x + oc.y * y + oc.z * z;
+    // disc = b² − a(|oc|² − r²) = a(r² − |e|²), e the centre's offset from
+    // the ray's closest point: computed from e (Ray Tracing Gems, ch. 7), it
+    // keeps its precision for a small sphere far away, where b² and a|oc|²
+    // cancel.
+    let t = b / a;
+    let (ex, ey, ez) = (oc.x - x * t, oc.y - y * t, oc.z - z * t);
+    let disc = a * (r2 - (ex * ex + ey * ey + ez * ez));
+    // Roots t = (b ± √disc) / a. Outside: the near root, in (0, 1) iff
+    // b > 0 and b − a < √disc. Inside (p is on the sphere, disc = b²): the
+    // exit, b + |b| < a.
+    if inside {
+        b + b.abs() < a * RAY_END
+    } else {
+        let s = b - a * RAY_END;
+        disc >= 0.0 && b > 0.0 && (s < 0.0 || s * s < disc)
     }
 }
 
@@ -682,6 +690,22 @@ fn packet_generic(
         }
         tested |= m;
         let occ = Occluder::new(&scene.objects[i as usize].shape, pk.point, inside);
+        if let Occluder::Sphere { oc, r2, inside } = occ
+            && m.count_ones() <= 4
+        {
+            // A few rays: the lane test alone, without a vector call.
+            let mut live = live;
+            let mut rays = m;
+            while rays != 0 {
+                let j = rays.trailing_zeros() as usize;
+                rays &= rays - 1;
+                if sphere_blocks(oc, r2, inside, d.x[j], d.y[j], d.z[j]) {
+                    vis[j] = 0.0;
+                    live &= !(1 << j);
+                }
+            }
+            return live;
+        }
         // The chunks from the first to the last ray to test, in one call.
         let first = m.trailing_zeros() as usize / 8 * 8;
         let past = (64 - m.leading_zeros() as usize).div_ceil(8) * 8;

@@ -4,7 +4,7 @@
 use std::process::Command;
 
 use penumbra::cli::bench::reference::{reference, reference_key};
-use penumbra::cli::bench::sweep::{CSV_COLUMNS, SweepPlan, csv, run_sweep};
+use penumbra::cli::bench::sweep::{SweepPlan, csv, csv_columns, run_sweep};
 use penumbra::render::generate::{
     Layout, ROOM_MAX, ROOM_MIN, floor_sphere_radius, generate, sphere_radius, spheres_in_room,
 };
@@ -40,15 +40,15 @@ fn quick_sweep_writes_every_configuration() {
     );
     let text = std::fs::read_to_string(dir.path().join("bench-seed-room.csv")).unwrap();
     let lines: Vec<&str> = text.lines().collect();
-    assert_eq!(lines[0], CSV_COLUMNS.join(","));
+    assert_eq!(lines[0], csv_columns().join(","));
     // Patterns × 2 counts × models × adaptive off and on.
     let expected = Sampling::ALL.len() * 2 * AreaLightModel::ALL.len() * 2;
     assert_eq!(lines.len(), 1 + expected);
-    let col = |name: &str| CSV_COLUMNS.iter().position(|c| *c == name).unwrap();
+    let col = |name: &str| csv_columns().iter().position(|c| *c == name).unwrap();
     let mut seen = std::collections::HashSet::new();
     for line in &lines[1..] {
         let f: Vec<&str> = line.split(',').collect();
-        assert_eq!(f.len(), CSV_COLUMNS.len(), "{line}");
+        assert_eq!(f.len(), csv_columns().len(), "{line}");
         assert_eq!((f[col("width")], f[col("height")]), ("16", "9"));
         assert!(f[col("time_s")].parse::<f64>().unwrap() > 0.0);
         assert!(f[col("cpu_s")].parse::<f64>().unwrap() >= 0.0);

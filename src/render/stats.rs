@@ -27,6 +27,57 @@ pub struct RayStats {
     pub reflected_culled: u64,
 }
 
+/// One kind of work that skipping answered or saved, for reports.
+pub struct Saving {
+    /// CSV column name.
+    pub key: &'static str,
+    /// Table heading (at most 7 characters).
+    pub short: &'static str,
+    /// What it counts, for a sentence.
+    pub label: &'static str,
+    pub count: fn(&RayStats) -> u64,
+}
+
+/// Every kind of skipped work, in report order.
+pub const SAVINGS: [Saving; 6] = [
+    Saving {
+        key: "shadow_backfacing",
+        short: "backfac",
+        label: "shadow rays behind the surface (backfacing)",
+        count: |s| s.shadow_backfacing,
+    },
+    Saving {
+        key: "shadow_unoccluded",
+        short: "unocc",
+        label: "shadow rays with no possible occluder (unoccluded)",
+        count: |s| s.shadow_unoccluded,
+    },
+    Saving {
+        key: "shadow_umbra",
+        short: "umbra",
+        label: "shadow rays inside one occluder's umbra",
+        count: |s| s.shadow_umbra,
+    },
+    Saving {
+        key: "shadow_unneeded",
+        short: "unneed",
+        label: "shadow rays no term needed (unneeded)",
+        count: |s| s.shadow_unneeded,
+    },
+    Saving {
+        key: "shadow_adaptive",
+        short: "adapt",
+        label: "shadow rays left out by adaptive sampling",
+        count: |s| s.shadow_adaptive,
+    },
+    Saving {
+        key: "reflected_culled",
+        short: "culled",
+        label: "reflected rays below the path weight (culled)",
+        count: |s| s.reflected_culled,
+    },
+];
+
 impl RayStats {
     /// Rays actually traced.
     pub fn traced(&self) -> u64 {

@@ -9,6 +9,7 @@ use super::{BenchArgs, BenchScene, CliError, build, scenes, si, timed};
 use crate::render::compare::compare;
 use crate::render::output::write_atomic;
 use crate::render::sampling::points_per_hit;
+use crate::render::stats::SAVINGS;
 use crate::render::{AreaLightModel, RayStats, Sampling, SceneDesc};
 
 /// The shadow-ray counts of a full sweep.
@@ -195,8 +196,8 @@ pub enum Progress<'a> {
     Row(&'a Row),
 }
 
-/// The CSV's columns, in order.
-pub const CSV_COLUMNS: [&str; 30] = [
+/// The CSV's columns before and after the skip counters.
+const CSV_HEAD: [&str; 17] = [
     "scene",
     "width",
     "height",
@@ -214,12 +215,8 @@ pub const CSV_COLUMNS: [&str; 30] = [
     "camera_rays",
     "shadow_traced",
     "reflected_traced",
-    "shadow_backfacing",
-    "shadow_unoccluded",
-    "shadow_umbra",
-    "shadow_unneeded",
-    "shadow_adaptive",
-    "reflected_culled",
+];
+const CSV_TAIL: [&str; 7] = [
     "mray_per_s",
     "rmse",
     "psnr_db",
@@ -229,9 +226,15 @@ pub const CSV_COLUMNS: [&str; 30] = [
     "max_diff_skip_vs_noskip",
 ];
 
+/// The CSV's columns, in order: the skip counters in the middle.
+pub fn csv_columns() -> Vec<&'static str> {
+    let skips = SAVINGS.iter().map(|k| k.key);
+    CSV_HEAD.into_iter().chain(skips).chain(CSV_TAIL).collect()
+}
+
 /// The CSV text of a sweep: a header, then one line per row.
 pub fn csv(scene: &str, desc: &SceneDesc, rows: &[Row]) -> String {
-    let mut out = CSV_COLUMNS.join(",");
+    let mut out = csv_columns().join(",");
     out.push('\n');
     for r in rows {
         let s = &r.stats;
@@ -249,9 +252,13 @@ pub fn csv(scene: &str, desc: &SceneDesc, rows: &[Row]) -> String {
             .chars()
             .map(|c| if c == ',' || c == '"' { '_' } else { c })
             .collect();
+        let skips: String = SAVINGS
+            .iter()
+            .map(|k| format!(",{}", (k.count)(s)))
+            .collect();
         let _ = writeln!(
             out,
-            "{name},{},{},{},{},{},{},{},{},{},{:.6},{:.6},{:.6},{},{},{},{},{},{},{},{},{},{},{:.3},{:e},{:.3},{nt},{nr},{nd},{nm}",
+            "{name},{},{},{},{},{},{},{},{},{},{:.6},{:.6},{:.6},{},{},{},{}{skips},{:.3},{:e},{:.3},{nt},{nr},{nd},{nm}",
             desc.camera.width,
             desc.camera.height,
             desc.render.max_depth,
@@ -268,12 +275,6 @@ pub fn csv(scene: &str, desc: &SceneDesc, rows: &[Row]) -> String {
             s.camera,
             s.shadow,
             s.reflected,
-            s.shadow_backfacing,
-            s.shadow_unoccluded,
-            s.shadow_umbra,
-            s.shadow_unneeded,
-            s.shadow_adaptive,
-            s.reflected_culled,
             r.mrays(),
             r.rmse,
             r.psnr,
@@ -298,7 +299,7 @@ pub fn table(rows: &[Row]) -> String {
     let no_skip = rows.iter().any(|r| r.no_skip.is_some());
     let _ = write!(
         out,
-        "{:<12} {:<13} {:>4} {:>5} {:>5} {:>9} {:>9} {:>8} {:>7} {:>10} {:>7} | skipped: {:>7} {:>7} {:>7} {:>7} {:>7} {:>6}",
+        "{:<12} {:<13} {:>4} {:>5} {:>5} {:>9} {:>9} {:>8} {:>7} {:>10} {:>7} | skipped:",
         "sampling",
         "model",
         "adap",
@@ -310,13 +311,10 @@ pub fn table(rows: &[Row]) -> String {
         "Mray/s",
         "rmse",
         "psnr",
-        "backfac",
-        "unocc",
-        "umbra",
-        "unneed",
-        "adapt",
-        "culled"
     );
+    for k in &SAVINGS {
+        let _ = write!(out, " {:>7}", k.short);
+    }
     if no_skip {
         let _ = write!(
             out,
@@ -329,7 +327,7 @@ pub fn table(rows: &[Row]) -> String {
         let s = &r.stats;
         let _ = write!(
             out,
-            "{:<12} {:<13} {:>4} {:>5} {:>5} {:>9.2} {:>9.2} {:>8} {:>7.1} {:>10.3e} {:>7.2} | skipped: {:>7} {:>7} {:>7} {:>7} {:>7} {:>6}",
+            "{:<12} {:<13} {:>4} {:>5} {:>5} {:>9.2} {:>9.2} {:>8} {:>7.1} {:>10.3e} {:>7.2} | skipped:",
             r.sampling.name(),
             r.model.name(),
             if r.adaptive { "on" } else { "off" },
@@ -341,13 +339,10 @@ pub fn table(rows: &[Row]) -> String {
             r.mrays(),
             r.rmse,
             r.psnr,
-            si(s.shadow_backfacing),
-            si(s.shadow_unoccluded),
-            si(s.shadow_umbra),
-            si(s.shadow_unneeded),
-            si(s.shadow_adaptive),
-            si(s.reflected_culled),
         );
+        for k in &SAVINGS {
+            let _ = write!(out, " {:>7}", si((k.count)(s)));
+        }
         if let Some(n) = &r.no_skip {
             let _ = write!(
                 out,

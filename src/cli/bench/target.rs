@@ -5,11 +5,13 @@
 //! skipping off (time, rays each skip saved, RMSE between the images); and
 //! the peak memory of a `penumbra render` at 1920×1080 (`/usr/bin/time -v`).
 
+use std::fmt::Write as _;
 use std::path::Path;
 use std::process::Command;
 
 use super::{BenchArgs, CliError, Timed, build, scenes, si, timed};
 use crate::render::compare::compare;
+use crate::render::stats::SAVINGS;
 use crate::render::{RayStats, Sampling, SceneDesc};
 
 /// The goals, from the issue.
@@ -34,18 +36,18 @@ fn verdict(ok: bool) -> &'static str {
 
 /// The rays each skip answered or saved, one per line.
 pub fn savings(s: &RayStats) -> String {
-    format!(
-        "  shadow rays behind the surface (backfacing): {}\n  shadow rays with no possible occluder (unoccluded): {}\n  shadow rays inside one occluder's umbra: {}\n  shadow rays no term needed (unneeded): {}\n  shadow rays left out by adaptive sampling: {}\n  reflected rays below the path weight (culled): {}\n  traced {} of {} rays ({:.1}% skipped)",
-        si(s.shadow_backfacing),
-        si(s.shadow_unoccluded),
-        si(s.shadow_umbra),
-        si(s.shadow_unneeded),
-        si(s.shadow_adaptive),
-        si(s.reflected_culled),
+    let mut out = String::new();
+    for k in &SAVINGS {
+        let _ = writeln!(out, "  {}: {}", k.label, si((k.count)(s)));
+    }
+    let _ = write!(
+        out,
+        "  traced {} of {} rays ({:.1}% skipped)",
         si(s.traced()),
         si(s.effective()),
         100.0 * s.shadow_skipped() as f64 / s.effective().max(1) as f64
-    )
+    );
+    out
 }
 
 pub fn run(args: &BenchArgs) -> Result<(), CliError> {

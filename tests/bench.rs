@@ -191,18 +191,22 @@ fn reference_is_cached_by_scene() {
     );
 }
 
+/// The spheres of a scene.
+fn spheres_of(desc: &SceneDesc) -> Vec<&penumbra::render::scene_file::SphereDesc> {
+    desc.objects
+        .iter()
+        .filter_map(|o| match o {
+            ObjectDesc::Sphere(s) => Some(s),
+            _ => None,
+        })
+        .collect()
+}
+
 #[test]
 fn generated_spheres_fill_the_room_without_touching_walls() {
     for n in [1usize, 10, 1000] {
         let desc = spheres_in_room(n, 7);
-        let spheres: Vec<_> = desc
-            .objects
-            .iter()
-            .filter_map(|o| match o {
-                ObjectDesc::Sphere(s) => Some(s),
-                _ => None,
-            })
-            .collect();
+        let spheres = spheres_of(&desc);
         assert_eq!(spheres.len(), n);
         assert!(
             desc.objects
@@ -234,14 +238,7 @@ fn floor_layout_lays_one_layer_on_the_floor() {
     for n in [1usize, 10, 1000] {
         let desc = generate(n, 7, Layout::Floor);
         let r = floor_sphere_radius(n);
-        let spheres: Vec<_> = desc
-            .objects
-            .iter()
-            .filter_map(|o| match o {
-                ObjectDesc::Sphere(s) => Some(s),
-                _ => None,
-            })
-            .collect();
+        let spheres = spheres_of(&desc);
         assert_eq!(spheres.len(), n);
         for s in &spheres {
             assert_eq!(s.radius, r);

@@ -7,8 +7,8 @@
 //! against the light points of a packet tells which rays can meet the box:
 //! the packet traversal in `occlusion.rs` descends a node only with those
 //! rays, and stops following a ray once it is blocked. The work per hit
-//! point then follows the rays actually in flight (a logarithmic walk per
-//! surviving ray) rather than every object inside the shadow pyramid.
+//! point then follows the rays still in flight rather than every object
+//! inside the shadow pyramid.
 
 use glam::DVec3;
 

@@ -63,16 +63,33 @@ impl RayBins {
         bins
     }
 
-    /// The cell of a coordinate, clamped to 0..=CELLS: one monotone function
-    /// for light points and rectangle ends alike, so a point inside a
-    /// rectangle always falls in a cell inside the rectangle's cell range.
+    /// The cell of a light point's coordinate: the same monotone function
+    /// as for rectangle ends in [`rays_in4`](Self::rays_in4), so a point
+    /// inside a rectangle always falls in a cell inside the rectangle's
+    /// cell range.
     #[inline(always)]
     fn cell(&self, axis: usize, v: f64) -> usize {
         clamp_cell((v - self.min[axis]) * self.scale[axis])
     }
 
+    /// The rays whose light point may lie inside the rectangle `x` × `y`
+    /// (all that do, and possibly some near it; none for an empty one).
+    pub fn rays_in(&self, f: &Footprint) -> u64 {
+        let (inf, ninf) = (f64::INFINITY, f64::NEG_INFINITY);
+        let four = Footprints {
+            x0: [f.x[0], inf, inf, inf],
+            x1: [f.x[1], ninf, ninf, ninf],
+            y0: [f.y[0], inf, inf, inf],
+            y1: [f.y[1], ninf, ninf, ninf],
+            near: [f.near; 4],
+        };
+        self.rays_in4(&four)[0]
+    }
+
     /// [`rays_in`](Self::rays_in) for four footprints at once (the cell
-    /// arithmetic vectorizes; the table lookups stay scalar).
+    /// arithmetic vectorizes; the table lookups stay scalar). A rectangle
+    /// end maps to cell(lo) and ⌊·⌋ + 1 of hi's cell coordinate: 0 for a
+    /// rectangle wholly below the points.
     // Lanes of parallel arrays: index loops are what vectorizes.
     #[allow(clippy::needless_range_loop)]
     #[inline(always)]
@@ -93,21 +110,6 @@ impl RayBins {
                 & !bx[clamp_cell(c[0][s])]
                 & by[clamp_cell(c[3][s])]
                 & !by[clamp_cell(c[2][s])];
-        }
-        rays
-    }
-
-    /// The rays whose light point may lie inside the rectangle `x` × `y`
-    /// (all that do, and possibly some near it; none for an empty one).
-    #[inline(always)]
-    pub fn rays_in(&self, f: &Footprint) -> u64 {
-        let mut rays = self.all;
-        for (axis, [lo, hi]) in [f.x, f.y].into_iter().enumerate() {
-            let first = self.cell(axis, lo);
-            // cell(hi) + 1, but 0 for a rectangle wholly below the points.
-            let past =
-                ((hi - self.min[axis]) * self.scale[axis] + 1.0).clamp(0.0, CELLS as f64) as usize;
-            rays &= self.below[axis][past] & !self.below[axis][first];
         }
         rays
     }

@@ -20,8 +20,13 @@
 //! - if one convex candidate, lying wholly between p and the light's plane,
 //!   blocks the rays to all four light corners, it blocks every ray to the
 //!   light (the directions that meet a convex body form a convex cone).
+//! - from [`PACKET_THRESHOLD`](super::scene::PACKET_THRESHOLD) objects on,
+//!   the rays walk a BVH built in the light's frame as packets of 64
+//!   (`light_frame.rs`, `ray_packet.rs`): a box is opened only with the
+//!   rays whose light points lie in its footprint, grown by a margin far
+//!   beyond the f32 tests' rounding, and a ray stops at its first blocker.
 //!
-//! Both only decide what is also what tracing would find, so the image is
+//! All only decide what is also what tracing would find, so the image is
 //! the same with skipping on or off.
 
 use glam::{DVec3, Vec3};

@@ -6,7 +6,7 @@
 //! - [`settings`]: viewer toggles that map onto the scene description.
 //! - [`file_dialog`], [`export`], [`watch`]: files in and out.
 //! - [`timings`]: the `--log-timings` figures.
-//! - [`reference`], [`error_view`]: the converged reference and the live
+//! - [`mod@reference`], [`error_view`]: the converged reference and the live
 //!   error readout against it.
 
 pub mod camera_control;

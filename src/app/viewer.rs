@@ -68,7 +68,7 @@ impl ViewerOptions {
 #[derive(Debug, Clone)]
 pub struct PickInfo {
     pub pixel: (u32, u32),
-    /// "objects[3] (box)", "the light" or "background".
+    /// "objects\[3\] (box)", "the light" or "background".
     pub what: String,
     pub material: Option<String>,
     pub linear_rgb: Option<[f32; 3]>,

@@ -92,7 +92,7 @@ pub fn lambert_polygon(verts: &[DVec3], n: DVec3) -> f64 {
 }
 
 /// [`lambert_polygon`] of the parallelogram `corner + a·edge_u + b·edge_v`,
-/// (a, b) ∈ [0,1]², seen from `p` with unit normal `n`, after clipping to
+/// (a, b) ∈ \[0,1\]², seen from `p` with unit normal `n`, after clipping to
 /// the horizon: the form factor (1/π) ∫ max(0, n·ω) dω over its solid
 /// angle. Two-sided.
 pub fn lambert_parallelogram(
@@ -305,7 +305,7 @@ pub fn specular_area_average(
 }
 
 /// [`specular_area_average`] to a chosen relative tolerance, by adaptive
-/// tensor 4×4 Gauss–Legendre cubature over the light's (a, b) ∈ [0,1]².
+/// tensor 4×4 Gauss–Legendre cubature over the light's (a, b) ∈ \[0,1\]².
 ///
 /// The lobe is narrow in angle (width ~2/√s in L), and a light near its
 /// hit point spans many lobe widths, so the cubature works in angle-like

@@ -38,7 +38,7 @@ impl AreaLight {
 
     /// The report's "optimal" light point for a point `p` looking along
     /// `dir`: follow the ray to the light's plane, take the intersection's
-    /// (a, b) coordinates by least squares and clamp them into [0,1]². If
+    /// (a, b) coordinates by least squares and clamp them into \[0,1\]². If
     /// the intersection lies behind `p`, take the light's corner farthest
     /// from it, as the report does. A ray parallel to the plane meets it at
     /// infinity in its own direction: each coordinate whose direction

@@ -6,7 +6,7 @@
 //! vectorize the per-ray loops (structure of arrays, no branches).
 //!
 //! A ray from hit point p to light point y is blocked by an object met at
-//! t ∈ (0, 1 − 10⁻⁴) on p + t (y − p) (see [`RAY_END`]). A light point
+//! t ∈ (0, 1 − 10⁻⁴) on p + t (y − p) (see `RAY_END`). A light point
 //! behind the surface (N·(y − p) ≤ 0) counts as blocked by the surface
 //! itself. The surface's own object is otherwise left out: every primitive
 //! is convex or flat, so a ray leaving it on the outer side can never meet

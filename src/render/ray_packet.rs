@@ -24,7 +24,7 @@ pub struct RayBins {
 }
 
 impl RayBins {
-    /// Bins the light points (a[j], b[j]), at most [`PACKET`] of them.
+    /// Bins the light points (a\[j\], b\[j\]), at most [`PACKET`] of them.
     // Lanes of parallel arrays: index loops are what vectorizes.
     #[allow(clippy::needless_range_loop)]
     pub fn new(frame: &LightFrame, a: &[f32], b: &[f32]) -> RayBins {

@@ -1,4 +1,4 @@
-//! Where shadow rays meet the light: points in the light's (a, b) ∈ [0,1]²
+//! Where shadow rays meet the light: points in the light's (a, b) ∈ \[0,1\]²
 //! coordinates, by pattern.
 
 use super::rng::Rng;

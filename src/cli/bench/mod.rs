@@ -55,7 +55,7 @@ pub struct BenchArgs {
     /// Render the reference again even if it is cached.
     #[arg(long)]
     pub fresh_reference: bool,
-    /// Directory of the CSV and plot (bench-<scene>.csv / .png).
+    /// Directory of the CSV and plot (bench-SCENE.csv / .png).
     #[arg(long, default_value = "target/penumbra-bench")]
     pub out: PathBuf,
     /// Write the CSV here instead (one scene only).

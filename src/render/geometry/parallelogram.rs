@@ -2,7 +2,7 @@ use glam::{DVec2, DVec3};
 
 use super::{Aabb, Ray, SurfacePoint};
 
-/// A parallelogram `corner + a·edge_u + b·edge_v`, (a, b) ∈ [0,1]²: the
+/// A parallelogram `corner + a·edge_u + b·edge_v`, (a, b) ∈ \[0,1\]²: the
 /// `rect` object and the shape of the area light.
 #[derive(Debug, Clone)]
 pub struct Parallelogram {

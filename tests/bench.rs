@@ -1,8 +1,9 @@
 //! The bench's logic: sweep rows and CSV, error against ray count, the
 //! reference cache and the sphere generator. Tiny images keep it fast.
 
-use std::process::Command;
+mod common;
 
+use common::penumbra_ok;
 use penumbra::cli::bench::reference::{reference, reference_key};
 use penumbra::cli::bench::sweep::{SweepPlan, csv, csv_columns, run_sweep};
 use penumbra::render::generate::{
@@ -24,20 +25,25 @@ fn tiny_room(width: u32, height: u32) -> SceneDesc {
 #[test]
 fn quick_sweep_writes_every_configuration() {
     let dir = tempfile::tempdir().unwrap();
-    let out = Command::new(env!("CARGO_BIN_EXE_penumbra"))
-        .args(["bench", "--quick", "--width", "16", "--height", "9"])
-        .args(["--counts", "1,4", "--runs", "1", "--reference-rays", "64"])
-        .arg("--cache")
-        .arg(dir.path().join("cache"))
-        .arg("--out")
-        .arg(dir.path())
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let cache = dir.path().join("cache");
+    let stdout = penumbra_ok(&[
+        "bench",
+        "--quick",
+        "--width",
+        "16",
+        "--height",
+        "9",
+        "--counts",
+        "1,4",
+        "--runs",
+        "1",
+        "--reference-rays",
+        "64",
+        "--cache",
+        cache.to_str().unwrap(),
+        "--out",
+        dir.path().to_str().unwrap(),
+    ]);
     let text = std::fs::read_to_string(dir.path().join("bench-seed-room.csv")).unwrap();
     let lines: Vec<&str> = text.lines().collect();
     assert_eq!(lines[0], csv_columns().join(","));
@@ -64,25 +70,34 @@ fn quick_sweep_writes_every_configuration() {
     assert_eq!(seen.len(), expected, "every configuration once");
     let png = std::fs::read(dir.path().join("bench-seed-room.png")).unwrap();
     assert_eq!(&png[1..4], b"PNG");
-    let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(stdout.contains("load average"), "{stdout}");
+}
+
+/// `penumbra bench --scaling` on 16×9 images, one run each, with `args`.
+fn bench_scaling(args: &[&str]) -> String {
+    let mut all = vec![
+        "bench",
+        "--scaling",
+        "--runs",
+        "1",
+        "--width",
+        "16",
+        "--height",
+        "9",
+    ];
+    all.extend(args);
+    penumbra_ok(&all)
 }
 
 #[test]
 fn scaling_prints_time_per_sphere_count_and_the_ratio() {
     let dir = tempfile::tempdir().unwrap();
-    let out = Command::new(env!("CARGO_BIN_EXE_penumbra"))
-        .args(["bench", "--spheres", "10,50", "--scaling", "--runs", "1"])
-        .args(["--width", "16", "--height", "9", "--save-scenes"])
-        .arg(dir.path())
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stdout = bench_scaling(&[
+        "--spheres",
+        "10,50",
+        "--save-scenes",
+        dir.path().to_str().unwrap(),
+    ]);
     let rows: Vec<&str> = stdout
         .lines()
         .filter(|l| l.trim_start().starts_with("10 ") || l.trim_start().starts_with("50 "))
@@ -255,23 +270,8 @@ fn floor_layout_lays_one_layer_on_the_floor() {
     let ratio = floor_sphere_radius(10) / floor_sphere_radius(10_000);
     assert!((ratio - 1000f64.sqrt()).abs() < 1e-3, "{ratio}");
     // The bench takes the layout.
-    let out = Command::new(env!("CARGO_BIN_EXE_penumbra"))
-        .args([
-            "bench",
-            "--spheres",
-            "10,20",
-            "--layout",
-            "floor",
-            "--scaling",
-        ])
-        .args(["--runs", "1", "--width", "16", "--height", "9"])
-        .output()
-        .unwrap();
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success() && stdout.contains("Floor layout"),
-        "{stdout}"
-    );
+    let stdout = bench_scaling(&["--spheres", "10,20", "--layout", "floor"]);
+    assert!(stdout.contains("Floor layout"), "{stdout}");
     assert!(
         stdout.contains(&format!("{:.4}", floor_sphere_radius(20))),
         "{stdout}"

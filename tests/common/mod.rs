@@ -31,6 +31,18 @@ pub fn penumbra(args: &[&str]) -> Output {
         .expect("runs")
 }
 
+/// Runs the `penumbra` binary with `args`, expects success and returns
+/// its standard output.
+pub fn penumbra_ok(args: &[&str]) -> String {
+    let out = penumbra(args);
+    assert!(
+        out.status.success(),
+        "penumbra {args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
 /// The names of the files in `dir`, sorted.
 pub fn files_in(dir: &Path) -> Vec<String> {
     let mut v: Vec<String> = std::fs::read_dir(dir)

@@ -6,13 +6,13 @@
 //! reference or the exposure changes), a newer request replaces a waiting
 //! one, and nothing over the image's pixels runs on the UI thread.
 
-use std::sync::{Arc, Condvar, Mutex, MutexGuard};
-use std::thread::JoinHandle;
-use std::time::{Duration, Instant};
+use std::sync::Arc;
+use std::time::Duration;
 
 use egui::{Color32, ColorImage, RichText, Ui};
 
 use super::render_job::FilmReader;
+use super::worker::{Shared, Stop, Worker};
 use crate::render::Film;
 use crate::render::compare::{Comparison, compare, diff_image, false_colour};
 
@@ -49,7 +49,7 @@ pub struct ErrorShown {
 }
 
 #[derive(Default)]
-struct Shared {
+struct State {
     /// Id of the newest request (results of older ones are dropped).
     latest: u64,
     pending: Option<(u64, ErrorRequest)>,
@@ -58,54 +58,43 @@ struct Shared {
     shutdown: bool,
 }
 
-struct Inner {
-    shared: Mutex<Shared>,
-    wake: Condvar,
-    repaint: egui::Context,
-}
-
-impl Inner {
-    fn lock(&self) -> MutexGuard<'_, Shared> {
-        self.shared.lock().unwrap_or_else(|e| e.into_inner())
+impl Stop for State {
+    fn stop(&mut self) {
+        self.shutdown = true;
+        self.pending = None;
     }
 }
 
+type Inner = Shared<State>;
+
 /// Handle to the comparison thread; dropping it stops the thread.
 pub struct ErrorJob {
-    inner: Arc<Inner>,
-    thread: Option<JoinHandle<()>>,
+    worker: Worker<State>,
 }
 
 impl ErrorJob {
     pub fn new(repaint: egui::Context) -> ErrorJob {
-        let inner = Arc::new(Inner {
-            shared: Mutex::default(),
-            wake: Condvar::new(),
-            repaint,
-        });
-        let worker = inner.clone();
-        let thread = std::thread::Builder::new()
-            .name("penumbra-compare".into())
-            .spawn(move || worker_loop(&worker))
-            .expect("spawn the compare thread");
         ErrorJob {
-            inner,
-            thread: Some(thread),
+            worker: Worker::spawn("penumbra-compare", State::default(), repaint, worker_loop),
         }
+    }
+
+    fn inner(&self) -> &Inner {
+        self.worker.shared()
     }
 
     /// Asks for a comparison, replacing any request still waiting.
     pub fn request(&self, req: ErrorRequest) {
-        let mut s = self.inner.lock();
+        let mut s = self.inner().lock();
         s.latest += 1;
         s.pending = Some((s.latest, req));
         s.result = None;
-        self.inner.wake.notify_all();
+        self.inner().notify();
     }
 
     /// Forgets waiting requests and results (the reference went away).
     pub fn cancel(&self) {
-        let mut s = self.inner.lock();
+        let mut s = self.inner().lock();
         s.latest += 1;
         s.pending = None;
         s.result = None;
@@ -113,7 +102,7 @@ impl ErrorJob {
 
     /// The newest request's result, once ready.
     pub fn take(&self) -> Option<ErrorShown> {
-        let mut s = self.inner.lock();
+        let mut s = self.inner().lock();
         match s.result.take() {
             Some((id, shown)) if id == s.latest => Some(shown),
             _ => None,
@@ -123,35 +112,8 @@ impl ErrorJob {
     /// Blocks until no request waits or runs (tests only); false on
     /// timeout.
     pub fn wait(&self, timeout: Duration) -> bool {
-        let deadline = Instant::now() + timeout;
-        let mut s = self.inner.lock();
-        while s.pending.is_some() || s.busy {
-            let now = Instant::now();
-            if now >= deadline {
-                return false;
-            }
-            s = self
-                .inner
-                .wake
-                .wait_timeout(s, deadline - now)
-                .unwrap_or_else(|e| e.into_inner())
-                .0;
-        }
-        true
-    }
-}
-
-impl Drop for ErrorJob {
-    fn drop(&mut self) {
-        {
-            let mut s = self.inner.lock();
-            s.shutdown = true;
-            s.pending = None;
-        }
-        self.inner.wake.notify_all();
-        if let Some(t) = self.thread.take() {
-            let _ = t.join();
-        }
+        self.inner()
+            .wait_until(timeout, |s| s.pending.is_none() && !s.busy)
     }
 }
 
@@ -167,7 +129,7 @@ fn worker_loop(inner: &Inner) {
                     s.busy = true;
                     break p;
                 }
-                s = inner.wake.wait(s).unwrap_or_else(|e| e.into_inner());
+                s = inner.wait(s);
             }
         };
         let shown = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| evaluate(req)))
@@ -182,8 +144,7 @@ fn worker_loop(inner: &Inner) {
                 s.result = Some((id, shown));
             }
         }
-        inner.wake.notify_all();
-        inner.repaint.request_repaint();
+        inner.announce();
     }
 }
 

@@ -1,7 +1,9 @@
 //! The egui viewer (only UI; rendering lives in `crate::render`).
 //!
 //! - [`viewer`]: the app state and its frame.
-//! - [`render_job`]: the worker thread, cancellation and tile streaming.
+//! - [`render_job`]: the render's worker thread, cancellation and tile
+//!   streaming; [`worker`]: the thread-and-mailbox pattern it shares with
+//!   the error readout.
 //! - [`controls`], [`camera_control`], [`status`]: the panels and the mouse.
 //! - [`settings`]: viewer toggles that map onto the scene description.
 //! - [`file_dialog`], [`export`], [`watch`]: files in and out.
@@ -21,6 +23,7 @@ pub mod status;
 pub mod timings;
 pub mod viewer;
 pub mod watch;
+pub mod worker;
 
 use std::time::Duration;
 

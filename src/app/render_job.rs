@@ -7,12 +7,12 @@
 //! drags never queue stale renders (at most one running, one pending).
 
 use std::panic::AssertUnwindSafe;
-use std::sync::{Arc, Condvar, Mutex, MutexGuard};
-use std::thread::JoinHandle;
-use std::time::{Duration, Instant};
+use std::sync::Arc;
+use std::time::Duration;
 
 use egui::Color32;
 
+use super::worker::{Shared, Stop, Worker};
 use crate::render::film::encode_srgb8;
 use crate::render::progressive::{CancelToken, RenderOptions, TileRect};
 use crate::render::{Film, RenderReport, Scene, SceneDesc};
@@ -62,7 +62,7 @@ struct Request {
 }
 
 #[derive(Default)]
-struct Shared {
+struct State {
     /// The newest request not yet taken by the worker.
     pending: Option<Request>,
     /// Generation of the newest request.
@@ -85,52 +85,46 @@ struct Shared {
     panic_next: bool,
 }
 
-struct Inner {
-    shared: Mutex<Shared>,
-    /// Signalled on a new request (to the worker) and on a finished render
-    /// (to waiters in tests).
-    wake: Condvar,
-    repaint: egui::Context,
-}
-
-impl Inner {
-    fn lock(&self) -> MutexGuard<'_, Shared> {
-        // A panic while locked leaves plain data behind: keep going.
-        self.shared.lock().unwrap_or_else(|e| e.into_inner())
+impl Stop for State {
+    fn stop(&mut self) {
+        self.shutdown = true;
+        self.pending = None;
+        if let Some(c) = &self.running {
+            c.cancel();
+        }
     }
 }
 
+type Inner = Shared<State>;
+
 /// Handle to the worker thread; dropping it cancels and joins the worker.
 pub struct RenderJob {
-    inner: Arc<Inner>,
-    thread: Option<JoinHandle<()>>,
+    worker: Worker<State>,
 }
 
 impl RenderJob {
     pub fn new(repaint: egui::Context) -> RenderJob {
-        let inner = Arc::new(Inner {
-            shared: Mutex::new(Shared::default()),
-            wake: Condvar::new(),
-            repaint,
-        });
-        let worker = inner.clone();
-        let thread = std::thread::Builder::new()
-            .name("penumbra-render".into())
-            .spawn(move || match render_pool() {
-                Some(pool) => pool.install(|| worker_loop(&worker)),
-                None => worker_loop(&worker),
-            })
-            .expect("spawn the render thread");
-        RenderJob {
-            inner,
-            thread: Some(thread),
-        }
+        let worker =
+            Worker::spawn(
+                "penumbra-render",
+                State::default(),
+                repaint,
+                |inner| match render_pool() {
+                    Some(pool) => pool.install(|| worker_loop(inner)),
+                    None => worker_loop(inner),
+                },
+            );
+        RenderJob { worker }
+    }
+
+    fn inner(&self) -> &Inner {
+        self.worker.shared()
     }
 
     /// Cancels whatever runs or waits and asks for a render of `desc`;
     /// returns its generation.
     pub fn restart(&self, desc: SceneDesc) -> u64 {
-        let mut s = self.inner.lock();
+        let mut s = self.inner().lock();
         if let Some(c) = &s.running {
             c.cancel();
         }
@@ -147,13 +141,13 @@ impl RenderJob {
         s.state = Some((generation, JobState::Running));
         // Tiles of older generations will never be shown.
         s.tiles.clear();
-        self.inner.wake.notify_all();
+        self.inner().notify();
         generation
     }
 
     /// Takes the tiles finished since the last call (latest generation only).
     pub fn take_tiles(&self) -> Vec<TileMsg> {
-        let mut s = self.inner.lock();
+        let mut s = self.inner().lock();
         let latest = s.latest;
         let mut tiles = std::mem::take(&mut s.tiles);
         tiles.retain(|t| t.generation == latest);
@@ -162,12 +156,12 @@ impl RenderJob {
 
     /// Generation of the newest request.
     pub fn generation(&self) -> u64 {
-        self.inner.lock().latest
+        self.inner().lock().latest
     }
 
     /// State of the newest request.
     pub fn state(&self) -> JobState {
-        let s = self.inner.lock();
+        let s = self.inner().lock();
         match &s.state {
             Some((g, st)) if *g == s.latest => st.clone(),
             _ => JobState::Running,
@@ -176,12 +170,12 @@ impl RenderJob {
 
     /// The description the worker took last, with its generation.
     pub fn running_desc(&self) -> Option<(u64, SceneDesc)> {
-        self.inner.lock().running_desc.clone()
+        self.inner().lock().running_desc.clone()
     }
 
     /// Linear value of a pixel of the latest generation's image.
     pub fn pixel(&self, x: u32, y: u32) -> Option<glam::Vec3> {
-        let s = self.inner.lock();
+        let s = self.inner().lock();
         match &s.film {
             Some((g, f)) if *g == s.latest && x < f.width && y < f.height => Some(f.get(x, y)),
             _ => None,
@@ -190,7 +184,7 @@ impl RenderJob {
 
     /// The runtime scene of the latest generation, once the worker built it.
     pub fn scene(&self) -> Option<Arc<Scene>> {
-        let s = self.inner.lock();
+        let s = self.inner().lock();
         match &s.scene {
             Some((g, scene)) if *g == s.latest => Some(scene.clone()),
             _ => None,
@@ -200,40 +194,25 @@ impl RenderJob {
     /// Blocks until the newest request has ended; false on timeout. For
     /// tests and scripts, never called from the UI.
     pub fn wait(&self, timeout: Duration) -> bool {
-        let deadline = Instant::now() + timeout;
-        let mut s = self.inner.lock();
-        loop {
-            let ended = matches!(&s.state, Some((g, st)) if *g == s.latest && !matches!(st, JobState::Running));
-            if ended {
-                return true;
-            }
-            let now = Instant::now();
-            if now >= deadline {
-                return false;
-            }
-            s = self
-                .inner
-                .wake
-                .wait_timeout(s, deadline - now)
-                .unwrap_or_else(|e| e.into_inner())
-                .0;
-        }
+        self.inner().wait_until(timeout, |s| {
+            matches!(&s.state, Some((g, st)) if *g == s.latest && !matches!(st, JobState::Running))
+        })
     }
 
     /// How many renders the worker started (stale requests are skipped).
     pub fn renders_started(&self) -> u64 {
-        self.inner.lock().started
+        self.inner().lock().started
     }
 
     /// Test hook: makes the next render panic in a worker thread.
     pub fn inject_panic(&self) {
-        self.inner.lock().panic_next = true;
+        self.inner().lock().panic_next = true;
     }
 
     /// A handle that copies the image being rendered from another thread
     /// (the error readout's worker), so the UI never copies it.
     pub fn film_reader(&self) -> FilmReader {
-        FilmReader(self.inner.clone())
+        FilmReader(self.worker.shared().clone())
     }
 }
 
@@ -249,23 +228,6 @@ impl FilmReader {
         match &s.film {
             Some((g, f)) if *g == generation && s.latest == generation => Some(f.clone()),
             _ => None,
-        }
-    }
-}
-
-impl Drop for RenderJob {
-    fn drop(&mut self) {
-        {
-            let mut s = self.inner.lock();
-            s.shutdown = true;
-            s.pending = None;
-            if let Some(c) = &s.running {
-                c.cancel();
-            }
-        }
-        self.inner.wake.notify_all();
-        if let Some(t) = self.thread.take() {
-            let _ = t.join();
         }
     }
 }
@@ -312,7 +274,7 @@ fn worker_loop(inner: &Inner) {
                     s.started += 1;
                     break (req, panic_now);
                 }
-                s = inner.wake.wait(s).unwrap_or_else(|e| e.into_inner());
+                s = inner.wait(s);
             }
         };
         let generation = req.generation;
@@ -340,8 +302,7 @@ fn worker_loop(inner: &Inner) {
                 s.state = Some((generation, state));
             }
         }
-        inner.wake.notify_all();
-        inner.repaint.request_repaint();
+        inner.announce();
     }
 }
 
@@ -389,7 +350,7 @@ fn run_one(inner: &Inner, req: &Request, panic_now: bool) -> Result<Option<Rende
                 rays: t.rays,
             });
         }
-        inner.repaint.request_repaint();
+        inner.repaint();
     });
     Ok(result.ok())
 }

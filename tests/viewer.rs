@@ -53,6 +53,13 @@ fn assert_shows(v: &Viewer, film: &Film) {
     }
 }
 
+/// The core's render of the small room changed by `edit`.
+fn room_render(edit: impl FnOnce(&mut SceneDesc)) -> Film {
+    let mut desc = small_room();
+    edit(&mut desc);
+    core_render(&desc)
+}
+
 fn finished(v: &Viewer) -> Film {
     match v.render_state() {
         Some(JobState::Finished(f)) => (*f.film).clone(),
@@ -90,10 +97,8 @@ fn slider_move_restarts_the_render_with_the_new_value() {
     let (generation, desc) = h.state().worker_desc().unwrap();
     assert_eq!(generation, h.state().render_generation());
     assert_eq!(desc.render.shadow_rays, 4);
-    let mut expected = small_room();
-    expected.render.shadow_rays = 4;
     let film = finished(h.state());
-    assert_eq!(film, core_render(&expected));
+    assert_eq!(film, room_render(|d| d.render.shadow_rays = 4));
     assert_shows(h.state(), &film);
 }
 
@@ -110,9 +115,8 @@ fn rapid_changes_leave_only_the_last_render() {
     // Stale requests were dropped, not queued: 21 requests, few renders.
     let started = h.state().renders_started();
     assert!(started <= 10, "{started} renders started for 21 requests");
-    let mut expected = small_room();
-    expected.render.terms.ambient = 2.0;
-    assert_eq!(finished(h.state()), core_render(&expected));
+    let expected = room_render(|d| d.render.terms.ambient = 2.0);
+    assert_eq!(finished(h.state()), expected);
 }
 
 #[test]
@@ -150,10 +154,11 @@ fn shadows_toggle_and_reflections_toggle_reach_the_renderer() {
         .click();
     h.step();
     settle(&mut h);
-    let mut expected = small_room();
-    expected.render.shadows = false;
-    expected.render.max_depth = 1;
-    assert_eq!(finished(h.state()), core_render(&expected));
+    let expected = room_render(|d| {
+        d.render.shadows = false;
+        d.render.max_depth = 1;
+    });
+    assert_eq!(finished(h.state()), expected);
 }
 
 #[test]
@@ -168,11 +173,12 @@ fn sampling_model_and_adaptive_controls_reach_the_renderer() {
         d.render.area_light_model = penumbra::render::AreaLightModel::NearestPoint;
     });
     settle(&mut h);
-    let mut expected = small_room();
-    expected.render.adaptive = true;
-    expected.render.sampling = penumbra::render::Sampling::Stratified;
-    expected.render.area_light_model = penumbra::render::AreaLightModel::NearestPoint;
-    assert_eq!(finished(h.state()), core_render(&expected));
+    let expected = room_render(|d| {
+        d.render.adaptive = true;
+        d.render.sampling = penumbra::render::Sampling::Stratified;
+        d.render.area_light_model = penumbra::render::AreaLightModel::NearestPoint;
+    });
+    assert_eq!(finished(h.state()), expected);
 }
 
 #[test]
@@ -323,9 +329,8 @@ fn a_panicking_worker_shows_the_error_and_the_viewer_goes_on() {
 
     h.state_mut().edit(|d, _| d.render.terms.ambient = 0.7);
     settle(&mut h);
-    let mut expected = small_room();
-    expected.render.terms.ambient = 0.7;
-    assert_eq!(finished(h.state()), core_render(&expected));
+    let expected = room_render(|d| d.render.terms.ambient = 0.7);
+    assert_eq!(finished(h.state()), expected);
 }
 
 #[test]
@@ -396,6 +401,19 @@ fn write_exr(dir: &Path, name: &str, film: &Film) -> std::path::PathBuf {
 fn settle_reference(h: &mut Harness<'static, Viewer>) {
     assert!(h.state_mut().wait_for_reference(WAIT), "no reference");
     h.step();
+    assert!(h.state().wait_for_error(WAIT), "no comparison");
+    h.step();
+}
+
+/// Moves a slider, then waits for the render it starts (if `render`) and
+/// for the comparison that follows, with a frame after each.
+fn slide_and_compare(h: &mut Harness<'static, Viewer>, slider: &str, value: f64, render: bool) {
+    h.get_by_role_and_label(Role::Slider, slider)
+        .set_value_accesskit(value);
+    h.step();
+    if render {
+        settle(h);
+    }
     assert!(h.state().wait_for_error(WAIT), "no comparison");
     h.step();
 }
@@ -480,11 +498,7 @@ fn a_reference_of_more_shadow_rays_reads_the_cores_rmse_and_error_image() {
     h.get_by_label(&format!("white = {scale:.1e}"));
 
     // Two stops of exposure: white at a quarter of the largest difference.
-    h.get_by_role_and_label(Role::Slider, "Error exposure")
-        .set_value_accesskit(2.0);
-    h.step();
-    assert!(h.state().wait_for_error(WAIT));
-    h.step();
+    slide_and_compare(&mut h, "Error exposure", 2.0, false);
     let brighter = h.state().error_shown().unwrap();
     assert_eq!(brighter.scale, scale / 4.0);
     assert_eq!(brighter.comparison, expected);
@@ -510,12 +524,7 @@ fn a_reference_of_another_size_is_not_compared() {
     assert!(h.state().error_shown().is_none());
 
     // At half the resolution the sizes agree: compared, and equal.
-    h.get_by_role_and_label(Role::Slider, "Resolution scale")
-        .set_value_accesskit(0.5);
-    h.step();
-    settle(&mut h);
-    assert!(h.state().wait_for_error(WAIT));
-    h.step();
+    slide_and_compare(&mut h, "Resolution scale", 0.5, true);
     assert_eq!(h.state().reference_match(), Some(Match::Same));
     h.get_by_label("RMSE 0 · PSNR inf dB");
 }
@@ -551,12 +560,7 @@ fn computing_a_reference_in_the_background_then_reads_the_error() {
     h.get_by_label(&readout_label(&film, &reference));
 
     // Fewer shadow rays: the same reference, a larger error.
-    h.get_by_role_and_label(Role::Slider, "Shadow rays")
-        .set_value_accesskit(4.0);
-    h.step();
-    settle(&mut h);
-    assert!(h.state().wait_for_error(WAIT));
-    h.step();
+    slide_and_compare(&mut h, "Shadow rays", 4.0, true);
     assert_eq!(h.state().reference_match(), Some(Match::Same));
     let fewer = finished(h.state());
     assert!(compare(&fewer, &reference).unwrap().rmse > compare(&film, &reference).unwrap().rmse);

@@ -735,6 +735,10 @@ fn packet_generic(
             while each != 0 {
                 let j = each.trailing_zeros() as usize;
                 each &= each - 1;
+                if live & (1 << j) == 0 {
+                    // Blocked meanwhile, by a test of its chunk.
+                    continue;
+                }
                 let ray = pk
                     .eye
                     .segment(pk.sb.frame.light_point(ab[0][j] as f64, ab[1][j] as f64));

@@ -384,6 +384,67 @@ fn shadow_packets_give_the_image_of_tracing_everything() {
     }
 }
 
+/// The packets with every kind of bounded object — rotated boxes, rects at
+/// all angles (some edge-on to the light), spheres — under a tilted,
+/// non-rectangular light, whose frame is not the world's: still the image
+/// of tracing everything.
+#[test]
+fn shadow_packets_handle_every_shape_under_a_tilted_light() {
+    use penumbra::render::scene_file::{BoxDesc, ObjectDesc, RectDesc, SphereDesc};
+    let mut desc = penumbra::render::generate::spheres_in_room(0, 1);
+    desc.light.corner = [-1.5, 7.0, -1.0];
+    desc.light.edge_u = [2.5, 0.6, 0.3];
+    desc.light.edge_v = [0.8, 0.2, 2.0];
+    let mut rng = Rng::new(42);
+    let mut u =
+        |lo: f64, hi: f64| lo + (hi - lo) * (rng.next_u64() >> 11) as f64 / (1u64 << 53) as f64;
+    for i in 0..300 {
+        let c = [u(-4.0, 4.0), u(0.3, 6.0), u(-4.0, 4.0)];
+        let s = u(0.05, 0.4);
+        desc.objects.push(match i % 3 {
+            0 => ObjectDesc::Box(BoxDesc {
+                min: [c[0] - s, c[1] - s, c[2] - s],
+                max: [c[0] + s, c[1] + 0.5 * s, c[2] + 2.0 * s],
+                rotate_y_deg: u(0.0, 90.0),
+                translate: [0.0; 3],
+                material: "sand".into(),
+            }),
+            1 => ObjectDesc::Rect(RectDesc {
+                corner: c,
+                edge_u: [u(-0.5, 0.5), u(-0.5, 0.5), u(-0.5, 0.5)],
+                // Every tenth rect stands edge-on to the world's y axis.
+                edge_v: if i % 10 == 1 {
+                    [0.0, 0.6, 0.0]
+                } else {
+                    [u(-0.5, 0.5), u(-0.5, 0.5), u(-0.5, 0.5)]
+                },
+                material: "green".into(),
+            }),
+            _ => ObjectDesc::Sphere(SphereDesc {
+                center: c,
+                radius: s,
+                material: "mirror".into(),
+            }),
+        });
+    }
+    desc.camera.width = 80;
+    desc.camera.height = 45;
+    desc.render.shadow_rays = 16;
+    let fast = common::build(desc.clone());
+    assert!(fast.shadow_bvh.is_some());
+    let mut slow = common::build(desc);
+    slow.settings.skip = false;
+    let a = render_with(&fast, RenderOptions::default());
+    let b = render_with(&slow, RenderOptions::default());
+    assert!(a.film == b.film, "images differ");
+    assert!(
+        a.stats.shadow < b.stats.shadow,
+        "{:?} vs {:?}",
+        a.stats,
+        b.stats
+    );
+}
+
 /// Hundreds of spheres around one centre land in one leaf of the binary
 /// BVH; the packets' 4-wide tree splits it, and the image is still exact.
 #[test]

@@ -9,7 +9,7 @@ use penumbra::render::progressive::{CancelToken, RenderOptions, render, render_i
 use penumbra::render::rng::Rng;
 use penumbra::render::sampling::Pattern;
 use penumbra::render::scene::HitTarget;
-use penumbra::render::{RayStats, Sampling, Scene};
+use penumbra::render::{RayStats, Sampling, Scene, SceneDesc};
 
 /// A floor under a 2×2 light at height 8, seen straight from above.
 fn lit_floor(extra_objects: &str, render: &str) -> String {
@@ -323,18 +323,27 @@ fn skipping_work_does_not_change_the_image() {
         let mut desc = common::seed_room(160, 90);
         desc.render.area_light_model = serde_json::from_str(&format!("\"{model}\"")).unwrap();
         desc.render.sampling = Sampling::Stratified;
-        let fast = common::build(desc.clone());
-        let mut slow = common::build(desc);
-        slow.settings.skip = false;
-        let a = render_with(&fast, RenderOptions::default());
-        let b = render_with(&slow, RenderOptions::default());
-        assert!(a.film == b.film, "{model}: images differ");
+        let (a, b) = skip_on_and_off(desc, false, model);
         assert!(
-            a.stats.shadow_skipped() > a.stats.shadow,
+            a.shadow_skipped() > a.shadow,
             "{model}: most shadow rays skipped"
         );
-        assert_eq!(b.stats.shadow_skipped(), 0);
+        assert_eq!(b.shadow_skipped(), 0);
     }
+}
+
+/// Renders `desc` with skipping on and off, asserts whether shadow packets
+/// were used and that the images are identical; returns the two runs' ray
+/// counts.
+fn skip_on_and_off(desc: SceneDesc, packets: bool, what: &str) -> (RayStats, RayStats) {
+    let fast = common::build(desc.clone());
+    assert_eq!(fast.shadow_bvh.is_some(), packets, "{what}: packets in use");
+    let mut slow = common::build(desc);
+    slow.settings.skip = false;
+    let a = render_with(&fast, RenderOptions::default());
+    let b = render_with(&slow, RenderOptions::default());
+    assert!(a.film == b.film, "{what}: images differ");
+    (a.stats, b.stats)
 }
 
 /// Many objects: shadow rays walk the light-frame BVH as packets, keeping
@@ -363,24 +372,11 @@ fn shadow_packets_give_the_image_of_tracing_everything() {
         desc.render.sampling = sampling;
         desc.render.shadow_rays = rays;
         desc.render.adaptive = adaptive;
-        let fast = common::build(desc.clone());
-        assert!(fast.shadow_bvh.is_some(), "{n} spheres use packets");
-        let mut slow = common::build(desc);
-        slow.settings.skip = false;
-        let a = render_with(&fast, RenderOptions::default());
-        let b = render_with(&slow, RenderOptions::default());
-        assert!(
-            a.film == b.film,
-            "{n} spheres, {sampling:?}, {rays} rays: images differ"
-        );
+        let what = format!("{n} spheres, {sampling:?}, {rays} rays");
+        let (a, b) = skip_on_and_off(desc, true, &what);
         // The packets leave out most ray-object tests, and some rays
         // entirely: every box they could meet lies elsewhere.
-        assert!(
-            a.stats.shadow < b.stats.shadow,
-            "{:?} vs {:?}",
-            a.stats,
-            b.stats
-        );
+        assert!(a.shadow < b.shadow, "{a:?} vs {b:?}");
     }
 }
 
@@ -430,19 +426,8 @@ fn shadow_packets_handle_every_shape_under_a_tilted_light() {
     desc.camera.width = 80;
     desc.camera.height = 45;
     desc.render.shadow_rays = 16;
-    let fast = common::build(desc.clone());
-    assert!(fast.shadow_bvh.is_some());
-    let mut slow = common::build(desc);
-    slow.settings.skip = false;
-    let a = render_with(&fast, RenderOptions::default());
-    let b = render_with(&slow, RenderOptions::default());
-    assert!(a.film == b.film, "images differ");
-    assert!(
-        a.stats.shadow < b.stats.shadow,
-        "{:?} vs {:?}",
-        a.stats,
-        b.stats
-    );
+    let (a, b) = skip_on_and_off(desc, true, "mixed shapes, tilted light");
+    assert!(a.shadow < b.shadow, "{a:?} vs {b:?}");
 }
 
 /// Hundreds of spheres around one centre land in one leaf of the binary
@@ -462,13 +447,7 @@ fn concentric_spheres_render_exactly_with_packets() {
     }
     desc.camera.width = 64;
     desc.camera.height = 36;
-    let fast = common::build(desc.clone());
-    assert!(fast.shadow_bvh.is_some());
-    let mut slow = common::build(desc);
-    slow.settings.skip = false;
-    let a = render_with(&fast, RenderOptions::default());
-    let b = render_with(&slow, RenderOptions::default());
-    assert!(a.film == b.film, "images differ");
+    skip_on_and_off(desc, true, "concentric spheres");
 }
 
 #[test]

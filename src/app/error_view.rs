@@ -63,6 +63,9 @@ impl Stop for State {
         self.shutdown = true;
         self.pending = None;
     }
+    fn stopped(&self) -> bool {
+        self.shutdown
+    }
 }
 
 type Inner = Shared<State>;
@@ -119,18 +122,12 @@ impl ErrorJob {
 
 fn worker_loop(inner: &Inner) {
     loop {
-        let (id, req) = {
-            let mut s = inner.lock();
-            loop {
-                if s.shutdown {
-                    return;
-                }
-                if let Some(p) = s.pending.take() {
-                    s.busy = true;
-                    break p;
-                }
-                s = inner.wait(s);
-            }
+        let Some((id, req)) = inner.next(|s| {
+            let p = s.pending.take();
+            s.busy = p.is_some();
+            p
+        }) else {
+            return;
         };
         let shown = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| evaluate(req)))
             .ok()

@@ -93,6 +93,9 @@ impl Stop for State {
             c.cancel();
         }
     }
+    fn stopped(&self) -> bool {
+        self.shutdown
+    }
 }
 
 type Inner = Shared<State>;
@@ -259,23 +262,17 @@ fn lower_priority() {}
 
 fn worker_loop(inner: &Inner) {
     loop {
-        let (req, panic_now) = {
-            let mut s = inner.lock();
-            loop {
-                if s.shutdown {
-                    return;
-                }
-                if let Some(req) = s.pending.take() {
-                    s.running = Some(req.cancel.clone());
-                    s.running_desc = Some((req.generation, req.desc.clone()));
-                    let size = (req.desc.camera.width, req.desc.camera.height);
-                    s.film = Some((req.generation, Film::new(size.0, size.1)));
-                    let panic_now = std::mem::take(&mut s.panic_next);
-                    s.started += 1;
-                    break (req, panic_now);
-                }
-                s = inner.wait(s);
-            }
+        let Some((req, panic_now)) = inner.next(|s| {
+            let req = s.pending.take()?;
+            s.running = Some(req.cancel.clone());
+            s.running_desc = Some((req.generation, req.desc.clone()));
+            let size = (req.desc.camera.width, req.desc.camera.height);
+            s.film = Some((req.generation, Film::new(size.0, size.1)));
+            let panic_now = std::mem::take(&mut s.panic_next);
+            s.started += 1;
+            Some((req, panic_now))
+        }) else {
+            return;
         };
         let generation = req.generation;
         // A panic anywhere in the render (our callback included) ends this

@@ -21,11 +21,6 @@ impl<S> Shared<S> {
         self.state.lock().unwrap_or_else(|e| e.into_inner())
     }
 
-    /// Releases the lock until woken, then takes it again.
-    pub fn wait<'a>(&self, guard: MutexGuard<'a, S>) -> MutexGuard<'a, S> {
-        self.wake.wait(guard).unwrap_or_else(|e| e.into_inner())
-    }
-
     /// Blocks until `done` holds; false on timeout. For tests and scripts,
     /// never called from the UI.
     pub fn wait_until(&self, timeout: Duration, done: impl Fn(&S) -> bool) -> bool {
@@ -43,6 +38,25 @@ impl<S> Shared<S> {
                 .0;
         }
         true
+    }
+
+    /// The worker's next piece of work: `take` removes it from the state
+    /// (and marks it started); waits while there is none. `None` once the
+    /// worker is told to stop.
+    pub fn next<T>(&self, mut take: impl FnMut(&mut S) -> Option<T>) -> Option<T>
+    where
+        S: Stop,
+    {
+        let mut s = self.lock();
+        loop {
+            if s.stopped() {
+                return None;
+            }
+            if let Some(work) = take(&mut s) {
+                return Some(work);
+            }
+            s = self.wake.wait(s).unwrap_or_else(|e| e.into_inner());
+        }
     }
 
     /// Wakes the worker and any waiter.
@@ -67,6 +81,8 @@ pub trait Stop {
     /// Makes the worker return at its next look at the state (and cancels
     /// what it runs, if it can).
     fn stop(&mut self);
+    /// Whether [`stop`](Self::stop) was called.
+    fn stopped(&self) -> bool;
 }
 
 /// Handle to the worker thread.

@@ -12,7 +12,7 @@
 
 use glam::DVec3;
 
-use super::geometry::{Aabb, Bvh, Bvh4, Node4, Shape, Slot};
+use super::geometry::{Aabb, Bvh, Bvh4, Node4, Shape};
 use super::light::AreaLight;
 
 /// An orthonormal frame with its origin at the light's corner, x along
@@ -26,18 +26,6 @@ pub struct LightFrame {
     u_x: f64,
     v_x: f64,
     v_y: f64,
-}
-
-/// Where the rays from a point through a box can end on the light's plane:
-/// a rectangle in the frame's (x, y) (empty: +∞ … −∞), and how far (along
-/// z) the box starts from the point.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Footprint {
-    pub x: [f64; 2],
-    pub y: [f64; 2],
-    /// Distance along z from the point to the nearest part of the box that
-    /// lies between the point and the light's plane (for near-first order).
-    pub near: f64,
 }
 
 impl LightFrame {
@@ -100,28 +88,16 @@ impl LightFrame {
         Some(Aabb::new(b.min - pad, b.max + pad))
     }
 
-    /// The rectangle of the light's plane (z = 0) that the segments from
-    /// the eye (`p.z > 0`) through the box `min..max` can end in, grown by
-    /// the eye's margin; the empty rectangle (+∞ … −∞) if no such segment
-    /// meets the box.
+    /// For each of a node's four boxes, the rectangle of the light's plane
+    /// (z = 0) that the segments from the eye (`p.z > 0`) through the box
+    /// can end in, grown by the eye's margin; the empty rectangle (+∞ … −∞)
+    /// if no such segment meets the box.
     ///
     /// Only the part of the box with z in [0, p.z] matters. A point at
     /// height z projects to x_L = p.x + (x − p.x)·s with s = p.z / (p.z − z):
     /// bilinear in (x − p.x, s) over a rectangle, so its extremes lie at the
     /// rectangle's corners. A box reaching p's height projects to infinity.
-    pub fn footprint(eye: &Eye, min: [f64; 3], max: [f64; 3]) -> Footprint {
-        let mut node = Node4::empty();
-        node.set(0, Slot::Object(0), &Aabb::new(min.into(), max.into()));
-        let f = Self::footprints(eye, &node);
-        Footprint {
-            x: [f.x0[0], f.x1[0]],
-            y: [f.y0[0], f.y1[0]],
-            near: f.near[0],
-        }
-    }
-
-    /// [`footprint`](Self::footprint) of the four children of a node at
-    /// once: straight-line code over four lanes, which vectorizes.
+    /// Straight-line code over the four lanes, which vectorizes.
     // Lanes of parallel arrays: index loops are what vectorizes.
     #[allow(clippy::needless_range_loop)]
     #[inline(always)]
@@ -239,13 +215,17 @@ impl Eye {
     }
 }
 
-/// Four footprints, one lane each (see [`LightFrame::footprints`]).
+/// Where the rays from a point through four boxes can end on the light's
+/// plane (see [`LightFrame::footprints`]): rectangles in the frame's (x, y),
+/// one lane each.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct Footprints {
     pub x0: [f64; 4],
     pub x1: [f64; 4],
     pub y0: [f64; 4],
     pub y1: [f64; 4],
+    /// Distance along z from the point to the nearest part of the box that
+    /// lies between the point and the light's plane (for near-first order).
     pub near: [f64; 4],
 }
 
@@ -255,13 +235,12 @@ pub struct Footprints {
 pub struct OccluderBvh {
     pub frame: LightFrame,
     pub tree: Bvh4,
-    /// Each object's bounds in the frame, by object id (empty for planes).
-    pub bounds: Vec<Aabb>,
 }
 
 impl OccluderBvh {
     pub fn new(light: &AreaLight, shapes: &[&Shape], ids: &[u32]) -> OccluderBvh {
         let frame = LightFrame::new(light);
+        // Each object's bounds in the frame, by object id (empty for planes).
         let mut bounds = vec![Aabb::EMPTY; shapes.len()];
         let mut items = Vec::with_capacity(ids.len());
         for &i in ids {
@@ -281,7 +260,6 @@ impl OccluderBvh {
                 &bounds,
             ),
             frame,
-            bounds,
         }
     }
 }
@@ -289,11 +267,26 @@ impl OccluderBvh {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::render::geometry::Slot;
 
-    /// The footprint of a box, `None` when empty.
+    /// One box's footprint.
+    #[derive(Debug, Clone, Copy, PartialEq)]
+    struct Footprint {
+        x: [f64; 2],
+        y: [f64; 2],
+        near: f64,
+    }
+
+    /// The footprint of a box (the first lane of a node), `None` when empty.
     fn fp(p: DVec3, b: &Aabb) -> Option<Footprint> {
-        let f = LightFrame::footprint(&Eye::new(p, 0.0), b.min.to_array(), b.max.to_array());
-        (f.x[0] <= f.x[1]).then_some(f)
+        let mut node = Node4::empty();
+        node.set(0, Slot::Object(0), b);
+        let f = LightFrame::footprints(&Eye::new(p, 0.0), &node);
+        (f.x0[0] <= f.x1[0]).then_some(Footprint {
+            x: [f.x0[0], f.x1[0]],
+            y: [f.y0[0], f.y1[0]],
+            near: f.near[0],
+        })
     }
 
     /// Brute force: the segments from p to light-plane points on a fine

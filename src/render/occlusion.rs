@@ -448,9 +448,7 @@ pub fn visibility(
         Packets {
             sb,
             eye: Eye::new(p, margin),
-            object: q.object,
-            inside: q.inside,
-            point: q.point,
+            q,
         }
     });
 
@@ -639,9 +637,7 @@ struct Packets<'a> {
     sb: &'a OccluderBvh,
     /// The hit point in the light's frame.
     eye: Eye,
-    point: DVec3,
-    object: u32,
-    inside: bool,
+    q: &'a ShadowQuery,
 }
 
 avx2_dispatch!(
@@ -689,12 +685,12 @@ fn packet_generic(
     // of 8); returns the rays still live. Every answer is the exact f32
     // test, so the order of the tests changes nothing but the time.
     let mut test = |i: u32, m: u64, live: u64| -> u64 {
-        let inside = i == pk.object && pk.inside;
-        if i == pk.object && !inside {
+        let inside = i == pk.q.object && pk.q.inside;
+        if i == pk.q.object && !inside {
             return live;
         }
         tested |= m;
-        let occ = Occluder::new(&scene.objects[i as usize].shape, pk.point, inside);
+        let occ = Occluder::new(&scene.objects[i as usize].shape, pk.q.point, inside);
         if let Occluder::Sphere { oc, r2, inside } = occ
             && m.count_ones() <= 4
         {

@@ -2,7 +2,7 @@
 //! points binned on a coarse grid so that "which rays end inside this
 //! rectangle of the light's plane" costs a few bit operations.
 
-use super::light_frame::{Footprint, Footprints, LightFrame};
+use super::light_frame::{Footprints, LightFrame};
 
 /// Rays per packet: one bit each in a `u64`.
 pub const PACKET: usize = 64;
@@ -72,22 +72,10 @@ impl RayBins {
         clamp_cell((v - self.min[axis]) * self.scale[axis])
     }
 
-    /// The rays whose light point may lie inside the rectangle `x` × `y`
-    /// (all that do, and possibly some near it; none for an empty one).
-    pub fn rays_in(&self, f: &Footprint) -> u64 {
-        let (inf, ninf) = (f64::INFINITY, f64::NEG_INFINITY);
-        let four = Footprints {
-            x0: [f.x[0], inf, inf, inf],
-            x1: [f.x[1], ninf, ninf, ninf],
-            y0: [f.y[0], inf, inf, inf],
-            y1: [f.y[1], ninf, ninf, ninf],
-            near: [f.near; 4],
-        };
-        self.rays_in4(&four)[0]
-    }
-
-    /// [`rays_in`](Self::rays_in) for four footprints at once (the cell
-    /// arithmetic vectorizes; the table lookups stay scalar). A rectangle
+    /// For each of four rectangles, the rays whose light point may lie
+    /// inside it (all that do, and possibly some near it; none for an empty
+    /// one). The cell arithmetic vectorizes; the table lookups stay scalar. A
+    /// rectangle
     /// end maps to cell(lo) and ⌊·⌋ + 1 of hi's cell coordinate: 0 for a
     /// rectangle wholly below the points.
     // Lanes of parallel arrays: index loops are what vectorizes.
@@ -128,6 +116,29 @@ fn clamp_cell(c: f64) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A rectangle of the light's plane.
+    #[derive(Debug, Clone, Copy)]
+    struct Footprint {
+        x: [f64; 2],
+        y: [f64; 2],
+        near: f64,
+    }
+
+    impl RayBins {
+        /// The rays in one rectangle: the first lane of four.
+        fn rays_in(&self, f: &Footprint) -> u64 {
+            let (inf, ninf) = (f64::INFINITY, f64::NEG_INFINITY);
+            let four = Footprints {
+                x0: [f.x[0], inf, inf, inf],
+                x1: [f.x[1], ninf, ninf, ninf],
+                y0: [f.y[0], inf, inf, inf],
+                y1: [f.y[1], ninf, ninf, ninf],
+                near: [f.near; 4],
+            };
+            self.rays_in4(&four)[0]
+        }
+    }
     use crate::render::Scene;
 
     #[test]

@@ -21,8 +21,22 @@ pub struct Bvh {
     nodes: Vec<Node>,
     /// Object ids in leaf order.
     items: Vec<u32>,
-    /// Face weights of the build's area metric.
+}
+
+/// What a build works from: the objects' bounds (by position in the input)
+/// and the face weights of its area metric.
+struct BuildInput<'a> {
+    bounds: &'a [Aabb],
     weights: DVec3,
+}
+
+impl BuildInput<'_> {
+    /// The build's area metric.
+    fn area(&self, b: &Aabb) -> f64 {
+        let e = b.extent();
+        let w = self.weights;
+        2.0 * (w.z * e.x * e.y + w.x * e.y * e.z + w.y * e.z * e.x)
+    }
 }
 
 /// What a node holds.
@@ -56,7 +70,6 @@ impl Bvh {
         let mut bvh = Bvh {
             nodes: Vec::with_capacity(2 * objects.len().max(1)),
             items: objects.iter().map(|o| o.0).collect(),
-            weights,
         };
         if objects.is_empty() {
             return bvh;
@@ -68,7 +81,11 @@ impl Bvh {
             first: 0,
             count: 0,
         });
-        bvh.split(0, &mut order, 0, &bounds, 0);
+        let input = BuildInput {
+            bounds: &bounds,
+            weights,
+        };
+        bvh.split(0, &mut order, 0, &input, 0);
         bvh.items = order.iter().map(|&i| objects[i].0).collect();
         bvh
     }
@@ -103,21 +120,15 @@ impl Bvh {
         self.nodes.first().map_or(Aabb::EMPTY, |n| n.bounds)
     }
 
-    /// The build's area metric.
-    fn area(&self, b: &Aabb) -> f64 {
-        let e = b.extent();
-        let w = self.weights;
-        2.0 * (w.z * e.x * e.y + w.x * e.y * e.z + w.y * e.z * e.x)
-    }
-
     fn split(
         &mut self,
         node: usize,
         order: &mut [usize],
         first: usize,
-        bounds: &[Aabb],
+        input: &BuildInput,
         depth: usize,
     ) {
+        let bounds = input.bounds;
         let node_bounds = order.iter().fold(Aabb::EMPTY, |b, &i| b.union(bounds[i]));
         self.nodes[node].bounds = node_bounds;
         let leaf = |bvh: &mut Bvh| {
@@ -148,7 +159,7 @@ impl Bvh {
             let mid = order.len() / 2;
             let key = |i: &usize| bounds[*i].centre()[axis];
             order.select_nth_unstable_by(mid, |a, b| key(a).total_cmp(&key(b)));
-            return self.children(node, order, first, mid, bounds, depth);
+            return self.children(node, order, first, mid, input, depth);
         }
         // The cheapest split plane over the bins of every axis.
         let bin_of = |axis: usize, i: usize| {
@@ -172,7 +183,7 @@ impl Bvh {
             for b in (1..BINS).rev() {
                 acc = acc.union(bin_bounds[b]);
                 count += bin_count[b];
-                right_area[b] = self.area(&acc);
+                right_area[b] = input.area(&acc);
                 right_count[b] = count;
             }
             let mut acc = Aabb::EMPTY;
@@ -184,14 +195,14 @@ impl Bvh {
                     continue;
                 }
                 let cost =
-                    self.area(&acc) * count as f64 + right_area[b + 1] * right_count[b + 1] as f64;
+                    input.area(&acc) * count as f64 + right_area[b + 1] * right_count[b + 1] as f64;
                 if cost < best.0 {
                     best = (cost, b, axis);
                 }
             }
         }
-        let leaf_cost = self.area(&node_bounds) * order.len() as f64;
-        let split_cost = TRAVERSAL_COST * self.area(&node_bounds) + best.0;
+        let leaf_cost = input.area(&node_bounds) * order.len() as f64;
+        let split_cost = TRAVERSAL_COST * input.area(&node_bounds) + best.0;
         if best.0.is_infinite() || (split_cost >= leaf_cost && order.len() <= 2 * MAX_LEAF) {
             return leaf(self);
         }
@@ -203,7 +214,7 @@ impl Bvh {
                 mid += 1;
             }
         }
-        self.children(node, order, first, mid, bounds, depth);
+        self.children(node, order, first, mid, input, depth);
     }
 
     /// Makes `node` an inner node over `order[..mid]` and `order[mid..]`.
@@ -213,7 +224,7 @@ impl Bvh {
         order: &mut [usize],
         first: usize,
         mid: usize,
-        bounds: &[Aabb],
+        input: &BuildInput,
         depth: usize,
     ) {
         let left = self.nodes.len();
@@ -227,8 +238,8 @@ impl Bvh {
         self.nodes[node].first = left as u32;
         self.nodes[node].count = 0;
         let (lo, hi) = order.split_at_mut(mid);
-        self.split(left, lo, first, bounds, depth + 1);
-        self.split(left + 1, hi, first + mid, bounds, depth + 1);
+        self.split(left, lo, first, input, depth + 1);
+        self.split(left + 1, hi, first + mid, input, depth + 1);
     }
 
     /// Closest hit: `hit(object, t_max)` returns the object's nearest t below

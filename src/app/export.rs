@@ -11,7 +11,7 @@ use std::time::{Duration, Instant};
 
 use crate::render::output::{write_atomic, write_film};
 use crate::render::progressive::{CancelToken, RenderOptions};
-use crate::render::{Film, Scene, SceneDesc};
+use crate::render::{Film, Loaded, SceneDesc};
 
 /// What a finished task reports: a message to show, or an error.
 pub type TaskResult = Result<String, String>;
@@ -103,9 +103,10 @@ impl IoTasks {
             let film = match film {
                 Some(f) => f,
                 None => {
-                    let scene = Scene::new(desc).map_err(|e| e.to_string())?;
+                    let loaded = Loaded::new(&desc).map_err(|e| e.to_string())?;
                     let options = RenderOptions::default();
-                    crate::render::render(&scene, &options, cancel, &|_| {})
+                    loaded
+                        .render(&options, cancel, &|_| {})
                         .map_err(|e| format!("{}: {e}", path.display()))?
                         .film
                         .into()

@@ -21,7 +21,7 @@ use super::render_job::render_pool;
 use crate::render::output::read_film;
 use crate::render::progressive::{CancelToken, RenderOptions};
 use crate::render::scene_file::RenderDesc;
-use crate::render::{AreaLightModel, Film, Sampling, Scene, SceneDesc};
+use crate::render::{AreaLightModel, Film, Loaded, Sampling, SceneDesc};
 
 /// Shadow rays per hit point of a computed reference.
 pub const REFERENCE_SHADOW_RAYS: u32 = 4096;
@@ -156,14 +156,14 @@ impl ReferenceTask {
         let (c, t, d) = (cancel.clone(), tiles.clone(), desc.clone());
         let rx = spawn(ctx, move |ctx| {
             let start = Instant::now();
-            let scene = Scene::new(d).map_err(|e| e.to_string())?;
+            let loaded = Loaded::new(&d).map_err(|e| e.to_string())?;
             let options = RenderOptions {
                 threads: None,
                 progressive: false,
                 tile_size: 32,
             };
             let run = || {
-                crate::render::render(&scene, &options, &c, &|u| {
+                loaded.render(&options, &c, &|u| {
                     t[0].fetch_max(u.tiles_done, Ordering::Relaxed);
                     t[1].store(u.tiles_total, Ordering::Relaxed);
                     ctx.request_repaint();

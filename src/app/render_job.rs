@@ -1,6 +1,8 @@
 //! The render worker: one long-lived thread that takes the latest render
-//! request, runs the core's progressive render on rayon's pool, and streams
-//! finished tiles (already converted to `Color32`) back to the UI.
+//! request, hands it to the core's [`LiveRender`] on rayon's pool (which
+//! redoes only what the edit changed: a strength slider recombines, a
+//! camera move re-traces progressively), and streams finished tiles
+//! (already converted to `Color32`) back to the UI.
 //!
 //! Requests go through a one-slot mailbox: a new request cancels the
 //! running render and overwrites any request still waiting, so rapid slider
@@ -15,7 +17,7 @@ use egui::Color32;
 use super::worker::{Shared, Stop, Worker};
 use crate::render::film::encode_srgb8;
 use crate::render::progressive::{CancelToken, RenderOptions, TileRect};
-use crate::render::{Film, RenderReport, Scene, SceneDesc};
+use crate::render::{Film, LiveError, LiveRender, LiveReport, Scene, SceneDesc};
 
 /// One finished tile, ready for `TextureHandle::set_partial`.
 pub struct TileMsg {
@@ -261,6 +263,7 @@ fn lower_priority() {
 fn lower_priority() {}
 
 fn worker_loop(inner: &Inner) {
+    let mut live = LiveRender::default();
     loop {
         let Some((req, panic_now)) = inner.next(|s| {
             let req = s.pending.take()?;
@@ -277,7 +280,13 @@ fn worker_loop(inner: &Inner) {
         let generation = req.generation;
         // A panic anywhere in the render (our callback included) ends this
         // generation with an error message; the thread and the window live on.
-        let result = std::panic::catch_unwind(AssertUnwindSafe(|| run_one(inner, &req, panic_now)));
+        let result = std::panic::catch_unwind(AssertUnwindSafe(|| {
+            run_one(inner, &req, panic_now, &mut live)
+        }));
+        if result.is_err() {
+            // Whatever the panic interrupted is not to be reused.
+            live = LiveRender::default();
+        }
         let state = match result {
             Ok(Ok(Some(report))) => JobState::Finished(Arc::new(FinishedRender {
                 desc: req.desc,
@@ -304,15 +313,18 @@ fn worker_loop(inner: &Inner) {
 }
 
 /// Runs one request: `Ok(None)` if cancelled, `Err` if the scene is refused.
-fn run_one(inner: &Inner, req: &Request, panic_now: bool) -> Result<Option<RenderReport>, String> {
-    let scene = Arc::new(Scene::new(req.desc.clone()).map_err(|e| e.to_string())?);
-    inner.lock().scene = Some((req.generation, scene.clone()));
+fn run_one(
+    inner: &Inner,
+    req: &Request,
+    panic_now: bool,
+    live: &mut LiveRender,
+) -> Result<Option<LiveReport>, String> {
     let options = RenderOptions {
         threads: None,
         progressive: true,
         tile_size: 32,
     };
-    let result = crate::render::render(&scene, &options, &req.cancel, &|t| {
+    let result = live.render(&req.desc, &options, &req.cancel, &|t| {
         if panic_now {
             panic!("injected test panic");
         }
@@ -349,7 +361,14 @@ fn run_one(inner: &Inner, req: &Request, panic_now: bool) -> Result<Option<Rende
         }
         inner.repaint();
     });
-    Ok(result.ok())
+    if let Some(scene) = live.scene() {
+        inner.lock().scene = Some((req.generation, scene.clone()));
+    }
+    match result {
+        Ok(report) => Ok(Some(report)),
+        Err(LiveError::Cancelled(_)) => Ok(None),
+        Err(LiveError::Scene(e)) => Err(e.to_string()),
+    }
 }
 
 fn panic_message(payload: &(dyn std::any::Any + Send)) -> String {

@@ -956,7 +956,10 @@ impl Viewer {
         let hit = scene.closest_hit(&scene.camera.pixel_ray(px, py));
         let (what, material) = match hit {
             Some((HitTarget::Object(i), _)) => (
-                format!("objects[{i}] ({})", scene.desc.objects[i as usize].kind()),
+                format!(
+                    "objects[{i}] ({})",
+                    self.desc.objects.get(i as usize).map_or("?", |o| o.kind())
+                ),
                 Some(scene.material_name(i).to_string()),
             ),
             Some((HitTarget::Light, _)) => ("the light".to_string(), None),

@@ -12,7 +12,7 @@ use clap::{Args, Parser, Subcommand};
 
 pub use bench::{BenchArgs, bench};
 pub use compare_cmd::compare;
-pub use render_cmd::{load_scene, render};
+pub use render_cmd::{load_desc, load_scene, render};
 
 use crate::render::{AreaLightModel, Sampling};
 

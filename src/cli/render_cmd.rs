@@ -5,10 +5,22 @@ use indicatif::{ProgressBar, ProgressStyle};
 
 use super::{CliError, RenderArgs, SceneOverrides};
 use crate::render::output::{FileKind, write_film};
-use crate::render::{CancelToken, RenderOptions, RenderReport, Scene, SceneDesc, TileUpdate};
+use crate::render::{CancelToken, Loaded, RenderOptions, RenderReport, Scene, SceneDesc, TileUpdate};
 
-/// Loads a scene (the built-in seed room for `None`) and applies overrides.
-pub fn load_scene(path: Option<&Path>, overrides: &SceneOverrides) -> Result<Scene, CliError> {
+/// Loads and builds a scene (the built-in seed room for `None`) with
+/// overrides.
+pub fn load_scene(path: Option<&Path>, overrides: &SceneOverrides) -> Result<Loaded, CliError> {
+    let desc = load_desc(path, overrides)?;
+    let loaded = Loaded::new(&desc);
+    match path {
+        Some(p) => loaded.map_err(|e| CliError::input(e.in_file(p))),
+        None => loaded.map_err(CliError::input),
+    }
+}
+
+/// Loads a scene description (the built-in seed room for `None`) and
+/// applies overrides; not validated yet.
+pub fn load_desc(path: Option<&Path>, overrides: &SceneOverrides) -> Result<SceneDesc, CliError> {
     let mut desc = match path {
         Some(p) => SceneDesc::load(p).map_err(CliError::input)?,
         None => {
@@ -52,18 +64,15 @@ pub fn load_scene(path: Option<&Path>, overrides: &SceneOverrides) -> Result<Sce
     if let Some(t) = o.translate {
         desc = desc.translated(t);
     }
-    let scene = Scene::new(desc);
-    match path {
-        Some(p) => scene.map_err(|e| CliError::input(e.in_file(p))),
-        None => scene.map_err(CliError::input),
-    }
+    Ok(desc)
 }
 
 /// `penumbra render`.
 pub fn render(args: &RenderArgs) -> Result<(), CliError> {
     FileKind::of(&args.output).map_err(CliError::input)?;
-    let mut scene = load_scene(args.scene.as_deref(), &args.overrides)?;
-    scene.settings.skip = !args.no_skip;
+    let mut loaded = load_scene(args.scene.as_deref(), &args.overrides)?;
+    loaded.settings.skip = !args.no_skip;
+    let scene = loaded.scene.clone();
 
     let cancel = CancelToken::new();
     {
@@ -101,7 +110,7 @@ pub fn render(args: &RenderArgs) -> Result<(), CliError> {
             bar.inc(1);
         }
     };
-    let report = crate::render::render(&scene, &options, &cancel, &on_tile);
+    let report = loaded.render(&options, &cancel, &on_tile);
     if let Some(bar) = &bar {
         bar.finish_and_clear();
     }

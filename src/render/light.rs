@@ -1,26 +1,21 @@
-use glam::{DVec2, DVec3, Vec3};
+use glam::{DVec2, DVec3};
 
 use super::geometry::Parallelogram;
 use super::scene_file::LightDesc;
 
-/// The rectangular area light. It emits from the side `edge_u × edge_v`
-/// points to and is seen by camera and reflected rays as a rectangle of its
-/// diffuse colour.
+/// The rectangular area light's geometry. It emits from the side `edge_u ×
+/// edge_v` points to and is seen by camera and reflected rays as a
+/// rectangle of its diffuse colour (its colours are shading parameters:
+/// [`LightColours`](super::shading_params::LightColours)).
 #[derive(Debug, Clone)]
 pub struct AreaLight {
     pub shape: Parallelogram,
-    pub ambient: Vec3,
-    pub diffuse: Vec3,
-    pub specular: Vec3,
 }
 
 impl AreaLight {
     pub fn new(desc: &LightDesc) -> AreaLight {
         AreaLight {
             shape: Parallelogram::new(desc.corner.into(), desc.edge_u.into(), desc.edge_v.into()),
-            ambient: DVec3::from(desc.ambient).as_vec3(),
-            diffuse: DVec3::from(desc.diffuse).as_vec3(),
-            specular: DVec3::from(desc.specular).as_vec3(),
         }
     }
 

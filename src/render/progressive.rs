@@ -19,9 +19,12 @@ use std::time::{Duration, Instant};
 use glam::Vec3;
 
 use super::film::Film;
+use super::live::record::{Budget, TileRecord, TileRecorder};
 use super::scene::Scene;
+use super::settings::RenderSettings;
+use super::shading_params::ShadingParams;
 use super::stats::RayStats;
-use super::tracer::Tracer;
+use super::tracer::{TraceScratch, Tracer};
 
 /// Shared flag to stop a render; checked before every tile and every row.
 #[derive(Debug, Clone, Default)]
@@ -163,9 +166,11 @@ pub fn tiles(width: u32, height: u32, size: u32) -> Vec<TileRect> {
 }
 
 /// Renders the scene without progress reports (one pass, all threads).
-pub fn render_image(scene: &Scene) -> Film {
+pub fn render_image(scene: &Scene, settings: &RenderSettings, shading: &ShadingParams) -> Film {
     render(
         scene,
+        settings,
+        shading,
         &RenderOptions::default(),
         &CancelToken::new(),
         &|_| {},
@@ -178,49 +183,66 @@ pub fn render_image(scene: &Scene) -> Film {
 /// finished tile of every pass.
 pub fn render(
     scene: &Scene,
+    settings: &RenderSettings,
+    shading: &ShadingParams,
     options: &RenderOptions,
     cancel: &CancelToken,
     on_tile: &(dyn Fn(&TileUpdate) + Sync),
 ) -> Result<RenderReport, Cancelled> {
-    match options.threads {
+    in_pool(options.threads, || {
+        render_passes(scene, settings, shading, options, cancel, on_tile, None)
+            .map(|(report, _)| report)
+    })
+}
+
+/// Runs `f` on a pool of `threads` workers, or on rayon's current pool.
+pub(crate) fn in_pool<T: Send>(
+    threads: Option<usize>,
+    f: impl FnOnce() -> Result<T, Cancelled> + Send,
+) -> Result<T, Cancelled> {
+    match threads {
         Some(n) => {
             let pool = rayon::ThreadPoolBuilder::new()
                 .num_threads(n.max(1))
                 .thread_name(|i| format!("penumbra-render-{i}"))
                 .build()
                 .map_err(|_| Cancelled)?;
-            pool.install(|| render_in_pool(scene, options, cancel, on_tile))
+            pool.install(f)
         }
-        None => render_in_pool(scene, options, cancel, on_tile),
+        None => f(),
     }
 }
 
-fn render_in_pool(
+/// The passes of a render; with `budget`, the final pass also records
+/// every pixel's path (one record per tile, in the order of [`tiles`]).
+pub(crate) fn render_passes(
     scene: &Scene,
+    settings: &RenderSettings,
+    shading: &ShadingParams,
     options: &RenderOptions,
     cancel: &CancelToken,
     on_tile: &(dyn Fn(&TileUpdate) + Sync),
-) -> Result<RenderReport, Cancelled> {
+    budget: Option<&Budget>,
+) -> Result<(RenderReport, Vec<TileRecord>), Cancelled> {
     let start = Instant::now();
     let (width, height) = (scene.camera.width, scene.camera.height);
     let plan = if options.progressive {
-        pass_plan(scene.settings.shadow_rays)
+        pass_plan(settings.shadow_rays)
     } else {
         vec![Pass {
-            shadow_rays: scene.settings.shadow_rays,
+            shadow_rays: settings.shadow_rays,
             block: 1,
         }]
     };
-    let tile_size = options
-        .tile_size
-        .max(PREVIEW_BLOCK)
-        .next_multiple_of(PREVIEW_BLOCK);
+    let tile_size = tile_side(options);
     let tiles = tiles(width, height, tile_size);
     let film = Mutex::new(Film::new(width, height));
+    let records: Mutex<Vec<Option<TileRecord>>> = Mutex::new(vec![None; tiles.len()]);
     let mut total = RayStats::default();
     let mut last = RayStats::default();
     for (pass_index, &pass) in plan.iter().enumerate() {
-        let tracer = Tracer::new(scene, pass.shadow_rays);
+        let tracer = Tracer::new(scene, settings, shading, pass.shadow_rays);
+        let record = budget.filter(|_| pass_index + 1 == plan.len());
         let next = AtomicUsize::new(0);
         let done = AtomicUsize::new(0);
         let stats = Mutex::new(RayStats::default());
@@ -234,12 +256,20 @@ fn render_in_pool(
                 }
                 let rect = tiles[i];
                 let traced_before = scratch.stats.traced();
-                if !render_tile(&tracer, rect, pass.block, cancel, &mut scratch, &mut pixels) {
+                if let Some(budget) = record {
+                    let mut rec =
+                        TileRecord::new(rect, tracer.pattern.count(), budget.shapes_allowed());
+                    if !render_tile_recorded(&tracer, rect, cancel, &mut scratch, &mut pixels, &mut rec)
+                    {
+                        break;
+                    }
+                    rec.shrink();
+                    budget.add(&rec);
+                    lock(&records)[i] = Some(rec);
+                } else if !render_tile(&tracer, rect, pass.block, cancel, &mut scratch, &mut pixels) {
                     break;
                 }
-                film.lock()
-                    .unwrap_or_else(|e| e.into_inner())
-                    .write_block(rect.x, rect.y, rect.w, &pixels);
+                lock(&film).write_block(rect.x, rect.y, rect.w, &pixels);
                 let tiles_done = done.fetch_add(1, Ordering::Relaxed) + 1;
                 on_tile(&TileUpdate {
                     pass_index,
@@ -252,7 +282,7 @@ fn render_in_pool(
                     rays: scratch.stats.traced() - traced_before,
                 });
             }
-            *stats.lock().unwrap_or_else(|e| e.into_inner()) += scratch.stats;
+            *lock(&stats) += scratch.stats;
         });
         if cancel.is_cancelled() {
             return Err(Cancelled);
@@ -260,12 +290,34 @@ fn render_in_pool(
         last = stats.into_inner().unwrap_or_else(|e| e.into_inner());
         total += last;
     }
-    Ok(RenderReport {
-        film: film.into_inner().unwrap_or_else(|e| e.into_inner()),
-        stats: total,
-        final_stats: last,
-        elapsed: start.elapsed(),
-    })
+    let records = records
+        .into_inner()
+        .unwrap_or_else(|e| e.into_inner())
+        .into_iter()
+        .flatten()
+        .collect();
+    Ok((
+        RenderReport {
+            film: film.into_inner().unwrap_or_else(|e| e.into_inner()),
+            stats: total,
+            final_stats: last,
+            elapsed: start.elapsed(),
+        },
+        records,
+    ))
+}
+
+/// Locks a mutex, through a panic of another holder (the data is pixels).
+pub(crate) fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// Side of a tile: a multiple of the preview block.
+pub(crate) fn tile_side(options: &RenderOptions) -> u32 {
+    options
+        .tile_size
+        .max(PREVIEW_BLOCK)
+        .next_multiple_of(PREVIEW_BLOCK)
 }
 
 /// Renders one tile into `out`; false if cancelled part-way.
@@ -274,7 +326,7 @@ fn render_tile(
     rect: TileRect,
     block: u32,
     cancel: &CancelToken,
-    scratch: &mut super::tracer::TraceScratch,
+    scratch: &mut TraceScratch,
     out: &mut Vec<Vec3>,
 ) -> bool {
     out.clear();
@@ -298,6 +350,29 @@ fn render_tile(
                     out[(y * rect.w + x) as usize] = c;
                 }
             }
+        }
+    }
+    true
+}
+
+/// Renders one tile at full resolution into `out`, recording every path
+/// into `record`; false if cancelled part-way.
+pub(crate) fn render_tile_recorded(
+    tracer: &Tracer,
+    rect: TileRect,
+    cancel: &CancelToken,
+    scratch: &mut TraceScratch,
+    out: &mut Vec<Vec3>,
+    record: &mut TileRecord,
+) -> bool {
+    out.clear();
+    let mut sink = TileRecorder { record };
+    for y in rect.y..rect.y + rect.h {
+        if cancel.is_cancelled() {
+            return false;
+        }
+        for x in rect.x..rect.x + rect.w {
+            out.push(tracer.trace(x, y, scratch, &mut sink));
         }
     }
     true

@@ -1,29 +1,25 @@
-//! The runtime scene: a validated [`SceneDesc`] turned into what the tracer
-//! needs (camera, light, materials as indices, primitives, BVH).
+//! The runtime scene: what a validated [`SceneDesc`] fixes for every render
+//! of it (camera, light geometry, primitives with their material indices,
+//! acceleration structures). Built once per load and shared as an `Arc`;
+//! what an edit may change lives beside it, in [`RenderSettings`] and
+//! [`ShadingParams`], and a render takes the three as separate arguments.
 
 use std::path::Path;
-
-use glam::{DVec3, Vec3};
+use std::sync::Arc;
 
 use super::camera::Camera;
 use super::error::SceneError;
+use super::film::Film;
+use super::progressive::{self, CancelToken, Cancelled, RenderOptions, RenderReport, TileUpdate};
 use super::geometry::{Aabb, Bvh, Cuboid, Parallelogram, Plane, Ray, Shape, Sphere};
 use super::light::AreaLight;
-use super::light_frame::OccluderBvh;
-use super::scene_file::{AreaLightModel, ObjectDesc, Sampling, SceneDesc};
+use super::scene_file::{ObjectDesc, SceneDesc};
+use super::settings::RenderSettings;
+use super::shading_params::ShadingParams;
+use super::shadow::OccluderBvh;
 
 /// The seed room, built into the binary so the program runs anywhere.
 pub const SEED_ROOM_JSON: &str = include_str!("../../scenes/seed-room.json");
-
-/// Phong material with f32 reflectances (the shading runs in f32).
-#[derive(Debug, Clone)]
-pub struct Material {
-    pub ambient: Vec3,
-    pub diffuse: Vec3,
-    pub specular: Vec3,
-    pub shininess: f32,
-    pub reflectivity: f32,
-}
 
 #[derive(Debug, Clone)]
 pub struct Object {
@@ -31,27 +27,6 @@ pub struct Object {
     pub material: u32,
     /// The shape's bounds (`None` for planes), computed once.
     pub bounds: Option<Aabb>,
-}
-
-/// Settings of one render, from the scene's `render` section.
-#[derive(Debug, Clone)]
-pub struct RenderSettings {
-    pub shadow_rays: u32,
-    pub sampling: Sampling,
-    pub max_depth: u32,
-    pub seed: u64,
-    pub model: AreaLightModel,
-    /// Multipliers of the ambient, diffuse and specular terms.
-    pub terms: Vec3,
-    pub background: Vec3,
-    /// `false`: every shadow ray arrives.
-    pub shadows: bool,
-    /// Trace a few shadow rays first and the rest only where they disagree
-    /// (faster, biased).
-    pub adaptive: bool,
-    /// Skip work whose result is known (exact; see `occlusion.rs`). Only
-    /// switched off to measure what the skipping saves.
-    pub skip: bool,
 }
 
 /// What a ray met first.
@@ -66,19 +41,15 @@ pub enum HitTarget {
 const BVH_THRESHOLD: usize = 8;
 
 /// From this many bounded objects on, shadow rays walk a BVH in the
-/// light's frame as packets (`occlusion.rs`); below it, testing every
+/// light's frame as packets (`shadow/`); below it, testing every
 /// object in the shadow pyramid against all rays of a hit point is cheaper
 /// (measured on generated rooms: the two meet between 200 and 300).
 pub const PACKET_THRESHOLD: usize = 256;
 
 #[derive(Debug, Clone)]
 pub struct Scene {
-    /// The description this scene was built from (what "save" writes).
-    pub desc: SceneDesc,
-    pub settings: RenderSettings,
     pub camera: Camera,
     pub light: AreaLight,
-    pub materials: Vec<Material>,
     /// Material names, in the order of `materials`.
     pub material_names: Vec<String>,
     pub objects: Vec<Object>,
@@ -98,22 +69,10 @@ pub struct Scene {
 }
 
 impl Scene {
-    /// Validates a description and builds the runtime scene.
-    pub fn new(desc: SceneDesc) -> Result<Scene, SceneError> {
-        desc.validate()?;
+    /// Builds the runtime scene of a description that
+    /// [`SceneDesc::validate`] accepted (see [`Loaded`] for both steps).
+    pub fn build(desc: &SceneDesc) -> Scene {
         let material_names: Vec<String> = desc.materials.keys().cloned().collect();
-        let override_shininess = desc.render.shininess_override;
-        let materials = desc
-            .materials
-            .values()
-            .map(|m| Material {
-                ambient: DVec3::from(m.ambient).as_vec3(),
-                diffuse: DVec3::from(m.diffuse).as_vec3(),
-                specular: DVec3::from(m.specular).as_vec3(),
-                shininess: override_shininess.unwrap_or(m.shininess) as f32,
-                reflectivity: m.reflectivity as f32,
-            })
-            .collect();
         let objects: Vec<Object> = desc
             .objects
             .iter()
@@ -180,29 +139,9 @@ impl Scene {
             let ids: Vec<u32> = with_bounds.iter().map(|o| o.0).collect();
             OccluderBvh::new(&light, &shapes, &ids)
         });
-        let r = &desc.render;
-        let settings = RenderSettings {
-            shadow_rays: r.shadow_rays,
-            sampling: r.sampling,
-            max_depth: r.max_depth,
-            seed: r.seed,
-            model: r.area_light_model,
-            terms: Vec3::new(
-                r.terms.ambient as f32,
-                r.terms.diffuse as f32,
-                r.terms.specular as f32,
-            ),
-            background: DVec3::from(r.background).as_vec3(),
-            shadows: r.shadows,
-            adaptive: r.adaptive,
-            skip: true,
-        };
-        Ok(Scene {
-            desc,
-            settings,
+        Scene {
             camera,
             light,
-            materials,
             material_names,
             objects,
             unbounded,
@@ -210,22 +149,7 @@ impl Scene {
             bvh,
             shadow_bvh,
             scale,
-        })
-    }
-
-    /// Loads, validates and builds a scene file; errors name the file.
-    pub fn load(path: &Path) -> Result<Scene, SceneError> {
-        Scene::new(SceneDesc::load(path)?).map_err(|e| e.in_file(path))
-    }
-
-    /// Parses and builds a scene from JSON text.
-    pub fn from_json(text: &str) -> Result<Scene, SceneError> {
-        Scene::new(SceneDesc::from_json(text)?)
-    }
-
-    /// The built-in seed room.
-    pub fn seed_room() -> Scene {
-        Scene::from_json(SEED_ROOM_JSON).expect("the built-in seed room is valid")
+        }
     }
 
     /// Nearest object or light along the ray, with its distance.
@@ -253,5 +177,57 @@ impl Scene {
     /// Name of an object's material.
     pub fn material_name(&self, object: u32) -> &str {
         &self.material_names[self.objects[object as usize].material as usize]
+    }
+}
+
+/// A loaded scene: the immutable part and the two editable parts, as the
+/// description sets them. Validation runs here, once per load.
+#[derive(Debug, Clone)]
+pub struct Loaded {
+    pub scene: Arc<Scene>,
+    pub settings: RenderSettings,
+    pub shading: ShadingParams,
+}
+
+impl Loaded {
+    /// Validates a description and builds its scene.
+    pub fn new(desc: &SceneDesc) -> Result<Loaded, SceneError> {
+        desc.validate()?;
+        let scene = Scene::build(desc);
+        Ok(Loaded {
+            settings: RenderSettings::from_desc(desc),
+            shading: ShadingParams::from_desc(desc),
+            scene: Arc::new(scene),
+        })
+    }
+
+    /// Loads, validates and builds a scene file; errors name the file.
+    pub fn load(path: &Path) -> Result<Loaded, SceneError> {
+        Loaded::new(&SceneDesc::load(path)?).map_err(|e| e.in_file(path))
+    }
+
+    /// Parses and builds a scene from JSON text.
+    pub fn from_json(text: &str) -> Result<Loaded, SceneError> {
+        Loaded::new(&SceneDesc::from_json(text)?)
+    }
+
+    /// The built-in seed room.
+    pub fn seed_room() -> Loaded {
+        Loaded::from_json(SEED_ROOM_JSON).expect("the built-in seed room is valid")
+    }
+
+    /// Renders it with its own settings and shading.
+    pub fn render(
+        &self,
+        options: &RenderOptions,
+        cancel: &CancelToken,
+        on_tile: &(dyn Fn(&TileUpdate) + Sync),
+    ) -> Result<RenderReport, Cancelled> {
+        progressive::render(&self.scene, &self.settings, &self.shading, options, cancel, on_tile)
+    }
+
+    /// Renders it in one pass on all threads.
+    pub fn render_image(&self) -> Film {
+        progressive::render_image(&self.scene, &self.settings, &self.shading)
     }
 }

@@ -5,11 +5,13 @@ use glam::{DVec3, Vec3};
 
 use super::analytic;
 use super::math::{avx2_dispatch, pow_approx};
-use super::occlusion::{self, ShadowBuffers, ShadowQuery};
 use super::rng::Rng;
 use super::sampling::Pattern;
-use super::scene::{Material, Scene};
+use super::scene::Scene;
 use super::scene_file::AreaLightModel;
+use super::settings::RenderSettings;
+use super::shading_params::{LightColours, Material, ShadingParams};
+use super::shadow::{self, ShadowBuffers, ShadowQuery};
 use super::stats::RayStats;
 
 /// A surface point being shaded.
@@ -24,31 +26,94 @@ pub struct ShadingPoint<'a> {
     pub material: &'a Material,
 }
 
-/// The local colour (without the reflection) of one hit point.
+/// The light-averaged factors of one hit point, before any colour: the
+/// diffuse factor max(0, N·L) and the specular factor max(0, N·H)^shininess
+/// averaged over the light with their visibility. The local colour is
+/// linear in them ([`local_colour`]), which is what lets an edit of a
+/// colour or a term recombine cached factors instead of tracing.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct LightTerms {
+    pub diffuse: f32,
+    pub specular: f32,
+}
+
+/// Which factors a hit point needs. A render that keeps its factors for
+/// later edits needs both; a one-shot render skips a term whose colour
+/// product is zero.
+#[derive(Debug, Clone, Copy)]
+pub struct Needs {
+    pub diffuse: bool,
+    pub specular: bool,
+}
+
+impl Needs {
+    pub const ALL: Needs = Needs {
+        diffuse: true,
+        specular: true,
+    };
+}
+
+/// The Phong sum of one hit point: ambient plus the diffuse and specular
+/// colours times their light factors. The only place the three terms meet,
+/// for one-shot renders and cached recombinations alike (the same f32
+/// operations in the same order, so the same bits).
+#[inline]
+pub fn local_colour(
+    m: &Material,
+    light: &LightColours,
+    terms: Vec3,
+    factors: LightTerms,
+) -> Vec3 {
+    let ambient = m.ambient * light.ambient * terms.x;
+    let kd = m.diffuse * light.diffuse * terms.y;
+    let ks = m.specular * light.specular * terms.z;
+    ambient + (kd * factors.diffuse + ks * factors.specular)
+}
+
+/// The local colour (without the reflection) of one hit point, computing
+/// only the factors its colours need.
+#[allow(clippy::too_many_arguments)]
 pub fn shade(
     scene: &Scene,
+    settings: &RenderSettings,
+    shading: &ShadingParams,
     sp: &ShadingPoint,
     pattern: &Pattern,
     rng: &mut Rng,
     buf: &mut ShadowBuffers,
     stats: &mut RayStats,
 ) -> Vec3 {
-    let s = &scene.settings;
-    let light = &scene.light;
+    let (m, light) = (sp.material, &shading.light);
+    let needs = Needs {
+        diffuse: m.diffuse * light.diffuse * settings.terms.y != Vec3::ZERO,
+        specular: m.specular * light.specular * settings.terms.z != Vec3::ZERO,
+    };
+    let factors = light_terms(scene, settings, sp, needs, pattern, rng, buf, stats);
+    local_colour(m, light, settings.terms, factors)
+}
+
+/// The light factors of one hit point: zero where the point is behind the
+/// light; a factor not needed is left at zero.
+#[allow(clippy::too_many_arguments)]
+pub fn light_terms(
+    scene: &Scene,
+    s: &RenderSettings,
+    sp: &ShadingPoint,
+    needs: Needs,
+    pattern: &Pattern,
+    rng: &mut Rng,
+    buf: &mut ShadowBuffers,
+    stats: &mut RayStats,
+) -> LightTerms {
     let m = sp.material;
-    let mut colour = m.ambient * light.ambient * s.terms.x;
-    if !light.illuminates(sp.point) {
-        return colour;
+    if !scene.light.illuminates(sp.point) {
+        return LightTerms::default();
     }
-    // Skip a term whose product of multiplier and reflectances is zero.
-    let kd = m.diffuse * light.diffuse * s.terms.y;
-    let ks = m.specular * light.specular * s.terms.z;
-    let need_d = kd != Vec3::ZERO;
-    let need_s = ks != Vec3::ZERO;
+    let (need_d, need_s) = (needs.diffuse, needs.specular);
     let count = pattern.count();
     if !(need_d || need_s) && s.skip {
         stats.shadow_unneeded += count as u64;
-        return colour;
+        return LightTerms::default();
     }
 
     // A fixed pattern (the grid) is the same at every hit point: fill once.
@@ -63,7 +128,7 @@ pub fn shade(
         object: sp.object,
         inside: sp.inside,
     };
-    occlusion::visibility(scene, &query, count, buf, stats);
+    shadow::visibility(scene, s, &query, count, buf, stats);
 
     let n = sp.normal.as_vec3();
     let v = sp.view.as_vec3();
@@ -101,14 +166,50 @@ pub fn shade(
             (exact * ratio, t.specular)
         }
         AreaLightModel::NearestPoint => {
-            let visible: f32 = buf.vis[..count].iter().sum();
-            let fraction = visible / count as f32;
+            let fraction = visible_fraction(buf, count);
             let (d, sp_) = nearest_point_terms(scene, sp);
             (d * fraction, sp_ * fraction)
         }
     };
-    colour += kd * diffuse + ks * specular;
-    colour
+    LightTerms { diffuse, specular }
+}
+
+/// Share of the first `count` light points that are visible.
+#[inline]
+pub fn visible_fraction(buf: &ShadowBuffers, count: usize) -> f32 {
+    let visible: f32 = buf.vis[..count].iter().sum();
+    visible / count as f32
+}
+
+/// The specular factor again, for a new shininess, from a hit point's
+/// stored visibility: the light points drawn again (`rng` as at the hit),
+/// their directions from `to_corner`, and their visibility from the bits
+/// `visible` (bit j of word j / 64). The same operations as
+/// [`light_terms`], so the same bits.
+#[allow(clippy::too_many_arguments)]
+pub fn sampled_specular_again(
+    scene: &Scene,
+    pattern: &Pattern,
+    rng: &mut Rng,
+    to_corner: Vec3,
+    n: Vec3,
+    v: Vec3,
+    shininess: f32,
+    visible: &[u64],
+    buf: &mut ShadowBuffers,
+) -> f32 {
+    let count = pattern.count();
+    let key = (pattern.sampling, pattern.shadow_rays);
+    if !(pattern.is_fixed() && buf.filled == Some(key)) {
+        pattern.fill(rng, &mut buf.a, &mut buf.b);
+        buf.filled = pattern.is_fixed().then_some(key);
+    }
+    let light = &scene.light.shape;
+    shadow::light_directions(to_corner, light.edge_u.as_vec3(), light.edge_v.as_vec3(), n, count, buf);
+    for (j, v) in buf.vis[..count].iter_mut().enumerate() {
+        *v = if visible[j / 64] >> (j % 64) & 1 == 1 { 1.0 } else { 0.0 };
+    }
+    sampled_terms(n, v, shininess, true, count, buf).specular
 }
 
 avx2_dispatch!(
@@ -214,17 +315,28 @@ fn nearest_point_terms(scene: &Scene, sp: &ShadingPoint) -> (f32, f32) {
     let to_light = |dir: DVec3| (light.nearest_point(sp.point, dir) - sp.point).normalize_or_zero();
     let ld = to_light(n);
     let diffuse = n.dot(ld).max(0.0) as f32;
-    let mirrored = n * (2.0 * n.dot(sp.view)) - sp.view;
-    let ls = to_light(mirrored);
-    let specular = if n.dot(ls) > 0.0 {
-        phong_specular(
-            n.as_vec3(),
-            ls.as_vec3(),
-            sp.view.as_vec3(),
-            sp.material.shininess,
-        )
-    } else {
-        0.0
-    };
+    let ls = nearest_point_specular_direction(scene, sp);
+    let specular = nearest_point_specular(n.as_vec3(), ls, sp.view.as_vec3(), sp.material.shininess);
     (diffuse, specular)
+}
+
+/// The `nearest_point` model's light direction for the specular term (the
+/// light point met along the mirrored view ray), or zero where that point
+/// lies below the surface (no specular).
+pub fn nearest_point_specular_direction(scene: &Scene, sp: &ShadingPoint) -> Vec3 {
+    let n = sp.normal;
+    let mirrored = n * (2.0 * n.dot(sp.view)) - sp.view;
+    let ls = (scene.light.nearest_point(sp.point, mirrored) - sp.point).normalize_or_zero();
+    if n.dot(ls) > 0.0 { ls.as_vec3() } else { Vec3::ZERO }
+}
+
+/// The `nearest_point` model's unshadowed specular factor for the light
+/// direction `ls` of [`nearest_point_specular_direction`].
+#[inline]
+pub fn nearest_point_specular(n: Vec3, ls: Vec3, v: Vec3, shininess: f32) -> f32 {
+    if ls == Vec3::ZERO {
+        0.0
+    } else {
+        phong_specular(n, ls, v, shininess)
+    }
 }

@@ -1,15 +1,27 @@
 //! Whitted-style tracing of one camera path: local Phong shading at each
 //! hit plus the mirrored ray, weighted by reflectivity, up to `max_depth`
 //! hits.
+//!
+//! A path can be traced for its colour alone (a one-shot render) or also
+//! recorded hit by hit ([`PathSink`]) so that an edit of a shading
+//! parameter can recompute the colour without tracing (`live/`). Both run
+//! the same code, and [`replay`] repeats the colour arithmetic of
+//! [`Tracer::pixel`] operation for operation, so the two give the same bits.
 
 use glam::{DVec3, Vec3};
 
 use super::geometry::{Ray, spawn_origin};
-use super::occlusion::ShadowBuffers;
+use super::live::record::ColourHit;
 use super::rng::Rng;
 use super::sampling::Pattern;
 use super::scene::{HitTarget, Scene};
-use super::shading::{ShadingPoint, shade};
+use super::settings::RenderSettings;
+use super::shading::{
+    LightTerms, Needs, ShadingPoint, light_terms, local_colour, nearest_point_specular_direction,
+    shade,
+};
+use super::shading_params::ShadingParams;
+use super::shadow::ShadowBuffers;
 use super::stats::RayStats;
 
 /// Reflected rays whose path weight falls below this are not traced (when
@@ -17,9 +29,59 @@ use super::stats::RayStats;
 /// the brightest surface.
 pub const MIN_PATH_WEIGHT: f32 = 1.0 / 1024.0;
 
+/// Why a path ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PathEnd {
+    /// Nothing was hit: the background.
+    Background,
+    /// The light was hit (seen as its diffuse colour).
+    Light,
+    /// The last hit reached `max_depth`.
+    MaxDepth,
+    /// The last hit's material does not reflect.
+    Absorbed,
+    /// The path weight fell below [`MIN_PATH_WEIGHT`].
+    Faint,
+}
+
+/// One recorded hit: what the colour needs besides the shading parameters,
+/// and what a new shininess needs to recompute the specular factor.
+#[derive(Debug, Clone, Copy)]
+pub struct HitRecord {
+    pub material: u32,
+    pub factors: LightTerms,
+    /// `sampled`/`analytic`: light corner − hit point; `nearest_point`: the
+    /// specular light direction (zero: no specular).
+    pub to_light: Vec3,
+    pub normal: Vec3,
+    pub view: Vec3,
+}
+
+/// Receives a path's hits as they are traced.
+pub trait PathSink {
+    /// Whether to compute every light factor (a recorded path must serve
+    /// any later colour) instead of only those the colours need.
+    const RECORD: bool;
+    /// A hit with its factors; `visible` holds its light points'
+    /// visibility as it was traced.
+    fn hit(&mut self, hit: HitRecord, buf: &ShadowBuffers, count: usize);
+    fn end(&mut self, end: PathEnd);
+}
+
+/// A one-shot render records nothing.
+impl PathSink for () {
+    const RECORD: bool = false;
+    #[inline(always)]
+    fn hit(&mut self, _: HitRecord, _: &ShadowBuffers, _: usize) {}
+    #[inline(always)]
+    fn end(&mut self, _: PathEnd) {}
+}
+
 /// Traces pixels of one scene at one shadow-ray count.
 pub struct Tracer<'a> {
     pub scene: &'a Scene,
+    pub settings: &'a RenderSettings,
+    pub shading: &'a ShadingParams,
     pub pattern: Pattern,
 }
 
@@ -30,11 +92,19 @@ pub struct TraceScratch {
 }
 
 impl<'a> Tracer<'a> {
-    /// A tracer using `shadow_rays` (instead of the scene's) per hit point.
-    pub fn new(scene: &'a Scene, shadow_rays: u32) -> Tracer<'a> {
+    /// A tracer using `shadow_rays` (instead of the settings') per hit
+    /// point.
+    pub fn new(
+        scene: &'a Scene,
+        settings: &'a RenderSettings,
+        shading: &'a ShadingParams,
+        shadow_rays: u32,
+    ) -> Tracer<'a> {
         Tracer {
             scene,
-            pattern: Pattern::new(scene.settings.sampling, shadow_rays),
+            settings,
+            shading,
+            pattern: Pattern::new(settings.sampling, shadow_rays),
         }
     }
 
@@ -46,9 +116,20 @@ impl<'a> Tracer<'a> {
     }
 
     /// Linear RGB of pixel (x, y).
+    #[inline]
     pub fn pixel(&self, x: u32, y: u32, scratch: &mut TraceScratch) -> Vec3 {
-        let scene = self.scene;
-        let s = &scene.settings;
+        self.trace(x, y, scratch, &mut ())
+    }
+
+    /// Linear RGB of pixel (x, y), handing every hit to `sink`.
+    pub fn trace<S: PathSink>(
+        &self,
+        x: u32,
+        y: u32,
+        scratch: &mut TraceScratch,
+        sink: &mut S,
+    ) -> Vec3 {
+        let (scene, s, shading) = (self.scene, self.settings, self.shading);
         let mut ray = scene.camera.pixel_ray(x, y);
         scratch.stats.camera += 1;
         let mut colour = Vec3::ZERO;
@@ -56,11 +137,13 @@ impl<'a> Tracer<'a> {
         for depth in 1..=s.max_depth {
             let Some((target, t)) = scene.closest_hit(&ray) else {
                 colour += s.background * weight;
+                sink.end(PathEnd::Background);
                 break;
             };
             let object = match target {
                 HitTarget::Light => {
-                    colour += scene.light.diffuse * weight;
+                    colour += shading.light.diffuse * weight;
+                    sink.end(PathEnd::Light);
                     break;
                 }
                 HitTarget::Object(i) => i,
@@ -73,7 +156,7 @@ impl<'a> Tracer<'a> {
             } else {
                 surface.normal
             };
-            let material = &scene.materials[obj.material as usize];
+            let material = &shading.materials[obj.material as usize];
             let sp = ShadingPoint {
                 point: surface.point,
                 normal,
@@ -83,21 +166,66 @@ impl<'a> Tracer<'a> {
                 material,
             };
             let mut rng = Rng::for_vertex(s.seed, x, y, depth);
-            colour += shade(
-                scene,
-                &sp,
-                &self.pattern,
-                &mut rng,
-                &mut scratch.shadow,
-                &mut scratch.stats,
-            ) * weight;
+            let local = if S::RECORD {
+                let buf = &mut scratch.shadow;
+                // Every factor is computed, so that a later edit of any
+                // colour finds it; the light points are cleared first so
+                // that a point behind the light records as invisible.
+                buf.vis[..self.pattern.count()].fill(0.0);
+                let factors = light_terms(
+                    scene,
+                    s,
+                    &sp,
+                    Needs::ALL,
+                    &self.pattern,
+                    &mut rng,
+                    buf,
+                    &mut scratch.stats,
+                );
+                let to_light = match s.model {
+                    super::scene_file::AreaLightModel::NearestPoint => {
+                        nearest_point_specular_direction(scene, &sp)
+                    }
+                    _ => (scene.light.shape.corner - sp.point).as_vec3(),
+                };
+                sink.hit(
+                    HitRecord {
+                        material: obj.material,
+                        factors,
+                        to_light,
+                        normal: normal.as_vec3(),
+                        view: sp.view.as_vec3(),
+                    },
+                    buf,
+                    self.pattern.count(),
+                );
+                local_colour(material, &shading.light, s.terms, factors)
+            } else {
+                shade(
+                    scene,
+                    s,
+                    shading,
+                    &sp,
+                    &self.pattern,
+                    &mut rng,
+                    &mut scratch.shadow,
+                    &mut scratch.stats,
+                )
+            };
+            colour += local * weight;
 
             if material.reflectivity == 0.0 || depth == s.max_depth {
+                sink.end(if material.reflectivity == 0.0 {
+                    PathEnd::Absorbed
+                } else {
+                    PathEnd::MaxDepth
+                });
                 break;
             }
             weight *= material.reflectivity;
             if s.skip && weight < MIN_PATH_WEIGHT {
                 scratch.stats.reflected_culled += 1;
+                sink.end(PathEnd::Faint);
                 break;
             }
             ray = Ray::new(
@@ -108,6 +236,38 @@ impl<'a> Tracer<'a> {
         }
         colour
     }
+}
+
+/// The colour of a recorded path under (possibly edited) shading
+/// parameters, with the arithmetic of [`Tracer::trace`]; `None` if the
+/// edit makes the path longer than what was recorded (a reflectivity that
+/// was 0, or a weight that was below the cut-off), so it must be traced.
+#[inline]
+pub fn replay(
+    hits: &[ColourHit],
+    end: PathEnd,
+    settings: &RenderSettings,
+    shading: &ShadingParams,
+) -> Option<Vec3> {
+    let mut colour = Vec3::ZERO;
+    let mut weight = 1.0f32;
+    for (k, hit) in hits.iter().enumerate() {
+        let material = &shading.materials[hit.material as usize];
+        colour += local_colour(material, &shading.light, settings.terms, hit.factors) * weight;
+        if material.reflectivity == 0.0 || k as u32 + 1 == settings.max_depth {
+            return Some(colour);
+        }
+        weight *= material.reflectivity;
+        if settings.skip && weight < MIN_PATH_WEIGHT {
+            return Some(colour);
+        }
+    }
+    match end {
+        PathEnd::Background => colour += settings.background * weight,
+        PathEnd::Light => colour += shading.light.diffuse * weight,
+        PathEnd::MaxDepth | PathEnd::Absorbed | PathEnd::Faint => return None,
+    }
+    Some(colour)
 }
 
 /// Mirror direction of `d` about the normal `n`.

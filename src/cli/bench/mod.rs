@@ -23,9 +23,9 @@ use std::time::Duration;
 
 use clap::Args;
 
-use super::{CliError, SceneOverrides, load_scene};
+use super::{CliError, SceneOverrides, load_desc};
 use crate::render::{
-    CancelToken, RenderOptions, RenderReport, Scene, SceneDesc, generate, render as render_scene,
+    CancelToken, Loaded, RenderOptions, RenderReport, SceneDesc, generate,
 };
 
 pub use reference::{Reference, reference, reference_key};
@@ -202,7 +202,7 @@ pub fn scenes(args: &BenchArgs) -> Result<Vec<BenchScene>, CliError> {
             })
             .collect(),
         None => {
-            let scene = load_scene(args.scene.as_deref(), &SceneOverrides::default())?;
+            let desc = load_desc(args.scene.as_deref(), &SceneOverrides::default())?;
             let name = args
                 .scene
                 .as_deref()
@@ -210,7 +210,7 @@ pub fn scenes(args: &BenchArgs) -> Result<Vec<BenchScene>, CliError> {
                 .map_or("seed-room".into(), |s| s.to_string_lossy().into_owned());
             vec![BenchScene {
                 name,
-                desc: scene.desc,
+                desc,
             }]
         }
     };
@@ -247,17 +247,18 @@ pub fn scenes(args: &BenchArgs) -> Result<Vec<BenchScene>, CliError> {
         .collect()
 }
 
-/// Builds the runtime scene of a validated description.
-pub fn build(desc: &SceneDesc, skip: bool) -> Result<Scene, CliError> {
-    let mut scene = Scene::new(desc.clone()).map_err(CliError::input)?;
-    scene.settings.skip = skip;
-    Ok(scene)
+/// Builds the runtime scene of a description.
+pub fn build(desc: &SceneDesc, skip: bool) -> Result<Loaded, CliError> {
+    let mut loaded = Loaded::new(desc).map_err(CliError::input)?;
+    loaded.settings.skip = skip;
+    Ok(loaded)
 }
 
 /// One render in the current thread pool (the final image only).
-pub fn render_once(scene: &Scene) -> RenderReport {
+pub fn render_once(loaded: &Loaded) -> RenderReport {
     let options = RenderOptions::default();
-    render_scene(scene, &options, &CancelToken::new(), &|_| {})
+    loaded
+        .render(&options, &CancelToken::new(), &|_| {})
         .expect("an uncancellable render finishes")
 }
 
@@ -286,7 +287,7 @@ impl Timed {
     }
 }
 
-pub fn timed(scene: &Scene, runs: u32) -> Timed {
+pub fn timed(scene: &Loaded, runs: u32) -> Timed {
     let mut report = None;
     let mut times = Vec::new();
     let mut cpu = Vec::new();

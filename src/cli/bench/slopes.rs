@@ -12,11 +12,11 @@
 use super::{BenchArgs, scenes};
 use crate::cli::CliError;
 use crate::render::compare::rmse_masked;
-use crate::render::occlusion::{ShadowBuffers, ShadowQuery, visibility};
+use crate::render::shadow::{ShadowBuffers, ShadowQuery, visibility};
 use crate::render::rng::Rng;
 use crate::render::sampling::Pattern;
 use crate::render::scene::HitTarget;
-use crate::render::{Film, RayStats, Sampling, Scene, render_image};
+use crate::render::{Film, Loaded, RayStats, Sampling};
 
 /// Shadow-ray counts of the fit.
 const COUNTS: [u32; 5] = [4, 16, 64, 256, 1024];
@@ -38,15 +38,17 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
         desc.render.terms.ambient = 0.0;
         desc.render.terms.specular = 0.0;
         desc.render.adaptive = false;
-        let with = |sampling: Sampling, rays: u32| -> Result<Scene, CliError> {
+        let with = |sampling: Sampling, rays: u32| -> Result<Loaded, CliError> {
             let mut d = desc.clone();
             d.render.sampling = sampling;
             d.render.shadow_rays = rays.min(4096);
-            let mut scene = Scene::new(d).map_err(CliError::input)?;
-            scene.settings.shadow_rays = rays;
-            Ok(scene)
+            let mut loaded = Loaded::new(&d).map_err(CliError::input)?;
+            // Past the format's limit: the reference is a render setting,
+            // not a scene.
+            loaded.settings.shadow_rays = rays;
+            Ok(loaded)
         };
-        let reference = render_image(&with(Sampling::Stratified, REFERENCE_RAYS)?);
+        let reference = with(Sampling::Stratified, REFERENCE_RAYS)?.render_image();
         let mask = penumbra_mask(&with(Sampling::Grid, 1024)?);
         let in_mask = mask.iter().filter(|&&m| m).count();
         println!(
@@ -61,7 +63,7 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
         for pattern in PATTERNS {
             let mut errors = Vec::new();
             for rays in COUNTS {
-                let film: Film = render_image(&with(pattern, rays)?);
+                let film: Film = with(pattern, rays)?.render_image();
                 errors.push(rmse_masked(&film, &reference, &mask).map_err(CliError::other)?);
             }
             print!("{:>14}", pattern.name());
@@ -75,7 +77,8 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
 }
 
 /// Pixels whose camera-ray hit sees part, not all or none, of the light.
-fn penumbra_mask(scene: &Scene) -> Vec<bool> {
+fn penumbra_mask(loaded: &Loaded) -> Vec<bool> {
+    let scene = &loaded.scene;
     let pattern = Pattern::new(Sampling::Grid, 1024);
     let mut buf = ShadowBuffers::with_capacity(pattern.count());
     pattern.fill(&mut Rng::new(0), &mut buf.a, &mut buf.b);
@@ -99,7 +102,7 @@ fn penumbra_mask(scene: &Scene) -> Vec<bool> {
                         object,
                         inside,
                     };
-                    visibility(scene, &query, pattern.count(), &mut buf, &mut stats);
+                    visibility(scene, &loaded.settings, &query, pattern.count(), &mut buf, &mut stats);
                     let seen =
                         buf.vis[..pattern.count()].iter().sum::<f32>() / pattern.count() as f32;
                     seen > 0.02 && seen < 0.98

@@ -1,7 +1,7 @@
 //! What is seen: rays, primitives, bounds and the BVH, all in f64 world
 //! space so that a room far from the origin or at any scale keeps its
 //! precision. (Shadow rays use a faster f32 form relative to the hit point,
-//! see `occlusion.rs`.)
+//! see `shadow/`.)
 
 mod aabb;
 mod bvh;

@@ -5,15 +5,15 @@
 //! an axis-aligned box end inside a rectangle of the light's plane that is
 //! cheap to bound (see [`LightFrame::footprint`]). Testing that rectangle
 //! against the light points of a packet tells which rays can meet the box:
-//! the packet traversal in `occlusion.rs` descends a node only with those
+//! the packet traversal in `packet.rs` descends a node only with those
 //! rays, and stops following a ray once it is blocked. The work per hit
 //! point then follows the rays still in flight rather than every object
 //! inside the shadow pyramid.
 
 use glam::DVec3;
 
-use super::geometry::{Aabb, Bvh, Bvh4, Node4, Shape};
-use super::light::AreaLight;
+use crate::render::geometry::{Aabb, Bvh, Bvh4, Node4, Shape};
+use crate::render::light::AreaLight;
 
 /// An orthonormal frame with its origin at the light's corner, x along
 /// `edge_u`, z along the light's normal (towards the lit side).

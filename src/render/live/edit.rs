@@ -1,0 +1,149 @@
+//! What an edit of a scene description invalidates: the one place that
+//! knows, for every field of the format, how much of a render survives a
+//! change of it.
+
+use crate::render::scene_file::{
+    CameraDesc, LightDesc, MaterialDesc, RenderDesc, SceneDesc, TermsDesc,
+};
+
+/// How much of the last render an edit leaves valid, from least to most
+/// work. A list of edits costs the largest class among them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum EditClass {
+    /// Nothing the image depends on changed.
+    Nothing,
+    /// Term toggles and strengths, the background, the light's colours and
+    /// intensity, material colours: the image is linear in them, so the
+    /// recorded light factors are combined again. No rays.
+    Recombine,
+    /// Shininess (of a material or the override) and reflectivity: the
+    /// recorded visibility gives the specular factors again, and only the
+    /// paths a reflectivity edit lengthens are traced.
+    Reshade,
+    /// The light's position or size, shadow rays, sampling, model, depth,
+    /// seed, shadows, adaptive: the scene stands, every pixel is traced.
+    Retrace,
+    /// The camera, the image size, objects, the set of materials: the scene
+    /// is built again and every pixel traced.
+    Rebuild,
+}
+
+impl EditClass {
+    pub const ALL: [EditClass; 5] = [
+        EditClass::Nothing,
+        EditClass::Recombine,
+        EditClass::Reshade,
+        EditClass::Retrace,
+        EditClass::Rebuild,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            EditClass::Nothing => "nothing",
+            EditClass::Recombine => "recombine",
+            EditClass::Reshade => "reshade",
+            EditClass::Retrace => "retrace",
+            EditClass::Rebuild => "rebuild",
+        }
+    }
+}
+
+/// The class of the edit that turns `old` into `new`. Every field is named
+/// (the destructuring below fails to compile when the format grows), so a
+/// new field cannot be forgotten.
+pub fn classify(old: &SceneDesc, new: &SceneDesc) -> EditClass {
+    let SceneDesc {
+        format,
+        camera,
+        render,
+        light,
+        materials,
+        objects,
+    } = new;
+    let CameraDesc {
+        position,
+        look_at,
+        up,
+        fov_y_deg,
+        width,
+        height,
+    } = camera;
+    let c = &old.camera;
+    let LightDesc {
+        corner,
+        edge_u,
+        edge_v,
+        ambient: light_ambient,
+        diffuse: light_diffuse,
+        specular: light_specular,
+    } = light;
+    let l = &old.light;
+    let scene_same = *format == old.format
+        && (position, look_at, up, fov_y_deg, width, height)
+            == (&c.position, &c.look_at, &c.up, &c.fov_y_deg, &c.width, &c.height)
+        && (corner, edge_u, edge_v) == (&l.corner, &l.edge_u, &l.edge_v)
+        && materials.keys().eq(old.materials.keys())
+        && *objects == old.objects;
+    if !scene_same {
+        return EditClass::Rebuild;
+    }
+
+    let RenderDesc {
+        shadow_rays,
+        sampling,
+        max_depth,
+        seed,
+        area_light_model,
+        terms,
+        background,
+        shadows,
+        adaptive,
+        shininess_override,
+    } = render;
+    let r = &old.render;
+    if (shadow_rays, sampling, max_depth, seed, area_light_model, shadows, adaptive)
+        != (
+            &r.shadow_rays,
+            &r.sampling,
+            &r.max_depth,
+            &r.seed,
+            &r.area_light_model,
+            &r.shadows,
+            &r.adaptive,
+        )
+    {
+        return EditClass::Retrace;
+    }
+
+    let mut class = EditClass::Nothing;
+    if *shininess_override != r.shininess_override {
+        class = EditClass::Reshade;
+    }
+    for (m, o) in materials.values().zip(old.materials.values()) {
+        let MaterialDesc {
+            ambient,
+            diffuse,
+            specular,
+            shininess,
+            reflectivity,
+        } = m;
+        if (shininess, reflectivity) != (&o.shininess, &o.reflectivity) {
+            class = class.max(EditClass::Reshade);
+        }
+        if (ambient, diffuse, specular) != (&o.ambient, &o.diffuse, &o.specular) {
+            class = class.max(EditClass::Recombine);
+        }
+    }
+    let TermsDesc {
+        ambient,
+        diffuse,
+        specular,
+    } = terms;
+    if (ambient, diffuse, specular) != (&r.terms.ambient, &r.terms.diffuse, &r.terms.specular)
+        || *background != r.background
+        || (light_ambient, light_diffuse, light_specular) != (&l.ambient, &l.diffuse, &l.specular)
+    {
+        class = class.max(EditClass::Recombine);
+    }
+    class
+}

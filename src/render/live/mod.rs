@@ -1,0 +1,439 @@
+//! Live editing: a render that keeps what the next edit does not change.
+//!
+//! [`LiveRender::render`] takes the whole description each time, asks
+//! [`classify`] what the edit invalidates, and redoes only that:
+//! - recombine: the recorded light factors of every hit are combined with
+//!   the new colours and strengths (no rays);
+//! - re-shade: the specular factors of the hits whose shininess changed are
+//!   computed again from their recorded visibility, and only the pixels
+//!   whose paths a reflectivity edit lengthens are traced;
+//! - re-trace and rebuild: a progressive render (the scene is built again
+//!   only for a rebuild) whose final pass records the paths again.
+//!
+//! Every path is recombined with the arithmetic of the tracer itself
+//! (`tracer::replay`), so the image after any sequence of edits equals a
+//! fresh one-shot render of the same description, bit for bit.
+
+pub mod edit;
+pub mod record;
+
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use glam::Vec3;
+
+pub use edit::{EditClass, classify};
+use record::{Budget, TileRecord, TileRecorder};
+
+use super::error::SceneError;
+use super::film::Film;
+use super::progressive::{
+    CancelToken, Cancelled, Pass, RenderOptions, TileUpdate, in_pool, lock, render_passes,
+};
+use super::rng::Rng;
+use super::scene::{Loaded, Scene};
+use super::scene_file::{AreaLightModel, SceneDesc};
+use super::settings::RenderSettings;
+use super::shading::{nearest_point_specular, sampled_specular_again};
+use super::shading_params::ShadingParams;
+use super::shadow::ShadowBuffers;
+use super::stats::RayStats;
+use super::tracer::{Tracer, replay};
+
+/// Default memory cap of the records (see `record.rs` for the bytes per
+/// hit): the seed room at 960×540, 64 shadow rays, depth 4 needs ~40 MB.
+pub const DEFAULT_RECORD_CAP: usize = 64 << 20;
+
+/// What one live render did.
+#[derive(Debug, Clone)]
+pub struct LiveReport {
+    pub class: EditClass,
+    pub film: Film,
+    /// Rays traced (none for a recombine).
+    pub stats: RayStats,
+    pub elapsed: Duration,
+    /// Pixels traced again by a re-shade (reflectivity edits).
+    pub retraced_pixels: usize,
+    /// Heap bytes the records hold after this render.
+    pub record_bytes: usize,
+}
+
+/// Why a live render gave no image.
+#[derive(Debug, Clone, thiserror::Error)]
+pub enum LiveError {
+    #[error(transparent)]
+    Scene(#[from] SceneError),
+    #[error(transparent)]
+    Cancelled(#[from] Cancelled),
+}
+
+/// The state of the last render.
+struct Current {
+    desc: SceneDesc,
+    scene: Arc<Scene>,
+    settings: RenderSettings,
+    shading: ShadingParams,
+    /// The records of its full-quality image (`None` after a cancelled
+    /// render, or above the memory cap).
+    frame: Option<Frame>,
+}
+
+struct Frame {
+    tiles: Vec<Mutex<TileRecord>>,
+    /// Whether every tile holds its shininess tier.
+    shapes: bool,
+    /// Side of the tiles the records were cut into.
+    tile_size: u32,
+}
+
+impl Frame {
+    fn bytes(&self) -> usize {
+        self.tiles.iter().map(|t| lock(t).bytes()).sum()
+    }
+}
+
+/// A render that keeps what the next edit does not change.
+pub struct LiveRender {
+    cap: usize,
+    current: Option<Current>,
+}
+
+impl Default for LiveRender {
+    fn default() -> Self {
+        LiveRender::new(DEFAULT_RECORD_CAP)
+    }
+}
+
+impl LiveRender {
+    /// A live render whose records hold at most `cap` bytes.
+    pub fn new(cap: usize) -> LiveRender {
+        LiveRender { cap, current: None }
+    }
+
+    /// The scene of the last render, if any.
+    pub fn scene(&self) -> Option<&Arc<Scene>> {
+        self.current.as_ref().map(|c| &c.scene)
+    }
+
+    /// Bytes the records hold now.
+    pub fn record_bytes(&self) -> usize {
+        self.current
+            .as_ref()
+            .and_then(|c| c.frame.as_ref())
+            .map_or(0, Frame::bytes)
+    }
+
+    /// What rendering `desc` now would cost.
+    pub fn class_of(&self, desc: &SceneDesc) -> EditClass {
+        match &self.current {
+            None => EditClass::Rebuild,
+            Some(c) => {
+                let class = classify(&c.desc, desc);
+                if c.frame.is_none() && class > EditClass::Nothing {
+                    class.max(EditClass::Retrace)
+                } else {
+                    class
+                }
+            }
+        }
+    }
+
+    /// Renders `desc`, calling `on_tile` with every finished tile, and
+    /// redoing only what changed since the last call. A cancelled render
+    /// leaves the state such that the next call is still exact.
+    pub fn render(
+        &mut self,
+        desc: &SceneDesc,
+        options: &RenderOptions,
+        cancel: &CancelToken,
+        on_tile: &(dyn Fn(&TileUpdate) + Sync),
+    ) -> Result<LiveReport, LiveError> {
+        let start = Instant::now();
+        let class = self.class_of(desc);
+        let mut report = match class {
+            EditClass::Rebuild => {
+                let loaded = Loaded::new(desc)?;
+                self.retrace(desc, loaded.scene, loaded.settings, loaded.shading, options, cancel, on_tile)?
+            }
+            EditClass::Retrace => {
+                desc.validate()?;
+                let scene = self.current.take().expect("a scene to re-trace").scene;
+                self.retrace(
+                    desc,
+                    scene,
+                    RenderSettings::from_desc(desc),
+                    ShadingParams::from_desc(desc),
+                    options,
+                    cancel,
+                    on_tile,
+                )?
+            }
+            EditClass::Nothing | EditClass::Recombine | EditClass::Reshade => {
+                desc.validate()?;
+                self.reshade(desc, class, options, cancel, on_tile)?
+            }
+        };
+        report.class = class;
+        report.elapsed = start.elapsed();
+        report.record_bytes = self.record_bytes();
+        Ok(report)
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn retrace(
+        &mut self,
+        desc: &SceneDesc,
+        scene: Arc<Scene>,
+        settings: RenderSettings,
+        shading: ShadingParams,
+        options: &RenderOptions,
+        cancel: &CancelToken,
+        on_tile: &(dyn Fn(&TileUpdate) + Sync),
+    ) -> Result<LiveReport, LiveError> {
+        // Until the final pass is done there are no records of this scene.
+        self.current = Some(Current {
+            desc: desc.clone(),
+            scene: scene.clone(),
+            settings: settings.clone(),
+            shading: shading.clone(),
+            frame: None,
+        });
+        let budget = Budget::new(self.cap);
+        let (report, mut tiles) = in_pool(options.threads, || {
+            render_passes(&scene, &settings, &shading, options, cancel, on_tile, Some(&budget))
+        })?;
+        let shapes = budget.shapes_allowed();
+        if !shapes {
+            tiles.iter_mut().for_each(TileRecord::drop_shapes);
+        }
+        let bytes: usize = tiles.iter().map(TileRecord::bytes).sum();
+        let frame = (bytes <= self.cap).then(|| Frame {
+            tiles: tiles.into_iter().map(Mutex::new).collect(),
+            shapes,
+            tile_size: super::progressive::tile_side(options),
+        });
+        if let Some(c) = &mut self.current {
+            c.frame = frame;
+        }
+        Ok(LiveReport {
+            class: EditClass::Retrace,
+            film: report.film,
+            stats: report.final_stats,
+            elapsed: report.elapsed,
+            retraced_pixels: 0,
+            record_bytes: 0,
+        })
+    }
+
+    /// Recombines or re-shades the recorded frame for `desc`'s shading.
+    fn reshade(
+        &mut self,
+        desc: &SceneDesc,
+        class: EditClass,
+        options: &RenderOptions,
+        cancel: &CancelToken,
+        on_tile: &(dyn Fn(&TileUpdate) + Sync),
+    ) -> Result<LiveReport, LiveError> {
+        let current = self.current.as_mut().expect("a recorded frame");
+        let settings = RenderSettings::from_desc(desc);
+        let shading = ShadingParams::from_desc(desc);
+        let old = &current.shading;
+        // Materials whose specular factors must be computed again.
+        let respecular: Vec<bool> = shading
+            .materials
+            .iter()
+            .zip(&old.materials)
+            .map(|(m, o)| m.shininess != o.shininess)
+            .collect();
+        let frame = current.frame.as_ref().expect("a recorded frame");
+        if respecular.contains(&true) && !frame.shapes {
+            // Above the memory cap the visibility was not kept.
+            let scene = self.current.take().expect("a scene").scene;
+            return self.retrace(desc, scene, settings, shading, options, cancel, on_tile);
+        }
+        if frame.tile_size != super::progressive::tile_side(options) {
+            let scene = self.current.take().expect("a scene").scene;
+            return self.retrace(desc, scene, settings, shading, options, cancel, on_tile);
+        }
+        let scene = current.scene.clone();
+        let (width, height) = (scene.camera.width, scene.camera.height);
+        let film = Mutex::new(Film::new(width, height));
+        let stats = Mutex::new(RayStats::default());
+        let retraced = AtomicUsize::new(0);
+        let next = AtomicUsize::new(0);
+        let done = AtomicUsize::new(0);
+        let tracer = Tracer::new(&scene, &settings, &shading, settings.shadow_rays);
+        let tiles = &frame.tiles;
+        let pass = Pass {
+            shadow_rays: settings.shadow_rays,
+            block: 1,
+        };
+        let run = || {
+            rayon::broadcast(|_| {
+                let mut scratch = tracer.scratch();
+                let mut pixels = Vec::new();
+                loop {
+                    let i = next.fetch_add(1, Ordering::Relaxed);
+                    if i >= tiles.len() || cancel.is_cancelled() {
+                        break;
+                    }
+                    let mut record = lock(&tiles[i]);
+                    let traced_before = scratch.stats.traced();
+                    if respecular.contains(&true) {
+                        respecular_tile(&scene, &settings, &shading, &respecular, &mut record, &mut scratch.shadow);
+                    }
+                    let n = replay_tile(&tracer, &mut record, &mut scratch, &mut pixels);
+                    retraced.fetch_add(n, Ordering::Relaxed);
+                    let rect = record.rect;
+                    drop(record);
+                    lock(&film).write_block(rect.x, rect.y, rect.w, &pixels);
+                    let tiles_done = done.fetch_add(1, Ordering::Relaxed) + 1;
+                    on_tile(&TileUpdate {
+                        pass_index: 0,
+                        pass_count: 1,
+                        pass,
+                        rect,
+                        pixels: &pixels,
+                        tiles_done,
+                        tiles_total: tiles.len(),
+                        rays: scratch.stats.traced() - traced_before,
+                    });
+                }
+                *lock(&stats) += scratch.stats;
+            });
+            if cancel.is_cancelled() {
+                Err(Cancelled)
+            } else {
+                Ok(())
+            }
+        };
+        let result = in_pool(options.threads, run);
+        let film = film.into_inner().unwrap_or_else(|e| e.into_inner());
+        let stats = stats.into_inner().unwrap_or_else(|e| e.into_inner());
+        if let Err(e) = result {
+            // Some tiles may hold the new factors, others the old: nothing
+            // recorded can be trusted any more.
+            if respecular.contains(&true) || retraced.load(Ordering::Relaxed) > 0 {
+                current.frame = None;
+            }
+            return Err(e.into());
+        }
+        current.desc = desc.clone();
+        current.settings = settings;
+        current.shading = shading;
+        Ok(LiveReport {
+            class,
+            film,
+            stats,
+            elapsed: Duration::ZERO,
+            retraced_pixels: retraced.into_inner(),
+            record_bytes: 0,
+        })
+    }
+}
+
+/// Computes the specular factors of a tile's hits whose material's
+/// shininess changed, from their recorded visibility.
+fn respecular_tile(
+    scene: &Scene,
+    settings: &RenderSettings,
+    shading: &ShadingParams,
+    respecular: &[bool],
+    record: &mut TileRecord,
+    buf: &mut ShadowBuffers,
+) {
+    let pattern = super::sampling::Pattern::new(settings.sampling, settings.shadow_rays);
+    let count = pattern.count();
+    let TileRecord {
+        rect,
+        starts,
+        hits,
+        shapes,
+        ..
+    } = record;
+    let shapes = shapes.as_ref().expect("the shininess tier");
+    for (i, w) in starts.windows(2).enumerate() {
+        let (x, y) = (rect.x + i as u32 % rect.w, rect.y + i as u32 / rect.w);
+        for (k, h) in (w[0] as usize..w[1] as usize).enumerate() {
+            let hit = &mut hits[h];
+            if !respecular[hit.material as usize] {
+                continue;
+            }
+            let shape = &shapes.hits[h];
+            let visible = &shapes.visible[h * shapes.words..(h + 1) * shapes.words];
+            let shininess = shading.materials[hit.material as usize].shininess;
+            hit.factors.specular = match settings.model {
+                AreaLightModel::NearestPoint => {
+                    let seen: u32 = visible.iter().map(|w| w.count_ones()).sum();
+                    nearest_point_specular(shape.normal, shape.to_light, shape.view, shininess)
+                        * (seen as f32 / count as f32)
+                }
+                AreaLightModel::Sampled | AreaLightModel::Analytic => {
+                    let mut rng = Rng::for_vertex(settings.seed, x, y, k as u32 + 1);
+                    sampled_specular_again(
+                        scene,
+                        &pattern,
+                        &mut rng,
+                        shape.to_light,
+                        shape.normal,
+                        shape.view,
+                        shininess,
+                        visible,
+                        buf,
+                    )
+                }
+            };
+        }
+    }
+}
+
+/// The pixels of a tile from its records (into `out`), tracing the paths
+/// that an edit lengthened; returns how many were traced.
+fn replay_tile(
+    tracer: &Tracer,
+    record: &mut TileRecord,
+    scratch: &mut super::tracer::TraceScratch,
+    out: &mut Vec<Vec3>,
+) -> usize {
+    out.clear();
+    let pixels = (record.rect.w * record.rect.h) as usize;
+    let mut short = Vec::new();
+    for i in 0..pixels {
+        let hits = &record.hits[record.pixel_hits(i)];
+        match replay(hits, record.ends[i], tracer.settings, tracer.shading) {
+            Some(c) => out.push(c),
+            None => {
+                short.push(i);
+                out.push(Vec3::ZERO);
+            }
+        }
+    }
+    if short.is_empty() {
+        return 0;
+    }
+    // Record the tile again: the lengthened paths traced, the others copied.
+    let rect = record.rect;
+    let mut fresh = TileRecord::new(rect, tracer.pattern.count(), record.shapes.is_some());
+    let mut next_short = short.iter().peekable();
+    for i in 0..pixels {
+        if next_short.peek() == Some(&&i) {
+            next_short.next();
+            let (x, y) = (rect.x + i as u32 % rect.w, rect.y + i as u32 / rect.w);
+            out[i] = tracer.trace(x, y, scratch, &mut TileRecorder { record: &mut fresh });
+        } else {
+            let range = record.pixel_hits(i);
+            fresh.hits.extend_from_slice(&record.hits[range.clone()]);
+            if let (Some(to), Some(from)) = (&mut fresh.shapes, &record.shapes) {
+                to.hits.extend_from_slice(&from.hits[range.clone()]);
+                to.visible
+                    .extend_from_slice(&from.visible[range.start * from.words..range.end * from.words]);
+            }
+            fresh.ends.push(record.ends[i]);
+            fresh.starts.push(fresh.hits.len() as u32);
+        }
+    }
+    fresh.shrink();
+    *record = fresh;
+    short.len()
+}

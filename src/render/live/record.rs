@@ -1,0 +1,181 @@
+//! What a full-quality render keeps of every pixel so that a later edit
+//! of a shading parameter needs no ray: the hits of its path, their light
+//! factors, and what recomputing the specular factor needs.
+//!
+//! Bytes per hit: 12 for the colour tier (material, diffuse and specular
+//! factors) — enough for every recombine edit and for reflectivity — plus
+//! 36 + 8 per 64 light points for the shininess tier (the hit's light
+//! direction, normal and view in f32, and one visibility bit per light
+//! point). Per pixel: 5 (its first hit and how its path ended). At 960×540,
+//! 64 shadow rays, depth 4 on the seed room (670 k hits): about 40 MB.
+
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+
+use glam::Vec3;
+
+use crate::render::progressive::TileRect;
+use crate::render::shading::LightTerms;
+use crate::render::shadow::ShadowBuffers;
+use crate::render::tracer::{HitRecord, PathEnd, PathSink};
+
+/// The colour tier of one hit.
+#[derive(Debug, Clone, Copy)]
+pub struct ColourHit {
+    pub material: u32,
+    pub factors: LightTerms,
+}
+
+/// The shininess tier of one hit.
+#[derive(Debug, Clone, Copy)]
+pub struct ShapeHit {
+    pub to_light: Vec3,
+    pub normal: Vec3,
+    pub view: Vec3,
+}
+
+/// The records of one tile's pixels, row by row.
+#[derive(Debug, Clone)]
+pub struct TileRecord {
+    pub rect: TileRect,
+    /// Per pixel, the index of its first hit; one more entry at the end.
+    pub starts: Vec<u32>,
+    pub ends: Vec<PathEnd>,
+    pub hits: Vec<ColourHit>,
+    /// The shininess tier, parallel to `hits` (absent above the memory cap).
+    pub shapes: Option<Shapes>,
+}
+
+/// The shininess tier of a tile.
+#[derive(Debug, Clone, Default)]
+pub struct Shapes {
+    pub hits: Vec<ShapeHit>,
+    /// `words` visibility words per hit.
+    pub visible: Vec<u64>,
+    pub words: usize,
+}
+
+impl TileRecord {
+    pub fn new(rect: TileRect, light_points: usize, with_shapes: bool) -> TileRecord {
+        let pixels = (rect.w * rect.h) as usize;
+        let mut starts = Vec::with_capacity(pixels + 1);
+        starts.push(0);
+        TileRecord {
+            rect,
+            starts,
+            ends: Vec::with_capacity(pixels),
+            hits: Vec::with_capacity(pixels),
+            shapes: with_shapes.then(|| Shapes {
+                hits: Vec::with_capacity(pixels),
+                visible: Vec::with_capacity(pixels * light_points.div_ceil(64)),
+                words: light_points.div_ceil(64),
+            }),
+        }
+    }
+
+    /// Heap bytes held.
+    pub fn bytes(&self) -> usize {
+        let shapes = self.shapes.as_ref().map_or(0, |s| {
+            s.hits.capacity() * size_of::<ShapeHit>() + s.visible.capacity() * 8
+        });
+        self.starts.capacity() * 4
+            + self.ends.capacity() * size_of::<PathEnd>()
+            + self.hits.capacity() * size_of::<ColourHit>()
+            + shapes
+    }
+
+    /// The hits of pixel `i` of the tile.
+    #[inline]
+    pub fn pixel_hits(&self, i: usize) -> std::ops::Range<usize> {
+        self.starts[i] as usize..self.starts[i + 1] as usize
+    }
+
+    /// Gives back the spare capacity.
+    pub fn shrink(&mut self) {
+        self.starts.shrink_to_fit();
+        self.ends.shrink_to_fit();
+        self.hits.shrink_to_fit();
+        if let Some(s) = &mut self.shapes {
+            s.hits.shrink_to_fit();
+            s.visible.shrink_to_fit();
+        }
+    }
+
+    /// Drops the shininess tier and the spare capacity.
+    pub fn drop_shapes(&mut self) {
+        self.shapes = None;
+        self.starts.shrink_to_fit();
+        self.ends.shrink_to_fit();
+        self.hits.shrink_to_fit();
+    }
+}
+
+/// Records the paths of one tile as they are traced.
+pub struct TileRecorder<'a> {
+    pub record: &'a mut TileRecord,
+}
+
+impl PathSink for TileRecorder<'_> {
+    const RECORD: bool = true;
+
+    #[inline]
+    fn hit(&mut self, hit: HitRecord, buf: &ShadowBuffers, count: usize) {
+        let r = &mut *self.record;
+        r.hits.push(ColourHit {
+            material: hit.material,
+            factors: hit.factors,
+        });
+        if let Some(s) = &mut r.shapes {
+            s.hits.push(ShapeHit {
+                to_light: hit.to_light,
+                normal: hit.normal,
+                view: hit.view,
+            });
+            let base = s.visible.len();
+            s.visible.resize(base + s.words, 0);
+            for (j, &v) in buf.vis[..count].iter().enumerate() {
+                s.visible[base + j / 64] |= ((v != 0.0) as u64) << (j % 64);
+            }
+        }
+    }
+
+    #[inline]
+    fn end(&mut self, end: PathEnd) {
+        let r = &mut *self.record;
+        r.ends.push(end);
+        r.starts.push(r.hits.len() as u32);
+    }
+}
+
+/// The memory budget of one frame's records, shared by the threads that
+/// fill them: once the cap is passed, tiles still to come keep no
+/// shininess tier ([`Budget::shapes_allowed`]), and the frame then drops
+/// it everywhere, or all records if the colour tier alone is over the cap
+/// (`Frame::trimmed`).
+#[derive(Debug)]
+pub struct Budget {
+    pub cap: usize,
+    used: AtomicUsize,
+    shapes: AtomicBool,
+}
+
+impl Budget {
+    pub fn new(cap: usize) -> Budget {
+        Budget {
+            cap,
+            used: AtomicUsize::new(0),
+            shapes: AtomicBool::new(true),
+        }
+    }
+
+    pub fn shapes_allowed(&self) -> bool {
+        self.shapes.load(Ordering::Relaxed)
+    }
+
+    /// Accounts a finished tile's record.
+    pub fn add(&self, record: &TileRecord) {
+        let bytes = record.bytes();
+        if self.used.fetch_add(bytes, Ordering::Relaxed) + bytes > self.cap {
+            self.shapes.store(false, Ordering::Relaxed);
+        }
+    }
+}

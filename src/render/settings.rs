@@ -1,0 +1,58 @@
+//! What a render is asked to do: the scene file's `render` section as the
+//! tracer reads it. Editing any of it never rebuilds the scene.
+
+use glam::{DVec3, Vec3};
+
+use super::sampling::points_per_hit;
+use super::scene_file::{AreaLightModel, Sampling, SceneDesc};
+
+/// Settings of one render, from the scene's `render` section.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RenderSettings {
+    /// Shadow rays asked for per hit point; [`RenderSettings::cast_rays`]
+    /// is how many the pattern casts.
+    pub shadow_rays: u32,
+    pub sampling: Sampling,
+    pub max_depth: u32,
+    pub seed: u64,
+    pub model: AreaLightModel,
+    /// Multipliers of the ambient, diffuse and specular terms.
+    pub terms: Vec3,
+    pub background: Vec3,
+    /// `false`: every shadow ray arrives.
+    pub shadows: bool,
+    /// Trace a few shadow rays first and the rest only where they disagree
+    /// (faster, biased).
+    pub adaptive: bool,
+    /// Skip work whose result is known (exact; see `shadow/`). Only
+    /// switched off to measure what the skipping saves.
+    pub skip: bool,
+}
+
+impl RenderSettings {
+    pub fn from_desc(desc: &SceneDesc) -> RenderSettings {
+        let r = &desc.render;
+        RenderSettings {
+            shadow_rays: r.shadow_rays,
+            sampling: r.sampling,
+            max_depth: r.max_depth,
+            seed: r.seed,
+            model: r.area_light_model,
+            terms: Vec3::new(
+                r.terms.ambient as f32,
+                r.terms.diffuse as f32,
+                r.terms.specular as f32,
+            ),
+            background: DVec3::from(r.background).as_vec3(),
+            shadows: r.shadows,
+            adaptive: r.adaptive,
+            skip: true,
+        }
+    }
+
+    /// Shadow rays the pattern casts per hit point for the requested count
+    /// (the grid patterns round down to a square).
+    pub fn cast_rays(&self) -> usize {
+        points_per_hit(self.sampling, self.shadow_rays)
+    }
+}

@@ -1,0 +1,199 @@
+//! Objects as seen from one hit point, and the per-ray blocking tests.
+
+use glam::{DVec3, Vec3};
+
+use super::RAY_END;
+use crate::render::geometry::Shape;
+use crate::render::math::avx2_dispatch;
+
+
+/// An object as seen from one hit point, in f32 relative to it.
+#[derive(Debug, Clone, Copy)]
+pub(super) enum Occluder {
+    /// `oc`: centre − p; `r2`: the radius squared.
+    Sphere { oc: Vec3, r2: f32, inside: bool },
+    /// `origin`: p in the box's frame; `cos`, `sin`: its rotation about y.
+    Cuboid {
+        origin: Vec3,
+        half: Vec3,
+        cos: f32,
+        sin: f32,
+    },
+    /// `to_corner`: corner − p; `dual_*`: rows of the pseudo-inverse of the
+    /// edges; `dist`: normal · (corner − p).
+    Rect {
+        to_corner: Vec3,
+        normal: Vec3,
+        dual_u: Vec3,
+        dual_v: Vec3,
+        dist: f32,
+    },
+    /// `dist`: signed distance of p from the plane.
+    Plane { normal: Vec3, dist: f32 },
+}
+
+impl Occluder {
+    pub(super) fn new(shape: &Shape, p: DVec3, inside: bool) -> Occluder {
+        match shape {
+            Shape::Sphere(s) => Occluder::Sphere {
+                oc: (s.centre - p).as_vec3(),
+                r2: (s.radius * s.radius) as f32,
+                inside,
+            },
+            Shape::Cuboid(c) => Occluder::Cuboid {
+                origin: c.to_local(p - c.centre).as_vec3(),
+                half: c.half.as_vec3(),
+                cos: c.cos as f32,
+                sin: c.sin as f32,
+            },
+            Shape::Parallelogram(r) => {
+                let to_corner = r.corner - p;
+                Occluder::Rect {
+                    to_corner: to_corner.as_vec3(),
+                    normal: r.normal.as_vec3(),
+                    dual_u: r.dual_u.as_vec3(),
+                    dual_v: r.dual_v.as_vec3(),
+                    dist: r.normal.dot(to_corner) as f32,
+                }
+            }
+            Shape::Plane(pl) => Occluder::Plane {
+                normal: pl.normal.as_vec3(),
+                dist: pl.signed_distance(p) as f32,
+            },
+        }
+    }
+
+    /// Clears `vis[j]` for every ray that this occluder blocks.
+    pub(super) fn block(&self, d: Dirs, vis: &mut [f32]) {
+        block(self, d, vis)
+    }
+
+    #[inline(always)]
+    fn block_generic(&self, d: Dirs, vis: &mut [f32]) {
+        let n = vis.len();
+        let (dx, dy, dz) = (&d.x[..n], &d.y[..n], &d.z[..n]);
+        match *self {
+            Occluder::Sphere { oc, r2, inside } => {
+                for j in 0..n {
+                    let blocked = sphere_blocks(oc, r2, inside, dx[j], dy[j], dz[j]);
+                    vis[j] = if blocked { 0.0 } else { vis[j] };
+                }
+            }
+            Occluder::Cuboid {
+                origin,
+                half,
+                cos,
+                sin,
+            } => {
+                let (lo, hi) = (-half - origin, half - origin);
+                for j in 0..n {
+                    let (x, y, z) = (dx[j], dy[j], dz[j]);
+                    let (lx, lz) = (x * cos - z * sin, x * sin + z * cos);
+                    let (ix, iy, iz) = (1.0 / lx, 1.0 / y, 1.0 / lz);
+                    let (ax, bx) = (lo.x * ix, hi.x * ix);
+                    let (ay, by) = (lo.y * iy, hi.y * iy);
+                    let (az, bz) = (lo.z * iz, hi.z * iz);
+                    // f32::min/max drop the NaN of 0·∞ (a ray in a face's
+                    // plane), treating that slab as not limiting.
+                    let near = ax.min(bx).max(ay.min(by)).max(az.min(bz)).max(0.0);
+                    let far = ax.max(bx).min(ay.max(by)).min(az.max(bz)).min(RAY_END);
+                    vis[j] = if near < far { 0.0 } else { vis[j] };
+                }
+            }
+            Occluder::Rect {
+                to_corner,
+                normal,
+                dual_u,
+                dual_v,
+                dist,
+            } => {
+                for j in 0..n {
+                    let d = Vec3::new(dx[j], dy[j], dz[j]);
+                    let t = dist / normal.dot(d);
+                    let q = d * t - to_corner;
+                    let (a, b) = (q.dot(dual_u), q.dot(dual_v));
+                    let blocked = t > 0.0
+                        && t < RAY_END
+                        && (0.0..=1.0).contains(&a)
+                        && (0.0..=1.0).contains(&b);
+                    vis[j] = if blocked { 0.0 } else { vis[j] };
+                }
+            }
+            Occluder::Plane { normal, dist } => {
+                for j in 0..n {
+                    let end =
+                        dist + (normal.x * dx[j] + normal.y * dy[j] + normal.z * dz[j]) * RAY_END;
+                    vis[j] = if dist * end < 0.0 { 0.0 } else { vis[j] };
+                }
+            }
+        }
+    }
+
+    /// Whether this occluder blocks the single ray `d`.
+    pub(super) fn blocks(&self, d: Vec3) -> bool {
+        let mut v = [1.0];
+        let dirs = Dirs {
+            x: &[d.x],
+            y: &[d.y],
+            z: &[d.z],
+        };
+        self.block(dirs, &mut v);
+        v[0] == 0.0
+    }
+}
+
+
+/// Whether the ray (x, y, z) from the hit point meets the sphere (centre
+/// `oc` from the hit point, radius² `r2`) before [`RAY_END`]. One lane of
+/// the vector loop, and the scalar test of a lone ray: the same operations,
+/// so the same answer.
+#[inline(always)]
+pub(super) fn sphere_blocks(oc: Vec3, r2: f32, inside: bool, x: f32, y: f32, z: f32) -> bool {
+    let a = x * x + y * y + z * z;
+    let b = oc.x * x + oc.y * y + oc.z * z;
+    // disc = b² − a(|oc|² − r²) = a(r² − |e|²), e the centre's offset from
+    // the ray's closest point: computed from e (Ray Tracing Gems, ch. 7), it
+    // keeps its precision for a small sphere far away, where b² and a|oc|²
+    // cancel.
+    let t = b / a;
+    let (ex, ey, ez) = (oc.x - x * t, oc.y - y * t, oc.z - z * t);
+    let disc = a * (r2 - (ex * ex + ey * ey + ez * ez));
+    // Roots t = (b ± √disc) / a. Outside: the near root, in (0, 1) iff
+    // b > 0 and b − a < √disc. Inside (p is on the sphere, disc = b²): the
+    // exit, b + |b| < a.
+    if inside {
+        b + b.abs() < a * RAY_END
+    } else {
+        let s = b - a * RAY_END;
+        disc >= 0.0 && b > 0.0 && (s < 0.0 || s * s < disc)
+    }
+}
+
+avx2_dispatch!(
+    /// Clears `vis[j]` for every ray that `occ` blocks.
+    fn block(occ: &Occluder, d: Dirs, vis: &mut [f32]) => block_generic
+);
+
+#[inline(always)]
+fn block_generic(occ: &Occluder, d: Dirs, vis: &mut [f32]) {
+    occ.block_generic(d, vis)
+}
+
+/// Directions of shadow rays as parallel slices (unnormalized: from the
+/// hit point to the light point).
+#[derive(Clone, Copy)]
+pub(super) struct Dirs<'a> {
+    pub(super) x: &'a [f32],
+    pub(super) y: &'a [f32],
+    pub(super) z: &'a [f32],
+}
+
+impl<'a> Dirs<'a> {
+    pub(super) fn range(self, r: std::ops::Range<usize>) -> Dirs<'a> {
+        Dirs {
+            x: &self.x[r.clone()],
+            y: &self.y[r.clone()],
+            z: &self.z[r],
+        }
+    }
+}

@@ -1,0 +1,214 @@
+//! Shadow rays as packets through the BVH built in the light's frame.
+
+use super::light_frame::{Eye, LightFrame, OccluderBvh};
+use super::occluder::{Dirs, Occluder, sphere_blocks};
+use super::ray_packet::RayBins;
+use super::visibility::ShadowQuery;
+use crate::render::geometry::Slot;
+use crate::render::math::avx2_dispatch;
+use crate::render::scene::Scene;
+
+
+/// One hit point's shadow rays against the light-frame BVH.
+pub(super) struct Packets<'a> {
+    pub(super) sb: &'a OccluderBvh,
+    /// The hit point in the light's frame.
+    pub(super) eye: Eye,
+    pub(super) q: &'a ShadowQuery,
+}
+
+
+avx2_dispatch!(
+    /// Traces up to 64 rays (light points `ab`, directions and visibility
+    /// as slices of whole chunks of 8) through the light-frame BVH; returns
+    /// the rays tested against at least one object.
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn packet(pk: &Packets, scene: &Scene, bins: &RayBins, ab: [&[f32]; 2], d: Dirs, vis: &mut [f32], scratch: &mut PacketScratch) -> u64
+        => packet_generic
+);
+
+/// Rays left in a packet below which they walk the tree one by one: a
+/// slab test per ray and box is then cheaper than the footprints.
+const SOLO: u32 = 2;
+
+/// Scratch space of the packet traversal.
+#[derive(Debug, Default)]
+pub struct PacketScratch {
+    /// Nodes to visit, with the rays that may meet each.
+    stack: Vec<(u32, u64)>,
+    /// Nodes to visit by one ray.
+    solo: Vec<u32>,
+}
+
+// Lanes of parallel arrays: index loops are what vectorizes.
+#[allow(clippy::needless_range_loop)]
+#[inline(always)]
+fn packet_generic(
+    pk: &Packets,
+    scene: &Scene,
+    bins: &RayBins,
+    ab: [&[f32]; 2],
+    d: Dirs,
+    vis: &mut [f32],
+    scratch: &mut PacketScratch,
+) -> u64 {
+    let PacketScratch { stack, solo } = scratch;
+    let mut live = live_rays(vis) & bins.all;
+    let tree = &pk.sb.tree;
+    if live == 0 || tree.nodes.is_empty() {
+        return 0;
+    }
+    let mut tested = 0;
+    // Tests object i against the rays `m` (and whichever share their chunks
+    // of 8); returns the rays still live. Every answer is the exact f32
+    // test, so the order of the tests changes nothing but the time.
+    let mut test = |i: u32, m: u64, live: u64| -> u64 {
+        let inside = i == pk.q.object && pk.q.inside;
+        if i == pk.q.object && !inside {
+            return live;
+        }
+        tested |= m;
+        let occ = Occluder::new(&scene.objects[i as usize].shape, pk.q.point, inside);
+        if let Occluder::Sphere { oc, r2, inside } = occ
+            && m.count_ones() <= 4
+        {
+            // A few rays: the lane test alone, without a vector call.
+            let mut live = live;
+            let mut rays = m;
+            while rays != 0 {
+                let j = rays.trailing_zeros() as usize;
+                rays &= rays - 1;
+                if sphere_blocks(oc, r2, inside, d.x[j], d.y[j], d.z[j]) {
+                    vis[j] = 0.0;
+                    live &= !(1 << j);
+                }
+            }
+            return live;
+        }
+        // The chunks from the first to the last ray to test, in one call.
+        let first = m.trailing_zeros() as usize / 8 * 8;
+        let past = (64 - m.leading_zeros() as usize).div_ceil(8) * 8;
+        let r = first..past;
+        let v = &mut vis[r.clone()];
+        occ.block(d.range(r), v);
+        let span = (u64::MAX >> (64 - (past - first))) << first;
+        live & (!span | (live_rays(v) << first))
+    };
+
+    // Depth-first; each entry holds the rays that may meet the node.
+    stack.clear();
+    stack.push((0, live));
+    while let Some((index, rays)) = stack.pop() {
+        let rays = rays & live;
+        if rays == 0 {
+            continue;
+        }
+        if rays.count_ones() <= SOLO {
+            // Each ray alone through this subtree, nearest boxes first.
+            let mut each = rays;
+            while each != 0 {
+                let j = each.trailing_zeros() as usize;
+                each &= each - 1;
+                if live & (1 << j) == 0 {
+                    // Blocked meanwhile, by a test of its chunk.
+                    continue;
+                }
+                let ray = pk
+                    .eye
+                    .segment(pk.sb.frame.light_point(ab[0][j] as f64, ab[1][j] as f64));
+                solo.clear();
+                solo.push(index);
+                'walk: while let Some(n) = solo.pop() {
+                    let node = &tree.nodes[n as usize];
+                    let (hit, near) = ray.hits(node);
+                    let mut next = [(0.0f32, 0u32); 4];
+                    let mut n_next = 0;
+                    for s in 0..4 {
+                        if !hit[s] {
+                            continue;
+                        }
+                        match node.slot(s) {
+                            Slot::Empty => {}
+                            Slot::Node(c) => {
+                                next[n_next] = (near[s], c);
+                                n_next += 1;
+                            }
+                            Slot::Object(i) => {
+                                live = test(i, 1 << j, live);
+                                if live == 0 {
+                                    return tested;
+                                }
+                                if live & (1 << j) == 0 {
+                                    break 'walk;
+                                }
+                            }
+                        }
+                    }
+                    let next = &mut next[..n_next];
+                    sort_far_first(next);
+                    solo.extend(next.iter().map(|&(_, c)| c));
+                }
+            }
+            continue;
+        }
+        let node = &tree.nodes[index as usize];
+        let feet = LightFrame::footprints(&pk.eye, node);
+        let masks = bins.rays_in4(&feet);
+        let mut next = [(0.0f64, (0u32, 0u64)); 4];
+        let mut n_next = 0;
+        for s in 0..4 {
+            let m = masks[s] & rays & live;
+            if m == 0 {
+                continue;
+            }
+            match node.slot(s) {
+                Slot::Empty => {}
+                Slot::Node(c) => {
+                    next[n_next] = (feet.near[s], (c, m));
+                    n_next += 1;
+                }
+                Slot::Object(i) => {
+                    live = test(i, m, live);
+                    if live == 0 {
+                        return tested;
+                    }
+                }
+            }
+        }
+        // Push the farthest first so that the nearest is visited next.
+        let next = &mut next[..n_next];
+        sort_far_first(next);
+        stack.extend(next.iter().map(|&(_, c)| c));
+    }
+    tested
+}
+
+/// Sorts up to four children by distance, farthest first (so that the
+/// nearest is popped next): an insertion sort the compiler unrolls.
+#[inline(always)]
+fn sort_far_first<K: PartialOrd + Copy, T: Copy>(v: &mut [(K, T)]) {
+    for i in 1..v.len() {
+        let x = v[i];
+        let mut k = i;
+        while k > 0 && v[k - 1].0 < x.0 {
+            v[k] = v[k - 1];
+            k -= 1;
+        }
+        v[k] = x;
+    }
+}
+
+/// Bit j set where `vis[j]` is not 0 (at most 64 rays, whole chunks of 8:
+/// each chunk becomes one compare and one move-mask).
+#[inline(always)]
+pub(super) fn live_rays(vis: &[f32]) -> u64 {
+    let mut m = 0;
+    for (c, chunk) in vis.chunks_exact(8).enumerate() {
+        let mut byte = 0u64;
+        for (i, &v) in chunk.iter().enumerate() {
+            byte |= ((v != 0.0) as u64) << i;
+        }
+        m |= byte << (8 * c);
+    }
+    m
+}

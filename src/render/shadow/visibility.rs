@@ -1,0 +1,381 @@
+//! Which of a hit point's light points are visible: culling, the umbra
+//! test, adaptive probes, and the tracing itself.
+
+use glam::{DVec3, Vec3};
+
+use super::buffers::ShadowBuffers;
+use super::light_frame::Eye;
+use super::occluder::{Dirs, Occluder};
+use super::packet::{PacketScratch, Packets, packet};
+use super::pyramid::ShadowPyramid;
+use super::ray_packet::{PACKET, RayBins};
+use crate::render::geometry::Shape;
+use crate::render::math::avx2_dispatch;
+use crate::render::scene::Scene;
+use crate::render::settings::RenderSettings;
+use crate::render::stats::RayStats;
+
+
+/// Rays traced first by the adaptive mode.
+const ADAPTIVE_PROBES: usize = 8;
+
+
+/// A possible occluder of one hit point.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Candidate {
+    occ: Occluder,
+    /// Convex and wholly between the hit point's side and the light's plane:
+    /// may decide the umbra test.
+    umbra_test: bool,
+}
+
+
+/// One hit point whose shadow rays are to be traced.
+pub(crate) struct ShadowQuery {
+    /// The hit point (on the surface).
+    pub point: DVec3,
+    /// Unit normal facing the incoming ray.
+    pub normal: DVec3,
+    /// The hit object.
+    pub object: u32,
+    /// Whether the object was hit from inside.
+    pub inside: bool,
+}
+
+/// Fills `buf.dx/dy/dz` from `buf.a/b` and `buf.vis` with each point's
+/// visibility (1 or 0), for the first `count` points.
+pub fn visibility(
+    scene: &Scene,
+    settings: &RenderSettings,
+    q: &ShadowQuery,
+    count: usize,
+    buf: &mut ShadowBuffers,
+    stats: &mut RayStats,
+) {
+    let light = &scene.light.shape;
+    let to_corner = (light.corner - q.point).as_vec3();
+    let (eu, ev) = (light.edge_u.as_vec3(), light.edge_v.as_vec3());
+    let facing = light_directions(to_corner, eu, ev, q.normal.as_vec3(), count, buf);
+    stats.shadow_backfacing += count as u64 - facing;
+    if facing == 0 {
+        return;
+    }
+    if !settings.shadows {
+        stats.shadow_disabled += facing;
+        return;
+    }
+
+    let skip = settings.skip;
+    let corners = light.corners();
+    let pyramid = ShadowPyramid::new(q.point, &corners, light.normal, light.centre());
+    // An object as a possible occluder of this hit point, unless it can
+    // certainly block nothing.
+    let candidate = |i: u32| -> Option<Candidate> {
+        let inside = i == q.object && q.inside;
+        if i == q.object && !inside {
+            return None;
+        }
+        let object = &scene.objects[i as usize];
+        if skip {
+            match &object.shape {
+                // A plane blocks only if some light point lies on its other
+                // side from p.
+                Shape::Plane(pl) => {
+                    let sp = pl.signed_distance(q.point);
+                    if corners.iter().all(|c| pl.signed_distance(*c) * sp > 0.0) {
+                        return None;
+                    }
+                }
+                // The sphere itself is a tighter test than its box.
+                Shape::Sphere(sp) => {
+                    if !pyramid.may_overlap_sphere(sp.centre, sp.radius) {
+                        return None;
+                    }
+                }
+                _ => {
+                    if object.bounds.is_some_and(|b| !pyramid.may_overlap(&b)) {
+                        return None;
+                    }
+                }
+            }
+        }
+        let umbra_test = !inside
+            && match object.bounds {
+                // Planes block a light point iff it lies on their other side:
+                // all four corners there means the whole light.
+                None => true,
+                Some(b) => {
+                    let x = DVec3::select(light.normal.cmpge(DVec3::ZERO), b.min, b.max);
+                    light.signed_distance(x) > 0.0
+                }
+            };
+        Some(Candidate {
+            occ: Occluder::new(&object.shape, q.point, inside),
+            umbra_test,
+        })
+    };
+
+    // Objects outside the BVH (planes, and all objects of small scenes).
+    buf.occluders.clear();
+    buf.occluders.extend(
+        scene
+            .unbounded
+            .iter()
+            .chain(&scene.bounded)
+            .filter_map(|&i| candidate(i)),
+    );
+    if buf.occluders.is_empty() && scene.bvh.is_empty() {
+        stats.shadow_unoccluded += facing;
+        return;
+    }
+    if skip {
+        // Umbra: one convex occluder between p and the light's plane that
+        // blocks all four corner rays blocks the whole light.
+        let corner_dirs = corners.map(|c| (c - q.point).as_vec3());
+        let umbra = buf
+            .occluders
+            .iter()
+            .any(|c| c.umbra_test && corner_dirs.iter().all(|d| c.occ.blocks(*d)));
+        if umbra {
+            buf.vis[..count].fill(0.0);
+            stats.shadow_umbra += facing;
+            return;
+        }
+    }
+    // With many objects, shadow rays walk the light-frame BVH as packets
+    // whose nodes keep only the rays that can meet them.
+    let packets = scene.shadow_bvh.as_ref().filter(|_| skip).map(|sb| {
+        let p = sb.frame.local(q.point);
+        // Wider than the rounding of the f32 ray tests by orders of
+        // magnitude (their decisions move by ~1e-6 of the distances), so
+        // no ray the full test would find blocked is left out.
+        let margin = 1e-4 * (p.abs().max_element() + light.edge_u.length() + light.edge_v.length());
+        Packets {
+            sb,
+            eye: Eye::new(p, margin),
+            q,
+        }
+    });
+
+    // Traces rays (directions and visibility as parallel slices) against the
+    // candidates; returns how many facing rays met a candidate test.
+    let occluders = &buf.occluders;
+    let trace = |rays: Rays, facing: u64, bins: Option<&[RayBins]>| -> u64 {
+        let Rays {
+            a,
+            b,
+            d,
+            vis,
+            scratch,
+            count,
+        } = rays;
+        let mut tested = if occluders.is_empty() { 0 } else { facing };
+        for c in occluders {
+            c.occ.block(d.range(0..count), &mut vis[..count]);
+        }
+        if let Some(pk) = &packets {
+            let mut own_bins;
+            for (k, start) in (0..count).step_by(PACKET).enumerate() {
+                let n = PACKET.min(count - start);
+                let bins = match bins {
+                    Some(bins) => &bins[k],
+                    None => {
+                        own_bins =
+                            RayBins::new(&pk.sb.frame, &a[start..start + n], &b[start..start + n]);
+                        &own_bins
+                    }
+                };
+                let end = (start + n).next_multiple_of(8);
+                let r = packet(
+                    pk,
+                    scene,
+                    bins,
+                    [&a[start..start + n], &b[start..start + n]],
+                    d.range(start..end),
+                    &mut vis[start..end],
+                    scratch,
+                );
+                if occluders.is_empty() {
+                    tested += r.count_ones() as u64;
+                }
+            }
+            return tested;
+        }
+        let mut traced = !occluders.is_empty();
+        // The BVH, nearest nodes first, each leaf's objects blocking rays at
+        // once, until no ray is left (an any-hit traversal for the whole
+        // packet; the result does not depend on the order).
+        let (d, vis) = (d.range(0..count), &mut vis[..count]);
+        if !scene.bvh.is_empty() && (!skip || vis.iter().any(|&v| v != 0.0)) {
+            scene.bvh.visit_near_first(
+                q.point,
+                |b| !skip || pyramid.may_overlap(b),
+                |i| {
+                    let Some(c) = candidate(i) else {
+                        return true;
+                    };
+                    traced = true;
+                    c.occ.block(d, vis);
+                    !skip || vis.iter().any(|&v| v != 0.0)
+                },
+            );
+        }
+        if traced { facing } else { 0 }
+    };
+
+    if settings.adaptive && count >= 4 * ADAPTIVE_PROBES {
+        // Adaptive (biased): trace a spread subset first; if its facing rays
+        // all agree, give every facing ray their answer.
+        // The points nearest the light's four corners and four edge
+        // midpoints: where a shadow edge would first show.
+        const TARGETS: [(f32, f32); ADAPTIVE_PROBES] = [
+            (0.0, 0.0),
+            (1.0, 0.0),
+            (1.0, 1.0),
+            (0.0, 1.0),
+            (0.5, 0.0),
+            (1.0, 0.5),
+            (0.5, 1.0),
+            (0.0, 0.5),
+        ];
+        let mut nearest = [(f32::INFINITY, 0usize); ADAPTIVE_PROBES];
+        for j in 0..count {
+            let (a, b) = (buf.a[j], buf.b[j]);
+            for (t, n) in TARGETS.iter().zip(nearest.iter_mut()) {
+                let d = (a - t.0) * (a - t.0) + (b - t.1) * (b - t.1);
+                if d < n.0 {
+                    *n = (d, j);
+                }
+            }
+        }
+        let mut probe = [[0.0f32; ADAPTIVE_PROBES]; 6];
+        let mut facing_probes = 0.0;
+        for (k, &(_, j)) in nearest.iter().enumerate() {
+            probe[0][k] = buf.a[j];
+            probe[1][k] = buf.b[j];
+            probe[2][k] = buf.dx[j];
+            probe[3][k] = buf.dy[j];
+            probe[4][k] = buf.dz[j];
+            probe[5][k] = buf.vis[j];
+            facing_probes += buf.vis[j];
+        }
+        let [pa, pb, px, py, pz, pvis] = &mut probe;
+        let rays = Rays {
+            a: pa,
+            b: pb,
+            d: Dirs {
+                x: px,
+                y: py,
+                z: pz,
+            },
+            vis: pvis,
+            scratch: &mut PacketScratch::default(),
+            count: ADAPTIVE_PROBES,
+        };
+        let traced = trace(rays, facing_probes as u64, None) > 0;
+        let visible: f32 = pvis.iter().sum();
+        if !traced && packets.is_none() {
+            stats.shadow_unoccluded += facing;
+            return;
+        }
+        if facing_probes > 0.0 && (visible == 0.0 || visible == facing_probes) {
+            if visible == 0.0 {
+                buf.vis[..count].fill(0.0);
+            }
+            stats.shadow += ADAPTIVE_PROBES as u64;
+            stats.shadow_adaptive += facing.saturating_sub(ADAPTIVE_PROBES as u64);
+            return;
+        }
+    }
+
+    // The packets' bins depend only on the light points: a fixed pattern's
+    // serve every hit point of the tile.
+    let bins = match &packets {
+        Some(pk) => {
+            if buf.filled.is_none() || buf.bins_for != buf.filled {
+                buf.bins.clear();
+                for start in (0..count).step_by(PACKET) {
+                    let end = (start + PACKET).min(count);
+                    buf.bins.push(RayBins::new(
+                        &pk.sb.frame,
+                        &buf.a[start..end],
+                        &buf.b[start..end],
+                    ));
+                }
+                buf.bins_for = buf.filled;
+            }
+            Some(&buf.bins[..])
+        }
+        None => None,
+    };
+    let rays = Rays {
+        a: &buf.a,
+        b: &buf.b,
+        d: Dirs {
+            x: &buf.dx,
+            y: &buf.dy,
+            z: &buf.dz,
+        },
+        vis: &mut buf.vis,
+        scratch: &mut buf.scratch,
+        count,
+    };
+    let tested = trace(rays, facing, bins);
+    stats.shadow += tested;
+    stats.shadow_unoccluded += facing - tested;
+}
+
+/// Shadow rays as parallel slices: light points, directions, visibility.
+/// The slices reach past `count` to a multiple of 8 (padding rays are
+/// invisible).
+struct Rays<'a> {
+    a: &'a [f32],
+    b: &'a [f32],
+    d: Dirs<'a>,
+    vis: &'a mut [f32],
+    scratch: &'a mut PacketScratch,
+    count: usize,
+}
+
+
+avx2_dispatch!(
+    /// Directions from the hit point to the light points, and 1 in `vis` for
+    /// those in front of the surface; returns how many are.
+    pub(crate) fn light_directions(to_corner: Vec3, eu: Vec3, ev: Vec3, n: Vec3, count: usize, buf: &mut ShadowBuffers) -> u64
+        => light_directions_generic
+);
+
+#[inline(always)]
+fn light_directions_generic(
+    to_corner: Vec3,
+    eu: Vec3,
+    ev: Vec3,
+    n: Vec3,
+    count: usize,
+    buf: &mut ShadowBuffers,
+) -> u64 {
+    let (a, b) = (&buf.a[..count], &buf.b[..count]);
+    let (dx, dy, dz) = (
+        &mut buf.dx[..count],
+        &mut buf.dy[..count],
+        &mut buf.dz[..count],
+    );
+    let vis = &mut buf.vis[..count];
+    for j in 0..count {
+        let (x, y, z) = (
+            to_corner.x + eu.x * a[j] + ev.x * b[j],
+            to_corner.y + eu.y * a[j] + ev.y * b[j],
+            to_corner.z + eu.z * a[j] + ev.z * b[j],
+        );
+        dx[j] = x;
+        dy[j] = y;
+        dz[j] = z;
+        vis[j] = if n.x * x + n.y * y + n.z * z > 0.0 {
+            1.0
+        } else {
+            0.0
+        };
+    }
+    // Exact: a sum of ones and zeros below 2²⁴.
+    vis.iter().sum::<f32>() as u64
+}

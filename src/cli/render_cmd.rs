@@ -5,7 +5,9 @@ use indicatif::{ProgressBar, ProgressStyle};
 
 use super::{CliError, RenderArgs, SceneOverrides};
 use crate::render::output::{FileKind, write_film};
-use crate::render::{CancelToken, Loaded, RenderOptions, RenderReport, Scene, SceneDesc, TileUpdate};
+use crate::render::{
+    CancelToken, Loaded, RenderOptions, RenderReport, Scene, SceneDesc, TileUpdate,
+};
 
 /// Loads and builds a scene (the built-in seed room for `None`) with
 /// overrides.

@@ -259,14 +259,21 @@ pub(crate) fn render_passes(
                 if let Some(budget) = record {
                     let mut rec =
                         TileRecord::new(rect, tracer.pattern.count(), budget.shapes_allowed());
-                    if !render_tile_recorded(&tracer, rect, cancel, &mut scratch, &mut pixels, &mut rec)
-                    {
+                    if !render_tile_recorded(
+                        &tracer,
+                        rect,
+                        cancel,
+                        &mut scratch,
+                        &mut pixels,
+                        &mut rec,
+                    ) {
                         break;
                     }
                     rec.shrink();
                     budget.add(&rec);
                     lock(&records)[i] = Some(rec);
-                } else if !render_tile(&tracer, rect, pass.block, cancel, &mut scratch, &mut pixels) {
+                } else if !render_tile(&tracer, rect, pass.block, cancel, &mut scratch, &mut pixels)
+                {
                     break;
                 }
                 lock(&film).write_block(rect.x, rect.y, rect.w, &pixels);

@@ -10,9 +10,9 @@ use std::sync::Arc;
 use super::camera::Camera;
 use super::error::SceneError;
 use super::film::Film;
-use super::progressive::{self, CancelToken, Cancelled, RenderOptions, RenderReport, TileUpdate};
 use super::geometry::{Aabb, Bvh, Cuboid, Parallelogram, Plane, Ray, Shape, Sphere};
 use super::light::AreaLight;
+use super::progressive::{self, CancelToken, Cancelled, RenderOptions, RenderReport, TileUpdate};
 use super::scene_file::{ObjectDesc, SceneDesc};
 use super::settings::RenderSettings;
 use super::shading_params::ShadingParams;
@@ -63,6 +63,8 @@ pub struct Scene {
     /// The same objects in a BVH built in the light's frame, for shadow-ray
     /// packets (from [`PACKET_THRESHOLD`] objects on).
     pub shadow_bvh: Option<OccluderBvh>,
+    /// Union of the bounded objects' bounds.
+    pub object_bounds: Option<Aabb>,
     /// Size of the scene's finite part (bounded objects, light, camera):
     /// the floor of ray offsets near the origin.
     pub scale: f64,
@@ -119,26 +121,14 @@ impl Scene {
         }
         let light = AreaLight::new(&desc.light);
         let camera = Camera::new(&desc.camera);
-        let finite = with_bounds
-            .iter()
-            .fold(Aabb::from_points(&light.shape.corners()), |b, o| {
-                b.union(o.1)
-            })
-            .grow(camera.origin);
-        let scale = finite
-            .extent()
-            .max_element()
-            .max(finite.min.abs().max(finite.max.abs()).max_element());
+        let object_bounds = with_bounds.iter().map(|o| o.1).reduce(|a, b| a.union(b));
+        let scale = scale_of(object_bounds, &light, &camera);
         let (bounded, bvh) = if with_bounds.len() > BVH_THRESHOLD {
             (Vec::new(), Bvh::build(&with_bounds))
         } else {
             (with_bounds.iter().map(|o| o.0).collect(), Bvh::default())
         };
-        let shadow_bvh = (with_bounds.len() >= PACKET_THRESHOLD).then(|| {
-            let shapes: Vec<&Shape> = objects.iter().map(|o| &o.shape).collect();
-            let ids: Vec<u32> = with_bounds.iter().map(|o| o.0).collect();
-            OccluderBvh::new(&light, &shapes, &ids)
-        });
+        let shadow_bvh = shadow_bvh(&objects, &light);
         Scene {
             camera,
             light,
@@ -148,7 +138,35 @@ impl Scene {
             bounded,
             bvh,
             shadow_bvh,
+            object_bounds,
             scale,
+        }
+    }
+
+    /// The same objects seen by `desc`'s camera under `desc`'s light: the
+    /// objects and their BVH are kept, the light-frame BVH is built again
+    /// only if the light moved (a camera or light edit is a re-trace, not a
+    /// rebuild).
+    pub fn with_view(&self, desc: &SceneDesc) -> Scene {
+        let light = AreaLight::new(&desc.light);
+        let camera = Camera::new(&desc.camera);
+        let (a, b) = (&light.shape, &self.light.shape);
+        let moved = (a.corner, a.edge_u, a.edge_v) != (b.corner, b.edge_u, b.edge_v);
+        Scene {
+            scale: scale_of(self.object_bounds, &light, &camera),
+            shadow_bvh: if moved {
+                shadow_bvh(&self.objects, &light)
+            } else {
+                self.shadow_bvh.clone()
+            },
+            camera,
+            light,
+            material_names: self.material_names.clone(),
+            objects: self.objects.clone(),
+            unbounded: self.unbounded.clone(),
+            bounded: self.bounded.clone(),
+            bvh: self.bvh.clone(),
+            object_bounds: self.object_bounds,
         }
     }
 
@@ -178,6 +196,30 @@ impl Scene {
     pub fn material_name(&self, object: u32) -> &str {
         &self.material_names[self.objects[object as usize].material as usize]
     }
+}
+
+/// Size of the scene's finite part (bounded objects, light, camera).
+fn scale_of(object_bounds: Option<Aabb>, light: &AreaLight, camera: &Camera) -> f64 {
+    let lit = Aabb::from_points(&light.shape.corners());
+    let finite = object_bounds
+        .map_or(lit, |b| lit.union(b))
+        .grow(camera.origin);
+    finite
+        .extent()
+        .max_element()
+        .max(finite.min.abs().max(finite.max.abs()).max_element())
+}
+
+/// The light-frame BVH of the bounded objects, from [`PACKET_THRESHOLD`] of
+/// them on.
+fn shadow_bvh(objects: &[Object], light: &AreaLight) -> Option<OccluderBvh> {
+    let ids: Vec<u32> = (0..objects.len() as u32)
+        .filter(|&i| objects[i as usize].bounds.is_some())
+        .collect();
+    (ids.len() >= PACKET_THRESHOLD).then(|| {
+        let shapes: Vec<&Shape> = objects.iter().map(|o| &o.shape).collect();
+        OccluderBvh::new(light, &shapes, &ids)
+    })
 }
 
 /// A loaded scene: the immutable part and the two editable parts, as the
@@ -223,7 +265,14 @@ impl Loaded {
         cancel: &CancelToken,
         on_tile: &(dyn Fn(&TileUpdate) + Sync),
     ) -> Result<RenderReport, Cancelled> {
-        progressive::render(&self.scene, &self.settings, &self.shading, options, cancel, on_tile)
+        progressive::render(
+            &self.scene,
+            &self.settings,
+            &self.shading,
+            options,
+            cancel,
+            on_tile,
+        )
     }
 
     /// Renders it in one pass on all threads.

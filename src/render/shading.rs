@@ -58,12 +58,7 @@ impl Needs {
 /// for one-shot renders and cached recombinations alike (the same f32
 /// operations in the same order, so the same bits).
 #[inline]
-pub fn local_colour(
-    m: &Material,
-    light: &LightColours,
-    terms: Vec3,
-    factors: LightTerms,
-) -> Vec3 {
+pub fn local_colour(m: &Material, light: &LightColours, terms: Vec3, factors: LightTerms) -> Vec3 {
     let ambient = m.ambient * light.ambient * terms.x;
     let kd = m.diffuse * light.diffuse * terms.y;
     let ks = m.specular * light.specular * terms.z;
@@ -205,9 +200,20 @@ pub fn sampled_specular_again(
         buf.filled = pattern.is_fixed().then_some(key);
     }
     let light = &scene.light.shape;
-    shadow::light_directions(to_corner, light.edge_u.as_vec3(), light.edge_v.as_vec3(), n, count, buf);
+    shadow::light_directions(
+        to_corner,
+        light.edge_u.as_vec3(),
+        light.edge_v.as_vec3(),
+        n,
+        count,
+        buf,
+    );
     for (j, v) in buf.vis[..count].iter_mut().enumerate() {
-        *v = if visible[j / 64] >> (j % 64) & 1 == 1 { 1.0 } else { 0.0 };
+        *v = if visible[j / 64] >> (j % 64) & 1 == 1 {
+            1.0
+        } else {
+            0.0
+        };
     }
     sampled_terms(n, v, shininess, true, count, buf).specular
 }
@@ -316,7 +322,8 @@ fn nearest_point_terms(scene: &Scene, sp: &ShadingPoint) -> (f32, f32) {
     let ld = to_light(n);
     let diffuse = n.dot(ld).max(0.0) as f32;
     let ls = nearest_point_specular_direction(scene, sp);
-    let specular = nearest_point_specular(n.as_vec3(), ls, sp.view.as_vec3(), sp.material.shininess);
+    let specular =
+        nearest_point_specular(n.as_vec3(), ls, sp.view.as_vec3(), sp.material.shininess);
     (diffuse, specular)
 }
 
@@ -327,7 +334,11 @@ pub fn nearest_point_specular_direction(scene: &Scene, sp: &ShadingPoint) -> Vec
     let n = sp.normal;
     let mirrored = n * (2.0 * n.dot(sp.view)) - sp.view;
     let ls = (scene.light.nearest_point(sp.point, mirrored) - sp.point).normalize_or_zero();
-    if n.dot(ls) > 0.0 { ls.as_vec3() } else { Vec3::ZERO }
+    if n.dot(ls) > 0.0 {
+        ls.as_vec3()
+    } else {
+        Vec3::ZERO
+    }
 }
 
 /// The `nearest_point` model's unshadowed specular factor for the light

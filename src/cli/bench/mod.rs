@@ -24,9 +24,7 @@ use std::time::Duration;
 use clap::Args;
 
 use super::{CliError, SceneOverrides, load_desc};
-use crate::render::{
-    CancelToken, Loaded, RenderOptions, RenderReport, SceneDesc, generate,
-};
+use crate::render::{CancelToken, Loaded, RenderOptions, RenderReport, SceneDesc, generate};
 
 pub use reference::{Reference, reference, reference_key};
 pub use sweep::{Row, SweepPlan, run_sweep, write_csv};
@@ -208,10 +206,7 @@ pub fn scenes(args: &BenchArgs) -> Result<Vec<BenchScene>, CliError> {
                 .as_deref()
                 .and_then(Path::file_stem)
                 .map_or("seed-room".into(), |s| s.to_string_lossy().into_owned());
-            vec![BenchScene {
-                name,
-                desc,
-            }]
+            vec![BenchScene { name, desc }]
         }
     };
     let quick_width = args.quick.then_some(160);

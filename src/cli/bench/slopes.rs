@@ -12,10 +12,10 @@
 use super::{BenchArgs, scenes};
 use crate::cli::CliError;
 use crate::render::compare::rmse_masked;
-use crate::render::shadow::{ShadowBuffers, ShadowQuery, visibility};
 use crate::render::rng::Rng;
 use crate::render::sampling::Pattern;
 use crate::render::scene::HitTarget;
+use crate::render::shadow::{ShadowBuffers, ShadowQuery, visibility};
 use crate::render::{Film, Loaded, RayStats, Sampling};
 
 /// Shadow-ray counts of the fit.
@@ -102,7 +102,14 @@ fn penumbra_mask(loaded: &Loaded) -> Vec<bool> {
                         object,
                         inside,
                     };
-                    visibility(scene, &loaded.settings, &query, pattern.count(), &mut buf, &mut stats);
+                    visibility(
+                        scene,
+                        &loaded.settings,
+                        &query,
+                        pattern.count(),
+                        &mut buf,
+                        &mut stats,
+                    );
                     let seen =
                         buf.vis[..pattern.count()].iter().sum::<f32>() / pattern.count() as f32;
                     seen > 0.02 && seen < 0.98

@@ -20,11 +20,12 @@ pub enum EditClass {
     /// recorded visibility gives the specular factors again, and only the
     /// paths a reflectivity edit lengthens are traced.
     Reshade,
-    /// The light's position or size, shadow rays, sampling, model, depth,
-    /// seed, shadows, adaptive: the scene stands, every pixel is traced.
+    /// The camera, the light's position or size, shadow rays, sampling,
+    /// model, depth, seed, shadows, adaptive: the objects and their BVH
+    /// stand, every pixel is traced.
     Retrace,
-    /// The camera, the image size, objects, the set of materials: the scene
-    /// is built again and every pixel traced.
+    /// Objects, the set of materials: the scene is built again and every
+    /// pixel traced.
     Rebuild,
 }
 
@@ -69,6 +70,15 @@ pub fn classify(old: &SceneDesc, new: &SceneDesc) -> EditClass {
         height,
     } = camera;
     let c = &old.camera;
+    let camera_same = (position, look_at, up, fov_y_deg, width, height)
+        == (
+            &c.position,
+            &c.look_at,
+            &c.up,
+            &c.fov_y_deg,
+            &c.width,
+            &c.height,
+        );
     let LightDesc {
         corner,
         edge_u,
@@ -78,14 +88,14 @@ pub fn classify(old: &SceneDesc, new: &SceneDesc) -> EditClass {
         specular: light_specular,
     } = light;
     let l = &old.light;
-    let scene_same = *format == old.format
-        && (position, look_at, up, fov_y_deg, width, height)
-            == (&c.position, &c.look_at, &c.up, &c.fov_y_deg, &c.width, &c.height)
-        && (corner, edge_u, edge_v) == (&l.corner, &l.edge_u, &l.edge_v)
+    let objects_same = *format == old.format
         && materials.keys().eq(old.materials.keys())
         && *objects == old.objects;
-    if !scene_same {
+    if !objects_same {
         return EditClass::Rebuild;
+    }
+    if !camera_same || (corner, edge_u, edge_v) != (&l.corner, &l.edge_u, &l.edge_v) {
+        return EditClass::Retrace;
     }
 
     let RenderDesc {
@@ -101,17 +111,23 @@ pub fn classify(old: &SceneDesc, new: &SceneDesc) -> EditClass {
         shininess_override,
     } = render;
     let r = &old.render;
-    if (shadow_rays, sampling, max_depth, seed, area_light_model, shadows, adaptive)
-        != (
-            &r.shadow_rays,
-            &r.sampling,
-            &r.max_depth,
-            &r.seed,
-            &r.area_light_model,
-            &r.shadows,
-            &r.adaptive,
-        )
-    {
+    if (
+        shadow_rays,
+        sampling,
+        max_depth,
+        seed,
+        area_light_model,
+        shadows,
+        adaptive,
+    ) != (
+        &r.shadow_rays,
+        &r.sampling,
+        &r.max_depth,
+        &r.seed,
+        &r.area_light_model,
+        &r.shadows,
+        &r.adaptive,
+    ) {
         return EditClass::Retrace;
     }
 

@@ -130,7 +130,8 @@ impl LiveRender {
             None => EditClass::Rebuild,
             Some(c) => {
                 let class = classify(&c.desc, desc);
-                if c.frame.is_none() && class > EditClass::Nothing {
+                if c.frame.is_none() {
+                    // No records (a cancelled render, or above the cap).
                     class.max(EditClass::Retrace)
                 } else {
                     class
@@ -154,11 +155,20 @@ impl LiveRender {
         let mut report = match class {
             EditClass::Rebuild => {
                 let loaded = Loaded::new(desc)?;
-                self.retrace(desc, loaded.scene, loaded.settings, loaded.shading, options, cancel, on_tile)?
+                self.retrace(
+                    desc,
+                    loaded.scene,
+                    loaded.settings,
+                    loaded.shading,
+                    options,
+                    cancel,
+                    on_tile,
+                )?
             }
             EditClass::Retrace => {
                 desc.validate()?;
                 let scene = self.current.take().expect("a scene to re-trace").scene;
+                let scene = Arc::new(scene.with_view(desc));
                 self.retrace(
                     desc,
                     scene,
@@ -201,7 +211,15 @@ impl LiveRender {
         });
         let budget = Budget::new(self.cap);
         let (report, mut tiles) = in_pool(options.threads, || {
-            render_passes(&scene, &settings, &shading, options, cancel, on_tile, Some(&budget))
+            render_passes(
+                &scene,
+                &settings,
+                &shading,
+                options,
+                cancel,
+                on_tile,
+                Some(&budget),
+            )
         })?;
         let shapes = budget.shapes_allowed();
         if !shapes {
@@ -281,7 +299,14 @@ impl LiveRender {
                     let mut record = lock(&tiles[i]);
                     let traced_before = scratch.stats.traced();
                     if respecular.contains(&true) {
-                        respecular_tile(&scene, &settings, &shading, &respecular, &mut record, &mut scratch.shadow);
+                        respecular_tile(
+                            &scene,
+                            &settings,
+                            &shading,
+                            &respecular,
+                            &mut record,
+                            &mut scratch.shadow,
+                        );
                     }
                     let n = replay_tile(&tracer, &mut record, &mut scratch, &mut pixels);
                     retraced.fetch_add(n, Ordering::Relaxed);
@@ -426,8 +451,9 @@ fn replay_tile(
             fresh.hits.extend_from_slice(&record.hits[range.clone()]);
             if let (Some(to), Some(from)) = (&mut fresh.shapes, &record.shapes) {
                 to.hits.extend_from_slice(&from.hits[range.clone()]);
-                to.visible
-                    .extend_from_slice(&from.visible[range.start * from.words..range.end * from.words]);
+                to.visible.extend_from_slice(
+                    &from.visible[range.start * from.words..range.end * from.words],
+                );
             }
             fresh.ends.push(record.ends[i]);
             fresh.starts.push(fresh.hits.len() as u32);

@@ -355,7 +355,9 @@ mod tests {
             corner: [1.0, 7.0, -2.0],
             edge_u: [0.0, 0.0, 3.0],
             edge_v: [2.0, 0.0, 1.0],
-            ..crate::render::Scene::seed_room().desc.light.clone()
+            ..crate::render::SceneDesc::from_json(crate::render::scene::SEED_ROOM_JSON)
+                .unwrap()
+                .light
         });
         let frame = LightFrame::new(&light);
         for (a, b) in [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (0.3, 0.8)] {

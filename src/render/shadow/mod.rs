@@ -38,9 +38,8 @@ pub(crate) mod ray_packet;
 mod visibility;
 
 pub use buffers::ShadowBuffers;
-pub(crate) use visibility::{light_directions, ShadowQuery, visibility};
 pub use light_frame::OccluderBvh;
-
+pub(crate) use visibility::{ShadowQuery, light_directions, visibility};
 
 /// Shadow rays end at this fraction of the way to their light point: a
 /// surface the light lies in (a light flush with a ceiling) must not block

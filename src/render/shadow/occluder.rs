@@ -6,7 +6,6 @@ use super::RAY_END;
 use crate::render::geometry::Shape;
 use crate::render::math::avx2_dispatch;
 
-
 /// An object as seen from one hit point, in f32 relative to it.
 #[derive(Debug, Clone, Copy)]
 pub(super) enum Occluder {
@@ -141,7 +140,6 @@ impl Occluder {
         v[0] == 0.0
     }
 }
-
 
 /// Whether the ray (x, y, z) from the hit point meets the sphere (centre
 /// `oc` from the hit point, radius² `r2`) before [`RAY_END`]. One lane of

@@ -8,7 +8,6 @@ use crate::render::geometry::Slot;
 use crate::render::math::avx2_dispatch;
 use crate::render::scene::Scene;
 
-
 /// One hit point's shadow rays against the light-frame BVH.
 pub(super) struct Packets<'a> {
     pub(super) sb: &'a OccluderBvh,
@@ -16,7 +15,6 @@ pub(super) struct Packets<'a> {
     pub(super) eye: Eye,
     pub(super) q: &'a ShadowQuery,
 }
-
 
 avx2_dispatch!(
     /// Traces up to 64 rays (light points `ab`, directions and visibility

@@ -4,7 +4,6 @@ use glam::DVec3;
 
 use crate::render::geometry::Aabb;
 
-
 /// The pyramid spanned by a hit point and the light rectangle, as five
 /// planes `n · x <= d` (four sides and the light's plane), for culling.
 pub(super) struct ShadowPyramid {

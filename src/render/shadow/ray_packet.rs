@@ -139,11 +139,11 @@ mod tests {
             self.rays_in4(&four)[0]
         }
     }
-    use crate::render::Scene;
+    use crate::render::Loaded;
 
     #[test]
     fn rays_in_holds_exactly_the_points_of_whole_cells_and_never_misses_one() {
-        let frame = LightFrame::new(&Scene::seed_room().light);
+        let frame = LightFrame::new(&Loaded::seed_room().scene.light);
         let mut rng = crate::render::rng::Rng::new(7);
         let mut uniform = || (rng.next_u64() >> 40) as f32 / (1u64 << 24) as f32;
         let (a, b): (Vec<f32>, Vec<f32>) = (0..PACKET).map(|_| (uniform(), uniform())).unzip();
@@ -193,7 +193,7 @@ mod tests {
 
     #[test]
     fn a_grid_pattern_bins_one_point_per_cell() {
-        let frame = LightFrame::new(&Scene::seed_room().light);
+        let frame = LightFrame::new(&Loaded::seed_room().scene.light);
         let (mut a, mut b) = (Vec::new(), Vec::new());
         for j in 0..8 {
             for i in 0..8 {

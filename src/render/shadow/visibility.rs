@@ -15,10 +15,8 @@ use crate::render::scene::Scene;
 use crate::render::settings::RenderSettings;
 use crate::render::stats::RayStats;
 
-
 /// Rays traced first by the adaptive mode.
 const ADAPTIVE_PROBES: usize = 8;
-
 
 /// A possible occluder of one hit point.
 #[derive(Debug, Clone, Copy)]
@@ -28,7 +26,6 @@ pub(super) struct Candidate {
     /// may decide the umbra test.
     umbra_test: bool,
 }
-
 
 /// One hit point whose shadow rays are to be traced.
 pub(crate) struct ShadowQuery {
@@ -336,7 +333,6 @@ struct Rays<'a> {
     scratch: &'a mut PacketScratch,
     count: usize,
 }
-
 
 avx2_dispatch!(
     /// Directions from the hit point to the light points, and 1 in `vis` for

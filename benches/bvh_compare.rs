@@ -6,10 +6,10 @@
 use std::hint::black_box;
 
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
-use penumbra::render::Scene;
 use penumbra::render::generate::spheres_in_room;
 use penumbra::render::geometry::{Aabb, Bvh, Ray};
 use penumbra::render::scene::HitTarget;
+use penumbra::render::{Loaded, Scene};
 
 type CrateBvh = bvh::bvh::Bvh<f64, 3>;
 type CrateAabb = bvh::aabb::Aabb<f64, 3>;
@@ -46,7 +46,7 @@ impl bvh::bounding_hierarchy::BHShape<f64, 3> for Item {
 struct Case {
     scene: Scene,
     rays: Vec<Ray>,
-    /// What penumbra's `Bvh::build` takes (as `Scene::new` makes it).
+    /// What penumbra's `Bvh::build` takes (as `Scene::build` makes it).
     bounds: Vec<(u32, Aabb)>,
     items: Vec<Item>,
     crate_bvh: CrateBvh,
@@ -56,7 +56,8 @@ fn case(n: usize) -> Case {
     let mut desc = spheres_in_room(n, 1);
     desc.camera.width = SIDE;
     desc.camera.height = SIDE;
-    let scene = Scene::new(desc).expect("generated scenes are valid");
+    let loaded = Loaded::new(&desc).expect("generated scenes are valid");
+    let scene = std::sync::Arc::unwrap_or_clone(loaded.scene);
     assert!(
         scene.bounded.is_empty(),
         "N = {n} is above the BVH threshold"

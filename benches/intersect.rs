@@ -5,7 +5,7 @@ use std::hint::black_box;
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use glam::DVec3;
-use penumbra::render::Scene;
+use penumbra::render::Loaded;
 use penumbra::render::generate::spheres_in_room;
 use penumbra::render::geometry::{Cuboid, Parallelogram, Plane, Ray, Sphere};
 
@@ -83,7 +83,9 @@ fn bvh_closest(c: &mut Criterion) {
         let mut desc = spheres_in_room(n, 1);
         desc.camera.width = 32;
         desc.camera.height = 18;
-        let scene = Scene::new(desc).expect("generated scenes are valid");
+        let scene = Loaded::new(&desc)
+            .expect("generated scenes are valid")
+            .scene;
         let rays: Vec<Ray> = (0..18)
             .flat_map(|y| (0..32).map(move |x| (x, y)))
             .map(|(x, y)| scene.camera.pixel_ray(x, y))

@@ -5,16 +5,17 @@
 use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use penumbra::render::Scene;
-use penumbra::render::occlusion::ShadowBuffers;
+use penumbra::render::Loaded;
 use penumbra::render::rng::Rng;
 use penumbra::render::scene::HitTarget;
 use penumbra::render::shading::{ShadingPoint, shade};
+use penumbra::render::shadow::ShadowBuffers;
 use penumbra::render::stats::RayStats;
 use penumbra::render::tracer::Tracer;
 
 /// The first hit of pixel (x, y) as the tracer shades it.
-fn hit(scene: &Scene, x: u32, y: u32) -> Option<ShadingPoint<'_>> {
+fn hit(loaded: &Loaded, x: u32, y: u32) -> Option<ShadingPoint<'_>> {
+    let scene = &loaded.scene;
     let ray = scene.camera.pixel_ray(x, y);
     let Some((HitTarget::Object(object), t)) = scene.closest_hit(&ray) else {
         return None;
@@ -32,14 +33,15 @@ fn hit(scene: &Scene, x: u32, y: u32) -> Option<ShadingPoint<'_>> {
         view: -ray.dir,
         object,
         inside,
-        material: &scene.materials[obj.material as usize],
+        material: &loaded.shading.materials[obj.material as usize],
     })
 }
 
 fn shading(c: &mut Criterion) {
     // 64 grid rays and depth 4: the settings of the speed targets.
-    let scene = Scene::seed_room();
-    let tracer = Tracer::new(&scene, 64);
+    let loaded = Loaded::seed_room();
+    let (scene, settings, shading) = (&*loaded.scene, &loaded.settings, &loaded.shading);
+    let tracer = Tracer::new(scene, settings, shading, 64);
     let (w, h) = (scene.camera.width, scene.camera.height);
     let mut buf = ShadowBuffers::with_capacity(tracer.pattern.count());
 
@@ -49,12 +51,21 @@ fn shading(c: &mut Criterion) {
     let (mut traced, mut skipped) = (None, None);
     for y in (h / 2..h).rev().step_by(4) {
         for x in (0..w).step_by(4) {
-            let Some(sp) = hit(&scene, x, y).filter(|sp| sp.object == 0) else {
+            let Some(sp) = hit(&loaded, x, y).filter(|sp| sp.object == 0) else {
                 continue;
             };
             let mut stats = RayStats::default();
-            let mut rng = Rng::for_vertex(scene.settings.seed, x, y, 1);
-            shade(&scene, &sp, &tracer.pattern, &mut rng, &mut buf, &mut stats);
+            let mut rng = Rng::for_vertex(settings.seed, x, y, 1);
+            shade(
+                scene,
+                settings,
+                shading,
+                &sp,
+                &tracer.pattern,
+                &mut rng,
+                &mut buf,
+                &mut stats,
+            );
             if stats.shadow > 0 {
                 traced.get_or_insert((x, y, sp));
             } else if stats.shadow_unoccluded > 0 {
@@ -71,9 +82,11 @@ fn shading(c: &mut Criterion) {
         let mut stats = RayStats::default();
         g.bench_function(name, |b| {
             b.iter(|| {
-                let mut rng = Rng::for_vertex(scene.settings.seed, x, y, 1);
+                let mut rng = Rng::for_vertex(settings.seed, x, y, 1);
                 shade(
-                    &scene,
+                    scene,
+                    settings,
+                    shading,
                     black_box(&sp),
                     &tracer.pattern,
                     &mut rng,

@@ -4,12 +4,13 @@
 mod common;
 
 use glam::{DVec3, Vec3};
-use penumbra::render::occlusion::{ShadowBuffers, ShadowQuery, visibility};
-use penumbra::render::progressive::{CancelToken, RenderOptions, render, render_image};
+use penumbra::render::progressive::{CancelToken, RenderOptions};
 use penumbra::render::rng::Rng;
 use penumbra::render::sampling::Pattern;
 use penumbra::render::scene::HitTarget;
-use penumbra::render::{RayStats, Sampling, Scene, SceneDesc};
+use penumbra::render::shading::{Needs, ShadingPoint, light_terms};
+use penumbra::render::shadow::ShadowBuffers;
+use penumbra::render::{Loaded, RayStats, Sampling, SceneDesc};
 
 /// A floor under a 2×2 light at height 8, seen straight from above.
 fn lit_floor(extra_objects: &str, render: &str) -> String {
@@ -45,11 +46,12 @@ fn average_cosine(p: DVec3, n: DVec3, corner: DVec3, eu: DVec3, ev: DVec3, steps
 
 #[test]
 fn sampled_diffuse_matches_numerical_integral() {
-    let scene = common::scene_json(&lit_floor(
+    let loaded = common::scene_json(&lit_floor(
         "",
         r#"{ "shadow_rays": 4096, "sampling": "grid", "max_depth": 1 }"#,
     ));
-    let film = render_image(&scene);
+    let scene = &loaded.scene;
+    let film = loaded.render_image();
     for (x, y) in [(4, 4), (0, 0), (8, 3)] {
         let ray = scene.camera.pixel_ray(x, y);
         let (target, t) = scene.closest_hit(&ray).unwrap();
@@ -81,18 +83,30 @@ const HALF_OCCLUDER: &str =
 
 #[test]
 fn occluder_hiding_half_the_light_gives_half_visibility() {
-    let scene = common::scene_json(&lit_floor(HALF_OCCLUDER, r#"{ "shadow_rays": 64 }"#));
+    let loaded = common::scene_json(&lit_floor(HALF_OCCLUDER, r#"{ "shadow_rays": 64 }"#));
     let pattern = Pattern::new(Sampling::Grid, 64);
     let mut buf = ShadowBuffers::with_capacity(pattern.count());
-    pattern.fill(&mut Rng::new(1), &mut buf.a, &mut buf.b);
     let mut stats = RayStats::default();
-    let query = ShadowQuery {
+    // `shadow::visibility` is crate-private; the light factors run it and
+    // leave each light point's visibility in `buf.vis`.
+    let point = ShadingPoint {
         point: DVec3::ZERO,
         normal: DVec3::Y,
+        view: DVec3::Y,
         object: 0,
         inside: false,
+        material: &loaded.shading.materials[0],
     };
-    visibility(&scene, &query, pattern.count(), &mut buf, &mut stats);
+    light_terms(
+        &loaded.scene,
+        &loaded.settings,
+        &point,
+        Needs::ALL,
+        &pattern,
+        &mut Rng::new(1),
+        &mut buf,
+        &mut stats,
+    );
     let visible: f32 = buf.vis[..64].iter().sum();
     assert_eq!(visible, 32.0);
     // Exactly the points on the x < 0 half arrive.
@@ -116,8 +130,8 @@ fn occluder_hiding_half_the_light_gives_half_visibility() {
     };
     let (lit, half) = (overhead(""), overhead(HALF_OCCLUDER));
     let (a, b) = (
-        render_image(&common::scene_json(&lit)),
-        render_image(&common::scene_json(&half)),
+        common::scene_json(&lit).render_image(),
+        common::scene_json(&half).render_image(),
     );
     let centre = |f: &penumbra::render::Film| f.get(4, 4).x;
     assert!(centre(&a) > 0.5);
@@ -130,19 +144,20 @@ fn ambient_only_render_is_material_times_light_ambient() {
     desc.render.terms.diffuse = 0.0;
     desc.render.terms.specular = 0.0;
     desc.render.max_depth = 1;
-    let scene = common::build(desc);
-    let film = render_image(&scene);
+    let loaded = common::build(desc);
+    let (scene, shading) = (&loaded.scene, &loaded.shading);
+    let film = loaded.render_image();
     let mut objects_seen = std::collections::HashSet::new();
     for y in 0..54 {
         for x in 0..96 {
             let expected = match scene.closest_hit(&scene.camera.pixel_ray(x, y)) {
                 Some((HitTarget::Object(i), _)) => {
                     objects_seen.insert(i);
-                    let m = &scene.materials[scene.objects[i as usize].material as usize];
-                    m.ambient * scene.light.ambient
+                    let m = &shading.materials[scene.objects[i as usize].material as usize];
+                    m.ambient * shading.light.ambient
                 }
-                Some((HitTarget::Light, _)) => scene.light.diffuse,
-                None => scene.settings.background,
+                Some((HitTarget::Light, _)) => shading.light.diffuse,
+                None => loaded.settings.background,
             };
             assert_eq!(film.get(x, y), expected, "pixel ({x},{y})");
         }
@@ -161,13 +176,14 @@ fn reflections_change_only_pixels_that_see_a_mirror() {
         common::build(d)
     };
     let deep = common::build(common::seed_room(96, 54));
-    let (a, b) = (render_image(&shallow), render_image(&deep));
+    let (a, b) = (shallow.render_image(), deep.render_image());
     let mut differing = 0;
     for y in 0..54 {
         for x in 0..96 {
-            let reflective = match deep.closest_hit(&deep.camera.pixel_ray(x, y)) {
+            let reflective = match deep.scene.closest_hit(&deep.scene.camera.pixel_ray(x, y)) {
                 Some((HitTarget::Object(i), _)) => {
-                    deep.materials[deep.objects[i as usize].material as usize].reflectivity > 0.0
+                    let material = deep.scene.objects[i as usize].material;
+                    deep.shading.materials[material as usize].reflectivity > 0.0
                 }
                 _ => false,
             };
@@ -183,8 +199,10 @@ fn reflections_change_only_pixels_that_see_a_mirror() {
     assert!(differing > 100, "reflections visible on {differing} pixels");
 }
 
-fn render_with(scene: &Scene, options: RenderOptions) -> penumbra::render::RenderReport {
-    render(scene, &options, &CancelToken::new(), &|_| {}).unwrap()
+fn render_with(loaded: &Loaded, options: RenderOptions) -> penumbra::render::RenderReport {
+    loaded
+        .render(&options, &CancelToken::new(), &|_| {})
+        .unwrap()
 }
 
 #[test]
@@ -228,23 +246,23 @@ fn image_is_identical_for_any_thread_count_and_pass_schedule() {
 
 #[test]
 fn progressive_render_streams_every_tile_of_every_pass() {
-    let scene = common::build(common::seed_room(100, 60));
+    let loaded = common::build(common::seed_room(100, 60));
     let seen = std::sync::Mutex::new(Vec::new());
-    let report = render(
-        &scene,
-        &RenderOptions {
-            progressive: true,
-            tile_size: 32,
-            ..Default::default()
-        },
-        &CancelToken::new(),
-        &|t| {
-            seen.lock()
-                .unwrap()
-                .push((t.pass_index, t.rect, t.pixels.len(), t.tiles_total))
-        },
-    )
-    .unwrap();
+    let report = loaded
+        .render(
+            &RenderOptions {
+                progressive: true,
+                tile_size: 32,
+                ..Default::default()
+            },
+            &CancelToken::new(),
+            &|t| {
+                seen.lock()
+                    .unwrap()
+                    .push((t.pass_index, t.rect, t.pixels.len(), t.tiles_total))
+            },
+        )
+        .unwrap();
     let seen = seen.into_inner().unwrap();
     let plan = penumbra::render::pass_plan(64);
     assert_eq!(plan.len(), 3);
@@ -264,11 +282,10 @@ fn progressive_render_streams_every_tile_of_every_pass() {
 
 #[test]
 fn cancelling_stops_a_render_early() {
-    let scene = common::build(common::seed_room(640, 360));
+    let loaded = common::build(common::seed_room(640, 360));
     let cancel = CancelToken::new();
     let tiles = std::sync::atomic::AtomicUsize::new(0);
-    let result = render(
-        &scene,
+    let result = loaded.render(
         &RenderOptions {
             threads: Some(2),
             ..Default::default()
@@ -308,7 +325,7 @@ fn every_scene_file_loads_and_renders_without_nan() {
         let mut desc = penumbra::render::SceneDesc::load(&path).unwrap_or_else(|e| panic!("{e}"));
         desc.camera.width = 64;
         desc.camera.height = 36;
-        let film = render_image(&Scene::new(desc).unwrap());
+        let film = Loaded::new(&desc).unwrap().render_image();
         assert!(
             !film.has_non_finite(),
             "{} has NaN/Inf pixels",
@@ -337,7 +354,11 @@ fn skipping_work_does_not_change_the_image() {
 /// counts.
 fn skip_on_and_off(desc: SceneDesc, packets: bool, what: &str) -> (RayStats, RayStats) {
     let fast = common::build(desc.clone());
-    assert_eq!(fast.shadow_bvh.is_some(), packets, "{what}: packets in use");
+    assert_eq!(
+        fast.scene.shadow_bvh.is_some(),
+        packets,
+        "{what}: packets in use"
+    );
     let mut slow = common::build(desc);
     slow.settings.skip = false;
     let a = render_with(&fast, RenderOptions::default());
@@ -356,6 +377,7 @@ fn shadow_packets_give_the_image_of_tracing_everything() {
     use penumbra::render::scene::PACKET_THRESHOLD;
     assert!(
         common::build(spheres_in_room(PACKET_THRESHOLD - 1, 3))
+            .scene
             .shadow_bvh
             .is_none()
     );
@@ -468,11 +490,12 @@ fn srgb_encoding_rounds_correctly() {
 fn analytic_model_is_exact_and_noise_free_where_the_light_is_unblocked() {
     // Four random shadow rays are enough: with nothing in the way the ratio
     // estimator's ratio is 1 and the closed form is all that remains.
-    let scene = common::scene_json(&lit_floor(
+    let loaded = common::scene_json(&lit_floor(
         "",
         r#"{ "shadow_rays": 4, "sampling": "random", "area_light_model": "analytic", "max_depth": 1 }"#,
     ));
-    let film = render_image(&scene);
+    let scene = &loaded.scene;
+    let film = loaded.render_image();
     for (x, y) in [(4, 4), (0, 0), (8, 3)] {
         let ray = scene.camera.pixel_ray(x, y);
         let (_, t) = scene.closest_hit(&ray).unwrap();
@@ -499,28 +522,28 @@ fn sampled_and_analytic_models_converge_to_one_image() {
     desc.render.terms.specular = 0.0;
     desc.render.sampling = Sampling::Stratified;
     desc.render.shadow_rays = 1024;
-    let sampled = render_image(&common::build(desc.clone()));
+    let sampled = common::build(desc.clone()).render_image();
     desc.render.area_light_model = penumbra::render::AreaLightModel::Analytic;
-    let analytic = render_image(&common::build(desc));
+    let analytic = common::build(desc).render_image();
     let c = penumbra::render::compare::compare(&sampled, &analytic).unwrap();
     assert!(c.rmse < 2e-3, "rmse {:e}", c.rmse);
 }
 
 #[test]
 fn tile_updates_count_the_rays_of_the_render() {
-    let scene = common::build(common::seed_room(80, 45));
+    let loaded = common::build(common::seed_room(80, 45));
     let rays = std::sync::atomic::AtomicU64::new(0);
-    let report = render(
-        &scene,
-        &RenderOptions {
-            progressive: true,
-            ..Default::default()
-        },
-        &CancelToken::new(),
-        &|t| {
-            rays.fetch_add(t.rays, std::sync::atomic::Ordering::Relaxed);
-        },
-    )
-    .unwrap();
+    let report = loaded
+        .render(
+            &RenderOptions {
+                progressive: true,
+                ..Default::default()
+            },
+            &CancelToken::new(),
+            &|t| {
+                rays.fetch_add(t.rays, std::sync::atomic::Ordering::Relaxed);
+            },
+        )
+        .unwrap();
     assert_eq!(rays.into_inner(), report.stats.traced());
 }

@@ -578,8 +578,7 @@ fn extreme_but_valid_scenes_render_finite_pixels() {
         desc.camera.width = 32;
         desc.camera.height = 18;
         desc.render.shadow_rays = 16;
-        let scene = penumbra::render::Scene::new(desc).unwrap();
-        let film = penumbra::render::render_image(&scene);
+        let film = penumbra::render::Loaded::new(&desc).unwrap().render_image();
         assert!(!film.has_non_finite(), "{what}: non-finite pixels");
     }
 }

@@ -2,7 +2,7 @@
 //! field's JSON path.
 
 use penumbra::render::scene::SEED_ROOM_JSON;
-use penumbra::render::{Scene, SceneDesc};
+use penumbra::render::{Loaded, SceneDesc};
 use serde_json::{Value, json};
 
 fn seed() -> Value {
@@ -13,7 +13,7 @@ fn seed() -> Value {
 fn error_of(edit: impl FnOnce(&mut Value)) -> String {
     let mut v = seed();
     edit(&mut v);
-    match Scene::from_json(&v.to_string()) {
+    match Loaded::from_json(&v.to_string()) {
         Ok(_) => panic!("accepted: {v}"),
         Err(e) => e.to_string(),
     }
@@ -157,7 +157,7 @@ fn arrays_in_place_of_objects_are_refused() {
         "camera",
         "expected an object",
     );
-    let e = Scene::from_json("[1, {}, {}, {}, {}, []]")
+    let e = Loaded::from_json("[1, {}, {}, {}, {}, []]")
         .unwrap_err()
         .to_string();
     assert!(e.contains("expected an object"), "{e}");
@@ -166,17 +166,17 @@ fn arrays_in_place_of_objects_are_refused() {
 #[test]
 fn non_finite_numbers_are_refused() {
     let text = SEED_ROOM_JSON.replace(r#""fov_y_deg": 36"#, r#""fov_y_deg": NaN"#);
-    let e = Scene::from_json(&text).unwrap_err().to_string();
+    let e = Loaded::from_json(&text).unwrap_err().to_string();
     assert!(e.starts_with("camera.fov_y_deg: expected value"), "{e}");
     let text = SEED_ROOM_JSON.replace(r#""radius": 1"#, r#""radius": 1e999"#);
-    let e = Scene::from_json(&text).unwrap_err().to_string();
+    let e = Loaded::from_json(&text).unwrap_err().to_string();
     assert!(
         e.starts_with("objects[7].radius: number out of range"),
         "{e}"
     );
     let text = SEED_ROOM_JSON.replace(r#""radius": 1"#, r#""radius": Infinity"#);
     assert!(
-        Scene::from_json(&text)
+        Loaded::from_json(&text)
             .unwrap_err()
             .to_string()
             .starts_with("objects[7].radius")
@@ -336,7 +336,7 @@ fn errors_from_files_name_the_file() {
     std::fs::create_dir_all(&dir).unwrap();
     let path = dir.join("truncated.json");
     std::fs::write(&path, &SEED_ROOM_JSON[..200]).unwrap();
-    let e = Scene::load(&path).unwrap_err().to_string();
+    let e = Loaded::load(&path).unwrap_err().to_string();
     assert!(e.starts_with(&format!("{}: ", path.display())), "{e}");
     assert!(e.contains("EOF while parsing"), "{e}");
     std::fs::remove_dir_all(dir).unwrap();

@@ -12,7 +12,7 @@ use std::path::Path;
 use glam::Vec3;
 use penumbra::render::compare::compare;
 use penumbra::render::film::encode_srgb8;
-use penumbra::render::{Film, Scene, SceneDesc, render_image};
+use penumbra::render::{Film, Loaded, SceneDesc};
 
 fn load(name: &str) -> SceneDesc {
     let path = Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -23,8 +23,8 @@ fn load(name: &str) -> SceneDesc {
 
 /// Renders and asserts that every pixel is finite.
 fn render(desc: &SceneDesc, what: &str) -> Film {
-    let scene = Scene::new(desc.clone()).unwrap_or_else(|e| panic!("{what}: {e}"));
-    let film = render_image(&scene);
+    let loaded = Loaded::new(desc).unwrap_or_else(|e| panic!("{what}: {e}"));
+    let film = loaded.render_image();
     let bad: Vec<(usize, Vec3)> = film
         .pixels
         .iter()
@@ -210,12 +210,12 @@ fn shadow_packets_are_exact_at_every_scale() {
         ),
     ];
     for (what, desc) in cases {
-        let fast = Scene::new(desc.clone()).unwrap();
-        assert!(fast.shadow_bvh.is_some(), "{what}: packets in use");
-        let mut slow = Scene::new(desc).unwrap();
+        let fast = Loaded::new(&desc).unwrap();
+        assert!(fast.scene.shadow_bvh.is_some(), "{what}: packets in use");
+        let mut slow = Loaded::new(&desc).unwrap();
         slow.settings.skip = false;
-        let a = render_image(&fast);
-        let b = render_image(&slow);
+        let a = fast.render_image();
+        let b = slow.render_image();
         assert!(
             a.pixels.iter().all(|p| p.is_finite()),
             "{what}: non-finite pixels"
@@ -339,8 +339,8 @@ fn a_light_flush_with_a_tilted_ceiling_is_not_speckled() {
 
 #[test]
 fn the_nearest_point_model_is_finite_for_directions_parallel_to_the_light() {
-    let scene = Scene::new(load("camera-in-light-plane.json")).unwrap();
-    let light = &scene.light;
+    let loaded = Loaded::new(&load("camera-in-light-plane.json")).unwrap();
+    let light = &loaded.scene.light;
     let n = light.shape.normal;
     // Points below, in and above the light's plane, looking in directions
     // parallel to it and tilted off it by tiny angles.

@@ -11,7 +11,7 @@ use penumbra::app::render_job::JobState;
 use penumbra::app::{Viewer, ViewerOptions};
 use penumbra::render::film::encode_srgb8;
 use penumbra::render::scene::SEED_ROOM_JSON;
-use penumbra::render::{Film, Scene, SceneDesc, render_image};
+use penumbra::render::{Film, Loaded, SceneDesc};
 
 const WAIT: Duration = Duration::from_secs(60);
 
@@ -40,7 +40,7 @@ fn settle(h: &mut Harness<'static, Viewer>) {
 }
 
 fn core_render(desc: &SceneDesc) -> Film {
-    render_image(&Scene::new(desc.clone()).unwrap())
+    Loaded::new(desc).unwrap().render_image()
 }
 
 /// The sRGB bytes the texture should hold for a film.

@@ -1,6 +1,6 @@
 //! What both fuzz targets do with a scene the loader accepted.
 
-use penumbra::render::{CancelToken, RenderOptions, Scene, SceneDesc, render};
+use penumbra::render::{CancelToken, Loaded, RenderOptions, SceneDesc};
 
 /// Renders a validated scene at most 8×8 with at most 16 shadow rays and
 /// depth 4 (so each run takes microseconds) and returns the first pixel
@@ -10,12 +10,14 @@ pub fn first_non_finite_pixel(mut desc: SceneDesc) -> Option<(usize, [f32; 3])> 
     desc.camera.height = desc.camera.height.min(8);
     desc.render.shadow_rays = desc.render.shadow_rays.min(16);
     desc.render.max_depth = desc.render.max_depth.min(4);
-    let scene = Scene::new(desc).expect("a validated scene stays valid with smaller caps");
+    let loaded = Loaded::new(&desc).expect("a validated scene stays valid with smaller caps");
     let options = RenderOptions {
         threads: Some(1),
         ..RenderOptions::default()
     };
-    let report = render(&scene, &options, &CancelToken::new(), &|_| {}).expect("not cancelled");
+    let report = loaded
+        .render(&options, &CancelToken::new(), &|_| {})
+        .expect("not cancelled");
     let (i, p) = report
         .film
         .pixels

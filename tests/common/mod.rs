@@ -4,7 +4,7 @@
 use std::path::Path;
 use std::process::{Command, Output};
 
-use penumbra::render::{Scene, SceneDesc};
+use penumbra::render::{Loaded, SceneDesc};
 
 /// The seed room description, resized.
 pub fn seed_room(width: u32, height: u32) -> SceneDesc {
@@ -14,13 +14,13 @@ pub fn seed_room(width: u32, height: u32) -> SceneDesc {
     desc
 }
 
-pub fn build(desc: SceneDesc) -> Scene {
-    Scene::new(desc).expect("valid scene")
+pub fn build(desc: SceneDesc) -> Loaded {
+    Loaded::new(&desc).expect("valid scene")
 }
 
 /// A scene from JSON text, panicking with the loader's message.
-pub fn scene_json(text: &str) -> Scene {
-    Scene::from_json(text).unwrap_or_else(|e| panic!("{e}"))
+pub fn scene_json(text: &str) -> Loaded {
+    Loaded::from_json(text).unwrap_or_else(|e| panic!("{e}"))
 }
 
 /// Runs the `penumbra` binary with `args`.

@@ -2,10 +2,21 @@
 //! (or of [`ViewSettings`]) in place and reports whether anything changed;
 //! the viewer then restarts the render from the edited description.
 
-use egui::{Slider, Ui};
+use egui::{Slider, SliderClamping, Ui};
 
 use super::settings::ViewSettings;
+use crate::render::scene_file::limits::{MAX_COLOUR, MAX_DEPTH, MAX_SHADOW_RAYS, MAX_SHININESS};
 use crate::render::{AreaLightModel, Sampling, SceneDesc};
+
+/// A slider over a format limit's range that never changes a value it only
+/// shows: a scene's 4096 shadow rays or strength 10 load, show and save
+/// unchanged (egui's default clamping would rewrite them).
+fn slider<'a, N: egui::emath::Numeric>(
+    value: &'a mut N,
+    range: std::ops::RangeInclusive<N>,
+) -> Slider<'a> {
+    Slider::new(value, range).clamping(SliderClamping::Never)
+}
 
 /// Buttons of the panel that the viewer acts on.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -81,7 +92,12 @@ pub fn controls_ui(
                     changed |= ui.checkbox(on, label).changed();
                     ui.add_enabled_ui(*on, |ui| {
                         changed |= ui
-                            .add(Slider::new(strength, 0.0..=2.0).text(format!("{label} strength")))
+                            .add(
+                                slider(strength, 0.0..=MAX_COLOUR)
+                                    .logarithmic(true)
+                                    .smallest_positive(0.01)
+                                    .text(format!("{label} strength")),
+                            )
                             .changed();
                     });
                 });
@@ -99,7 +115,7 @@ pub fn controls_ui(
                 ui.add_enabled_ui(on, |ui| {
                     if ui
                         .add(
-                            Slider::new(&mut view.shininess, 1.0..=1000.0)
+                            slider(&mut view.shininess, 1.0..=MAX_SHININESS)
                                 .logarithmic(true)
                                 .text("Shininess"),
                         )
@@ -119,7 +135,7 @@ pub fn controls_ui(
             changed |= ui.checkbox(&mut r.shadows, "Shadows").changed();
             changed |= ui
                 .add(
-                    Slider::new(&mut r.shadow_rays, 1..=1024)
+                    slider(&mut r.shadow_rays, 1..=MAX_SHADOW_RAYS)
                         .logarithmic(true)
                         .text("Shadow rays"),
                 )
@@ -150,7 +166,7 @@ pub fn controls_ui(
             changed |= ui.checkbox(&mut view.reflections, "Reflections").changed();
             ui.add_enabled_ui(view.reflections, |ui| {
                 changed |= ui
-                    .add(Slider::new(&mut r.max_depth, 1..=16).text("Max depth"))
+                    .add(slider(&mut r.max_depth, 1..=MAX_DEPTH).text("Max depth"))
                     .changed();
             });
             changed |= ui
@@ -200,14 +216,14 @@ fn light_ui(ui: &mut Ui, desc: &mut SceneDesc) -> bool {
     // Sizes are relative to the light's own edges, so any light works.
     changed |= ui
         .add(
-            Slider::new(&mut w, 0.01..=20.0)
+            slider(&mut w, 0.01..=20.0)
                 .logarithmic(true)
                 .text("Light width"),
         )
         .changed();
     changed |= ui
         .add(
-            Slider::new(&mut d, 0.01..=20.0)
+            slider(&mut d, 0.01..=20.0)
                 .logarithmic(true)
                 .text("Light depth"),
         )
@@ -259,24 +275,30 @@ fn material_ui(ui: &mut Ui, state: &mut ControlsState, desc: &mut SceneDesc) -> 
     });
     changed |= ui
         .add(
-            Slider::new(&mut m.shininess, 1.0..=1000.0)
+            slider(&mut m.shininess, 1.0..=MAX_SHININESS)
                 .logarithmic(true)
                 .text("Material shininess"),
         )
         .changed();
     changed |= ui
-        .add(Slider::new(&mut m.reflectivity, 0.0..=1.0).text("Reflectivity"))
+        .add(slider(&mut m.reflectivity, 0.0..=1.0).text("Reflectivity"))
         .changed();
     changed
 }
 
-/// An egui colour picker on a linear f64 colour; values above 1 are kept
-/// until the picker is used.
+/// An egui colour picker on a linear f64 colour. Only a component the
+/// picker really moved is written back: opening it, or moving another
+/// component, leaves 0.3 as 0.3 (not its f32 rounding, 0.30000001).
 fn colour_edit(ui: &mut Ui, c: &mut [f64; 3]) -> bool {
-    let mut rgb = c.map(|x| x as f32);
-    if ui.color_edit_button_rgb(&mut rgb).changed() {
-        *c = rgb.map(|x| x as f64);
-        return true;
+    let shown = c.map(|x| x as f32);
+    let mut rgb = shown;
+    ui.color_edit_button_rgb(&mut rgb);
+    let mut changed = false;
+    for i in 0..3 {
+        if rgb[i] != shown[i] {
+            c[i] = rgb[i] as f64;
+            changed = true;
+        }
     }
-    false
+    changed
 }

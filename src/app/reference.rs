@@ -169,7 +169,7 @@ impl ReferenceTask {
                     ctx.request_repaint();
                 })
             };
-            let result = match render_pool() {
+            let result = match render_pool(true) {
                 Some(pool) => pool.install(run),
                 None => run(),
             };

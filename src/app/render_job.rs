@@ -10,14 +10,14 @@
 
 use std::panic::AssertUnwindSafe;
 use std::sync::Arc;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use egui::Color32;
 
 use super::worker::{Shared, Stop, Worker};
 use crate::render::film::encode_srgb8;
 use crate::render::progressive::{CancelToken, RenderOptions, TileRect};
-use crate::render::{Film, LiveError, LiveRender, LiveReport, Scene, SceneDesc};
+use crate::render::{EditClass, Film, LiveError, LiveRender, LiveReport, Scene, SceneDesc};
 
 /// One finished tile, ready for `TextureHandle::set_partial`.
 pub struct TileMsg {
@@ -55,12 +55,19 @@ pub struct FinishedRender {
     pub film: Arc<Film>,
     pub traced_rays: u64,
     pub elapsed: Duration,
+    /// What the edit cost (see [`EditClass`]).
+    pub class: EditClass,
+    /// From the request to the last tile in the mailbox.
+    pub since_request: Duration,
+    /// Bytes of the recorded paths the next edit can reuse.
+    pub record_bytes: usize,
 }
 
 struct Request {
     generation: u64,
     desc: SceneDesc,
     cancel: CancelToken,
+    at: Instant,
 }
 
 #[derive(Default)]
@@ -79,6 +86,8 @@ struct State {
     /// The runtime scene being rendered (for picking under the cursor).
     scene: Option<(u64, Arc<Scene>)>,
     tiles: Vec<TileMsg>,
+    /// From the request to its first tile in the mailbox.
+    first_tile: Option<(u64, Duration)>,
     state: Option<(u64, JobState)>,
     shutdown: bool,
     /// Renders the worker has started (requests it skipped are not counted).
@@ -114,7 +123,7 @@ impl RenderJob {
                 "penumbra-render",
                 State::default(),
                 repaint,
-                |inner| match render_pool() {
+                |inner| match render_pool(false) {
                     Some(pool) => pool.install(|| worker_loop(inner)),
                     None => worker_loop(inner),
                 },
@@ -142,6 +151,7 @@ impl RenderJob {
             generation,
             desc,
             cancel: CancelToken::new(),
+            at: Instant::now(),
         });
         s.state = Some((generation, JobState::Running));
         // Tiles of older generations will never be shown.
@@ -204,6 +214,12 @@ impl RenderJob {
         })
     }
 
+    /// Time from the newest request to its first tile, once it arrived.
+    pub fn first_tile_after(&self) -> Option<Duration> {
+        let s = self.inner().lock();
+        s.first_tile.filter(|(g, _)| *g == s.latest).map(|(_, d)| d)
+    }
+
     /// How many renders the worker started (stale requests are skipped).
     pub fn renders_started(&self) -> u64 {
         self.inner().lock().started
@@ -237,15 +253,18 @@ impl FilmReader {
     }
 }
 
-/// The viewer's own rayon pool, one thread per core, each at a lower
-/// scheduling priority than the UI thread: the render takes every idle
-/// cycle, but a UI frame never waits behind it for a core.
-pub(super) fn render_pool() -> Option<rayon::ThreadPool> {
-    rayon::ThreadPoolBuilder::new()
-        .thread_name(|i| format!("penumbra-tile-{i}"))
-        .start_handler(|_| lower_priority())
-        .build()
-        .ok()
+/// The viewer's own rayon pool, one thread per core. The render's threads
+/// keep the UI's priority: a lower one let any other process on the machine
+/// take their cores (3–4× slower renders under load), while the UI thread,
+/// which sleeps between frames, gets a core as soon as it wakes anyway.
+/// Background work (the converged reference) asks for `background`: it runs
+/// at a lower priority, behind the render.
+pub(super) fn render_pool(background: bool) -> Option<rayon::ThreadPool> {
+    let mut builder = rayon::ThreadPoolBuilder::new().thread_name(|i| format!("penumbra-tile-{i}"));
+    if background {
+        builder = builder.start_handler(|_| lower_priority());
+    }
+    builder.build().ok()
 }
 
 #[cfg(target_os = "linux")]
@@ -292,6 +311,9 @@ fn worker_loop(inner: &Inner) {
                 desc: req.desc,
                 traced_rays: report.stats.traced(),
                 elapsed: report.elapsed,
+                class: report.class,
+                since_request: req.at.elapsed(),
+                record_bytes: report.record_bytes,
                 film: Arc::new(report.film),
             })),
             Ok(Ok(None)) => JobState::Cancelled,
@@ -346,6 +368,9 @@ fn run_one(
                 && *g == req.generation
             {
                 film.write_block(t.rect.x, t.rect.y, t.rect.w, t.pixels);
+            }
+            if !matches!(s.first_tile, Some((g, _)) if g == req.generation) {
+                s.first_tile = Some((req.generation, req.at.elapsed()));
             }
             s.tiles.push(TileMsg {
                 generation: req.generation,

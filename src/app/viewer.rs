@@ -802,6 +802,10 @@ impl Viewer {
             return;
         };
         let mut pass_done = false;
+        // Many tiles at once (a recombined image arrives whole within a
+        // frame): one upload of the whole picture instead of one per tile.
+        let area: usize = tiles.iter().map(|t| t.pixels.len()).sum();
+        let whole = area * 4 > self.shown.pixels.len();
         for t in tiles {
             // Passes run one after the other: the last tile of one is on
             // screen when as many tiles as it has arrived. (The final pass
@@ -830,8 +834,13 @@ impl Viewer {
             }
             self.progress.on_tile(&t);
             self.timings.on_upload(t.generation);
-            let image = ColorImage::new([w, h], t.pixels);
-            texture.set_partial([x, y], image, TextureOptions::LINEAR);
+            if !whole {
+                let image = ColorImage::new([w, h], t.pixels);
+                texture.set_partial([x, y], image, TextureOptions::LINEAR);
+            }
+        }
+        if whole {
+            texture.set(self.shown.clone(), TextureOptions::LINEAR);
         }
         if pass_done {
             self.refresh_error();

@@ -189,9 +189,19 @@ pub fn render(
     cancel: &CancelToken,
     on_tile: &(dyn Fn(&TileUpdate) + Sync),
 ) -> Result<RenderReport, Cancelled> {
+    let plan = if options.progressive {
+        pass_plan(settings.shadow_rays)
+    } else {
+        vec![Pass {
+            shadow_rays: settings.shadow_rays,
+            block: 1,
+        }]
+    };
     in_pool(options.threads, || {
-        render_passes(scene, settings, shading, options, cancel, on_tile, None)
-            .map(|(report, _)| report)
+        render_passes(
+            scene, settings, shading, &plan, options, cancel, on_tile, None,
+        )
+        .map(|(report, _)| report)
     })
 }
 
@@ -213,12 +223,14 @@ pub(crate) fn in_pool<T: Send>(
     }
 }
 
-/// The passes of a render; with `budget`, the final pass also records
-/// every pixel's path (one record per tile, in the order of [`tiles`]).
+/// The passes of `plan`; with `budget`, the final pass also records every
+/// pixel's path (one record per tile, in the order of [`tiles`]).
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn render_passes(
     scene: &Scene,
     settings: &RenderSettings,
     shading: &ShadingParams,
+    plan: &[Pass],
     options: &RenderOptions,
     cancel: &CancelToken,
     on_tile: &(dyn Fn(&TileUpdate) + Sync),
@@ -226,14 +238,6 @@ pub(crate) fn render_passes(
 ) -> Result<(RenderReport, Vec<TileRecord>), Cancelled> {
     let start = Instant::now();
     let (width, height) = (scene.camera.width, scene.camera.height);
-    let plan = if options.progressive {
-        pass_plan(settings.shadow_rays)
-    } else {
-        vec![Pass {
-            shadow_rays: settings.shadow_rays,
-            block: 1,
-        }]
-    };
     let tile_size = tile_side(options);
     let tiles = tiles(width, height, tile_size);
     let film = Mutex::new(Film::new(width, height));

@@ -36,6 +36,10 @@ pub mod limits {
     pub const MAX_SHININESS: f64 = 1e6;
     /// Largest image side, in pixels (the format's own limit).
     pub const MAX_SIDE: u32 = 16384;
+    /// Most shadow rays asked for per hit point.
+    pub const MAX_SHADOW_RAYS: u32 = 4096;
+    /// Most surface hits along one camera path.
+    pub const MAX_DEPTH: u32 = 16;
     /// Most shadow rays traced for one image, counted as
     /// pixels × shadow points per hit × max_depth (about an hour of work).
     pub const MAX_SHADOW_WORK: u64 = 1 << 41;
@@ -536,16 +540,24 @@ impl SceneDesc {
         }
 
         let r = &self.render;
-        if !(1..=4096).contains(&r.shadow_rays) {
+        if !(1..=limits::MAX_SHADOW_RAYS).contains(&r.shadow_rays) {
             return Err(SceneError::new(
                 "render.shadow_rays",
-                format!("{} is out of range, expected 1..=4096", r.shadow_rays),
+                format!(
+                    "{} is out of range, expected 1..={}",
+                    r.shadow_rays,
+                    limits::MAX_SHADOW_RAYS
+                ),
             ));
         }
-        if !(1..=16).contains(&r.max_depth) {
+        if !(1..=limits::MAX_DEPTH).contains(&r.max_depth) {
             return Err(SceneError::new(
                 "render.max_depth",
-                format!("{} is out of range, expected 1..=16", r.max_depth),
+                format!(
+                    "{} is out of range, expected 1..={}",
+                    r.max_depth,
+                    limits::MAX_DEPTH
+                ),
             ));
         }
         for (name, v) in [

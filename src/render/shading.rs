@@ -194,6 +194,10 @@ pub fn sampled_specular_again(
     buf: &mut ShadowBuffers,
 ) -> f32 {
     let count = pattern.count();
+    if visible.iter().all(|&w| w == 0) {
+        // Every term of the average is 0 × a finite factor.
+        return 0.0;
+    }
     let key = (pattern.sampling, pattern.shadow_rays);
     if !(pattern.is_fixed() && buf.filled == Some(key)) {
         pattern.fill(rng, &mut buf.a, &mut buf.b);
@@ -215,7 +219,7 @@ pub fn sampled_specular_again(
             0.0
         };
     }
-    sampled_terms(n, v, shininess, true, count, buf).specular
+    specular_average(n, v, shininess, count, buf)
 }
 
 avx2_dispatch!(
@@ -252,11 +256,7 @@ fn sampled_terms_generic(
         &buf.dz[..padded],
         &buf.vis[..padded],
     );
-    let (term_d, term_f, term_s) = (
-        &mut buf.term_d[..padded],
-        &mut buf.term_f[..padded],
-        &mut buf.term_s[..padded],
-    );
+    let (term_d, term_f) = (&mut buf.term_d[..padded], &mut buf.term_f[..padded]);
     for j in 0..padded {
         let (x, y, z) = (dx[j], dy[j], dz[j]);
         let inv = 1.0 / (x * x + y * y + z * z).sqrt();
@@ -271,19 +271,47 @@ fn sampled_terms_generic(
         specular: 0.0,
     };
     if need_s {
-        for j in 0..padded {
-            let (x, y, z) = (dx[j], dy[j], dz[j]);
-            let inv = 1.0 / (x * x + y * y + z * z).sqrt();
-            let (hx, hy, hz) = (x * inv + v.x, y * inv + v.y, z * inv + v.z);
-            let h2 = hx * hx + hy * hy + hz * hz;
-            // N·H / |H|; H = 0 (light exactly behind the viewer) gives 0.
-            let c = ((n.x * hx + n.y * hy + n.z * hz) / h2.sqrt()).max(0.0);
-            let c = if h2 > 0.0 { c } else { 0.0 };
-            term_s[j] = vis[j] * pow_approx(c, shininess);
-        }
-        terms.specular = term_s[..count].iter().sum::<f32>() * inv_count;
+        terms.specular = specular_average_generic(n, v, shininess, count, buf);
     }
     terms
+}
+
+avx2_dispatch!(
+    /// The specular factor alone (see [`sampled_terms`]).
+    fn specular_average(n: Vec3, v: Vec3, shininess: f32, count: usize, buf: &mut ShadowBuffers) -> f32
+        => specular_average_generic
+);
+
+/// max(0, N·H)^shininess averaged over the light points, each weighted by
+/// its visibility: the specular half of [`sampled_terms`], shared with the
+/// re-shading of recorded hits so that both give the same bits.
+#[inline(always)]
+fn specular_average_generic(
+    n: Vec3,
+    v: Vec3,
+    shininess: f32,
+    count: usize,
+    buf: &mut ShadowBuffers,
+) -> f32 {
+    let padded = count.next_multiple_of(8);
+    let (dx, dy, dz, vis) = (
+        &buf.dx[..padded],
+        &buf.dy[..padded],
+        &buf.dz[..padded],
+        &buf.vis[..padded],
+    );
+    let term_s = &mut buf.term_s[..padded];
+    for j in 0..padded {
+        let (x, y, z) = (dx[j], dy[j], dz[j]);
+        let inv = 1.0 / (x * x + y * y + z * z).sqrt();
+        let (hx, hy, hz) = (x * inv + v.x, y * inv + v.y, z * inv + v.z);
+        let h2 = hx * hx + hy * hy + hz * hz;
+        // N·H / |H|; H = 0 (light exactly behind the viewer) gives 0.
+        let c = ((n.x * hx + n.y * hy + n.z * hz) / h2.sqrt()).max(0.0);
+        let c = if h2 > 0.0 { c } else { 0.0 };
+        term_s[j] = vis[j] * pow_approx(c, shininess);
+    }
+    term_s[..count].iter().sum::<f32>() * (1.0 / count as f32)
 }
 
 /// Averages over the light points of one hit point.

@@ -5,12 +5,14 @@
 //!   CSV, a log-log plot of RMSE against time and a table ([`sweep`]);
 //! - `--spheres N,… --scaling` times generated scenes of N spheres
 //!   ([`scaling`]);
-//! - `--target` measures the figures of the speed targets ([`target`]).
+//! - `--target` measures the figures of the speed targets ([`target`]);
+//! - `--edits` times the viewer's answer to each class of edit ([`edits`]).
 //!
 //! Every time is the median of `--runs` renders (wall time of the render
 //! alone, not of building the scene), and every mode prints the machine's
 //! load, since the measurements share the machine with other work.
 
+pub mod edits;
 pub mod plot;
 pub mod reference;
 pub mod scaling;
@@ -118,6 +120,11 @@ pub struct BenchArgs {
     /// regions for each pattern (diffuse term, camera-ray hits).
     #[arg(long)]
     pub slopes: bool,
+    /// Time the viewer's answer to edits of each class (recombine,
+    /// re-shade, re-trace) through its own render worker, against a
+    /// one-shot render of the same settings.
+    #[arg(long)]
+    pub edits: bool,
 }
 
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, clap::ValueEnum)]
@@ -132,7 +139,9 @@ pub fn bench(args: &BenchArgs) -> Result<(), CliError> {
     println!("load average at start: {}", load_average());
     let pool = thread_pool(args.threads)?;
     let result = pool.install(|| {
-        if args.target {
+        if args.edits {
+            edits::run(args)
+        } else if args.target {
             target::run(args)
         } else if args.slopes {
             slopes::run(args)

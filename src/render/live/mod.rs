@@ -29,7 +29,8 @@ use record::{Budget, TileRecord, TileRecorder};
 use super::error::SceneError;
 use super::film::Film;
 use super::progressive::{
-    CancelToken, Cancelled, Pass, RenderOptions, TileUpdate, in_pool, lock, render_passes,
+    CancelToken, Cancelled, Pass, RenderOptions, TileUpdate, in_pool, lock, pass_plan,
+    render_passes,
 };
 use super::rng::Rng;
 use super::scene::{Loaded, Scene};
@@ -97,7 +98,14 @@ impl Frame {
 pub struct LiveRender {
     cap: usize,
     current: Option<Current>,
+    /// How long the last full-quality pass took: when it is short, a
+    /// progressive re-trace goes from the preview straight to it.
+    last_final: Option<Duration>,
 }
+
+/// A final pass this quick needs no intermediate passes: it is on screen
+/// a few frames after the preview, and they would only add to its time.
+const QUICK_FINAL: Duration = Duration::from_millis(250);
 
 impl Default for LiveRender {
     fn default() -> Self {
@@ -108,7 +116,11 @@ impl Default for LiveRender {
 impl LiveRender {
     /// A live render whose records hold at most `cap` bytes.
     pub fn new(cap: usize) -> LiveRender {
-        LiveRender { cap, current: None }
+        LiveRender {
+            cap,
+            current: None,
+            last_final: None,
+        }
     }
 
     /// The scene of the last render, if any.
@@ -210,17 +222,32 @@ impl LiveRender {
             frame: None,
         });
         let budget = Budget::new(self.cap);
+        let final_pass = Pass {
+            shadow_rays: settings.shadow_rays,
+            block: 1,
+        };
+        let plan = match (options.progressive, self.last_final) {
+            (false, _) => vec![final_pass],
+            (true, Some(t)) if t < QUICK_FINAL => {
+                vec![pass_plan(settings.shadow_rays)[0], final_pass]
+            }
+            (true, _) => pass_plan(settings.shadow_rays),
+        };
+        let started = Instant::now();
         let (report, mut tiles) = in_pool(options.threads, || {
             render_passes(
                 &scene,
                 &settings,
                 &shading,
+                &plan,
                 options,
                 cancel,
                 on_tile,
                 Some(&budget),
             )
         })?;
+        // Mostly the final pass: the passes before it are cheap.
+        self.last_final = Some(started.elapsed());
         let shapes = budget.shapes_allowed();
         if !shapes {
             tiles.iter_mut().for_each(TileRecord::drop_shapes);
@@ -441,11 +468,11 @@ fn replay_tile(
     let rect = record.rect;
     let mut fresh = TileRecord::new(rect, tracer.pattern.count(), record.shapes.is_some());
     let mut next_short = short.iter().peekable();
-    for i in 0..pixels {
+    for (i, pixel) in out.iter_mut().enumerate() {
         if next_short.peek() == Some(&&i) {
             next_short.next();
             let (x, y) = (rect.x + i as u32 % rect.w, rect.y + i as u32 / rect.w);
-            out[i] = tracer.trace(x, y, scratch, &mut TileRecorder { record: &mut fresh });
+            *pixel = tracer.trace(x, y, scratch, &mut TileRecorder { record: &mut fresh });
         } else {
             let range = record.pixel_hits(i);
             fresh.hits.extend_from_slice(&record.hits[range.clone()]);

@@ -1,0 +1,141 @@
+//! `penumbra bench --edits`: what an edit costs in the viewer. A fixed
+//! sequence of edits of each class goes through the viewer's own render
+//! worker (`app::render_job`, the core's `LiveRender` behind it), headless,
+//! and each is timed from the request to its last tile in the mailbox
+//! (converted for the texture), and for re-traces to its first tile. A
+//! one-shot render of the same settings is timed in the same run.
+
+use std::time::Duration;
+
+use super::{BenchArgs, CliError, scenes};
+use crate::app::render_job::{JobState, RenderJob};
+use crate::render::scene_file::SceneDesc;
+use crate::render::{CancelToken, EditClass, Loaded, RenderOptions};
+
+/// Edits per class (after one warm-up edit).
+const EDITS: usize = 9;
+
+/// The `k`-th edit of a class, applied to `desc` (each differs from the
+/// previous one, so none is a no-op).
+fn apply(class: EditClass, k: usize, desc: &mut SceneDesc) {
+    let f = 0.5 + 0.05 * (k % 8) as f64;
+    let first = desc.materials.keys().next().cloned().unwrap_or_default();
+    match (class, k % 3) {
+        (EditClass::Recombine, 0) => desc.render.terms.specular = f,
+        (EditClass::Recombine, 1) => desc.light.diffuse = [f, f, f],
+        (EditClass::Recombine, _) => {
+            if let Some(m) = desc.materials.get_mut(&first) {
+                m.diffuse = [f, 0.5, 0.3];
+            }
+        }
+        (EditClass::Reshade, 0 | 1) => desc.render.shininess_override = Some(10.0 + 40.0 * f),
+        (EditClass::Reshade, _) => {
+            desc.render.shininess_override = None;
+            for m in desc.materials.values_mut() {
+                if m.reflectivity > 0.0 {
+                    m.reflectivity = (m.reflectivity * (0.9 + 0.1 * f)).min(1.0);
+                }
+            }
+        }
+        (_, 0 | 1) => desc.light.corner[0] += if k.is_multiple_of(2) { 0.05 } else { -0.04 },
+        _ => desc.camera.position[1] += 0.01,
+    }
+}
+
+/// The `q`-quantile of sorted durations, in ms.
+fn quantile_ms(sorted: &[Duration], q: f64) -> f64 {
+    let i = ((sorted.len() - 1) as f64 * q).round() as usize;
+    sorted[i].as_secs_f64() * 1e3
+}
+
+pub fn run(args: &BenchArgs) -> Result<(), CliError> {
+    let ctx = egui::Context::default();
+    for scene in scenes(args)? {
+        let mut desc = scene.desc;
+        let c = &desc.camera;
+        println!(
+            "{}: {}×{}, {} {} shadow rays, depth {}, {} threads",
+            scene.name,
+            c.width,
+            c.height,
+            desc.render.shadow_rays,
+            desc.render.sampling.name(),
+            desc.render.max_depth,
+            rayon::current_num_threads()
+        );
+        let job = RenderJob::new(ctx.clone());
+        let mut peak = 0;
+        let mut render = |desc: &SceneDesc| -> Result<(EditClass, Duration, Duration), CliError> {
+            job.restart(desc.clone());
+            if !job.wait(Duration::from_secs(600)) {
+                return Err(CliError::other("an edit did not finish in 10 minutes"));
+            }
+            let first = job.first_tile_after().unwrap_or_default();
+            match job.state() {
+                JobState::Finished(f) => {
+                    peak = peak.max(f.record_bytes);
+                    Ok((f.class, first, f.since_request))
+                }
+                JobState::Failed(e) => Err(CliError::input(e)),
+                _ => Err(CliError::other("the render was cancelled")),
+            }
+        };
+        render(&desc)?;
+        let mut retrace_full = Vec::new();
+        for class in [EditClass::Recombine, EditClass::Reshade, EditClass::Retrace] {
+            let mut full = Vec::new();
+            let mut first = Vec::new();
+            for k in 0..=EDITS {
+                apply(class, k, &mut desc);
+                let (got, f, t) = render(&desc)?;
+                if got != class {
+                    return Err(CliError::other(format!(
+                        "a {} edit ran as {}",
+                        class.name(),
+                        got.name()
+                    )));
+                }
+                if k > 0 {
+                    full.push(t);
+                    first.push(f);
+                }
+            }
+            full.sort();
+            first.sort();
+            print!(
+                "edit {} median_ms {:.1} p90_ms {:.1}",
+                class.name(),
+                quantile_ms(&full, 0.5),
+                quantile_ms(&full, 0.9)
+            );
+            if class == EditClass::Retrace {
+                print!(
+                    " first_pixels_median_ms {:.1} first_pixels_p90_ms {:.1}",
+                    quantile_ms(&first, 0.5),
+                    quantile_ms(&first, 0.9)
+                );
+                retrace_full = full;
+            }
+            println!();
+        }
+        drop(job);
+        // The CLI's one-shot render of the same settings, in the same run.
+        let loaded = Loaded::new(&desc).map_err(CliError::input)?;
+        let mut one_shot: Vec<Duration> = (0..=EDITS)
+            .map(|_| {
+                loaded
+                    .render(&RenderOptions::default(), &CancelToken::new(), &|_| {})
+                    .expect("an uncancellable render finishes")
+                    .elapsed
+            })
+            .collect();
+        one_shot.sort();
+        let cli = quantile_ms(&one_shot, 0.5);
+        println!(
+            "one-shot render median_ms {cli:.1}; re-trace full quality / one-shot {:.2}×",
+            quantile_ms(&retrace_full, 0.5) / cli
+        );
+        println!("record peak_bytes {peak} ({:.1} MB)", peak as f64 / 1e6);
+    }
+    Ok(())
+}

@@ -606,3 +606,27 @@ fn a_reference_computation_is_cancelled_by_the_button_or_a_scene_change() {
     assert!(h.state().notice().unwrap().contains("cancelled"));
     assert!(h.state().reference().is_none());
 }
+
+#[test]
+fn values_outside_the_sliders_ranges_load_show_and_stay_unchanged() {
+    let mut d = small_room();
+    d.render.shadow_rays = 4096;
+    d.render.terms.diffuse = 10.0;
+    d.render.max_depth = 16;
+    let m = d.materials.get_mut("steel").unwrap();
+    m.shininess = 0.5;
+    m.diffuse = [0.3, 0.7, 0.1];
+    d.light.diffuse = [0.3, 3.0, 0.3];
+    let mut h = harness(ViewerOptions::new(d.clone()));
+    for _ in 0..4 {
+        h.step();
+    }
+    assert_eq!(
+        h.state().desc(),
+        &d,
+        "showing the controls changed the scene"
+    );
+    let worker = h.state().worker_desc().expect("a render started").1;
+    assert_eq!(worker.render.shadow_rays, 4096);
+    assert_eq!(worker.render.terms.diffuse, 10.0);
+}

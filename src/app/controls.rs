@@ -292,7 +292,9 @@ fn material_ui(ui: &mut Ui, state: &mut ControlsState, desc: &mut SceneDesc) -> 
 fn colour_edit(ui: &mut Ui, c: &mut [f64; 3]) -> bool {
     let shown = c.map(|x| x as f32);
     let mut rgb = shown;
-    ui.color_edit_button_rgb(&mut rgb);
+    if !ui.color_edit_button_rgb(&mut rgb).changed() {
+        return false;
+    }
     let mut changed = false;
     for i in 0..3 {
         if rgb[i] != shown[i] {

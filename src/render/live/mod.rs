@@ -105,7 +105,7 @@ pub struct LiveRender {
 
 /// A final pass this quick needs no intermediate passes: it is on screen
 /// a few frames after the preview, and they would only add to its time.
-const QUICK_FINAL: Duration = Duration::from_millis(250);
+const QUICK_FINAL: Duration = Duration::from_secs(1);
 
 impl Default for LiveRender {
     fn default() -> Self {

@@ -5,12 +5,14 @@
 use egui::{Slider, SliderClamping, Ui};
 
 use super::settings::ViewSettings;
-use crate::render::scene_file::limits::{MAX_COLOUR, MAX_DEPTH, MAX_SHADOW_RAYS, MAX_SHININESS};
+use crate::render::scene_file::limits::{MAX_DEPTH, MAX_SHADOW_RAYS, MAX_SHININESS};
 use crate::render::{AreaLightModel, Sampling, SceneDesc};
 
-/// A slider over a format limit's range that never changes a value it only
-/// shows: a scene's 4096 shadow rays or strength 10 load, show and save
-/// unchanged (egui's default clamping would rewrite them).
+/// A slider that never changes a value it only shows: a scene's 4096
+/// shadow rays or strength 20 load, show and save unchanged (egui's default
+/// clamping would rewrite them). Ranges are the format's limits, except the
+/// term strengths (0–10 of the format's 0–10⁶, so that a drag stays fine;
+/// the number field takes any value the format does).
 fn slider<'a, N: egui::emath::Numeric>(
     value: &'a mut N,
     range: std::ops::RangeInclusive<N>,
@@ -92,12 +94,7 @@ pub fn controls_ui(
                     changed |= ui.checkbox(on, label).changed();
                     ui.add_enabled_ui(*on, |ui| {
                         changed |= ui
-                            .add(
-                                slider(strength, 0.0..=MAX_COLOUR)
-                                    .logarithmic(true)
-                                    .smallest_positive(0.01)
-                                    .text(format!("{label} strength")),
-                            )
+                            .add(slider(strength, 0.0..=10.0).text(format!("{label} strength")))
                             .changed();
                     });
                 });

@@ -6,9 +6,9 @@
 use std::hint::black_box;
 
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
+use penumbra::render::HitTarget;
 use penumbra::render::generate::spheres_in_room;
 use penumbra::render::geometry::{Aabb, Bvh, Ray};
-use penumbra::render::scene::HitTarget;
 use penumbra::render::{Loaded, Scene};
 
 type CrateBvh = bvh::bvh::Bvh<f64, 3>;

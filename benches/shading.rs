@@ -5,12 +5,12 @@
 use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
+use penumbra::render::HitTarget;
 use penumbra::render::Loaded;
+use penumbra::render::RayStats;
 use penumbra::render::rng::Rng;
-use penumbra::render::scene::HitTarget;
 use penumbra::render::shading::{ShadingPoint, shade};
 use penumbra::render::shadow::ShadowBuffers;
-use penumbra::render::stats::RayStats;
 use penumbra::render::tracer::Tracer;
 
 /// The first hit of pixel (x, y) as the tracer shades it.

@@ -6,10 +6,10 @@ mod common;
 use common::penumbra_ok;
 use penumbra::cli::bench::reference::{reference, reference_key};
 use penumbra::cli::bench::sweep::{SweepPlan, csv, csv_columns, run_sweep};
+use penumbra::render::SEED_ROOM_JSON;
 use penumbra::render::generate::{
     Layout, ROOM_MAX, ROOM_MIN, floor_sphere_radius, generate, sphere_radius, spheres_in_room,
 };
-use penumbra::render::scene::SEED_ROOM_JSON;
 use penumbra::render::scene_file::ObjectDesc;
 use penumbra::render::{AreaLightModel, Loaded, Sampling, SceneDesc};
 

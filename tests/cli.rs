@@ -131,7 +131,7 @@ fn compare_of_different_sizes_exits_2() {
 fn bad_scene_exits_2_with_the_field_and_leaves_no_file() {
     let dir = scratch_dir("bad");
     let scene = dir.join("bad.json");
-    let text = penumbra::render::scene::SEED_ROOM_JSON.replace(r#""radius": 1"#, r#""radius": -1"#);
+    let text = penumbra::render::SEED_ROOM_JSON.replace(r#""radius": 1"#, r#""radius": -1"#);
     std::fs::write(&scene, text).unwrap();
     let out = dir.join("out.png");
     let o = penumbra(&[

@@ -4,12 +4,12 @@
 mod common;
 
 use glam::{DVec3, Vec3};
-use penumbra::render::progressive::{CancelToken, RenderOptions};
+use penumbra::render::HitTarget;
 use penumbra::render::rng::Rng;
 use penumbra::render::sampling::Pattern;
-use penumbra::render::scene::HitTarget;
 use penumbra::render::shading::{Needs, ShadingPoint, light_terms};
 use penumbra::render::shadow::ShadowBuffers;
+use penumbra::render::{CancelToken, RenderOptions};
 use penumbra::render::{Loaded, RayStats, Sampling, SceneDesc};
 
 /// A floor under a 2×2 light at height 8, seen straight from above.
@@ -373,8 +373,8 @@ fn skip_on_and_off(desc: SceneDesc, packets: bool, what: &str) -> (RayStats, Ray
 /// hit point, for more rays than one packet holds, and in adaptive mode.
 #[test]
 fn shadow_packets_give_the_image_of_tracing_everything() {
+    use penumbra::render::PACKET_THRESHOLD;
     use penumbra::render::generate::spheres_in_room;
-    use penumbra::render::scene::PACKET_THRESHOLD;
     assert!(
         common::build(spheres_in_room(PACKET_THRESHOLD - 1, 3))
             .scene

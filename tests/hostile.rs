@@ -12,7 +12,7 @@ use std::process::Command;
 
 use common::{files_in, penumbra};
 
-use penumbra::render::scene::SEED_ROOM_JSON;
+use penumbra::render::SEED_ROOM_JSON;
 use penumbra::render::scene_file::limits;
 use penumbra::render::{SceneDesc, SceneError};
 use serde_json::{Value, json};

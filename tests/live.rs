@@ -2,8 +2,8 @@
 //! gives equals a fresh one-shot render of the same description, bit for
 //! bit — and each edit costs only what its class says.
 
+use penumbra::render::SEED_ROOM_JSON;
 use penumbra::render::generate::{Layout, generate};
-use penumbra::render::scene::SEED_ROOM_JSON;
 use penumbra::render::{
     AreaLightModel, CancelToken, EditClass, Film, LiveError, LiveRender, LiveReport, Loaded,
     RenderOptions, Sampling, SceneDesc, classify,

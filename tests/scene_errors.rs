@@ -1,7 +1,7 @@
 //! Each class of bad scene is refused with its own message naming the
 //! field's JSON path.
 
-use penumbra::render::scene::SEED_ROOM_JSON;
+use penumbra::render::SEED_ROOM_JSON;
 use penumbra::render::{Loaded, SceneDesc};
 use serde_json::{Value, json};
 

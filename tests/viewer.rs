@@ -9,8 +9,8 @@ use egui_kittest::Harness;
 use egui_kittest::kittest::Queryable;
 use penumbra::app::render_job::JobState;
 use penumbra::app::{Viewer, ViewerOptions};
+use penumbra::render::SEED_ROOM_JSON;
 use penumbra::render::film::encode_srgb8;
-use penumbra::render::scene::SEED_ROOM_JSON;
 use penumbra::render::{Film, Loaded, SceneDesc};
 
 const WAIT: Duration = Duration::from_secs(60);
@@ -385,7 +385,7 @@ fn dragging_the_image_orbits_the_camera_and_double_click_picks() {
 
 // ----- reference and error readout ---------------------------------------
 
-use penumbra::app::reference::{Match, ViewMode, reference_desc};
+use penumbra::app::reference::{Match, ViewMode, converged};
 use penumbra::render::compare::{compare, diff_image};
 use penumbra::render::output::write_film;
 
@@ -544,7 +544,7 @@ fn computing_a_reference_in_the_background_then_reads_the_error() {
     assert!(!h.state().reference_busy());
 
     // The converged render of the image on screen.
-    let converged = reference_desc(&room);
+    let converged = converged(&room);
     assert_eq!(converged.render.shadow_rays, 4096);
     assert_eq!(
         converged.render.sampling,

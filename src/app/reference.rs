@@ -21,21 +21,12 @@ use super::render_job::render_pool;
 use crate::render::output::read_film;
 use crate::render::progressive::{CancelToken, RenderOptions};
 use crate::render::scene_file::RenderDesc;
-use crate::render::{AreaLightModel, Film, Loaded, Sampling, SceneDesc};
+use crate::render::{AreaLightModel, Film, Loaded, REFERENCE_RAYS, Sampling, SceneDesc};
 
-/// Shadow rays per hit point of a computed reference.
-pub const REFERENCE_SHADOW_RAYS: u32 = 4096;
-/// Its pattern: one jittered point per cell of a 64×64 grid.
-pub const REFERENCE_SAMPLING: Sampling = Sampling::Stratified;
-
-/// The converged version of `desc` (the image as displayed): the same
-/// scene, size and area-light model at 4096 stratified shadow rays.
-pub fn reference_desc(desc: &SceneDesc) -> SceneDesc {
-    let mut d = desc.clone();
-    d.render.shadow_rays = REFERENCE_SHADOW_RAYS;
-    d.render.sampling = REFERENCE_SAMPLING;
-    d.render.adaptive = false;
-    d
+/// The converged version of `desc` (the image as displayed): the core's
+/// reference of it under its own area-light model.
+pub fn converged(desc: &SceneDesc) -> SceneDesc {
+    crate::render::reference_desc(desc, desc.render.area_light_model, REFERENCE_RAYS)
 }
 
 /// Whether two descriptions converge to the same image: they may differ
@@ -148,7 +139,7 @@ pub struct ReferenceTask {
 }
 
 impl ReferenceTask {
-    /// Renders `desc` (see [`reference_desc`]) on a thread of its own, in
+    /// Renders `desc` (see [`converged`]) on a thread of its own, in
     /// a low-priority pool like the viewer's renders.
     pub fn compute(ctx: &egui::Context, desc: SceneDesc) -> ReferenceTask {
         let cancel = CancelToken::new();
@@ -327,8 +318,8 @@ pub fn reference_ui(
                 if ui
                     .add_enabled(!computing, egui::Button::new("Compute reference"))
                     .on_hover_text(format!(
-                        "Render this image converged in the background: {REFERENCE_SHADOW_RAYS} {} shadow rays, same area-light model, adaptive off",
-                        REFERENCE_SAMPLING.name()
+                        "Render this image converged in the background: {REFERENCE_RAYS} {} shadow rays, same area-light model, adaptive off",
+                        crate::render::REFERENCE_SAMPLING.name()
                     ))
                     .clicked()
                 {

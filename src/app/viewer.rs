@@ -26,7 +26,7 @@ use super::export::IoTasks;
 use super::file_dialog::{DialogResult, PathDialog, Purpose};
 use super::reference::{
     Match, Origin, RefAction, RefPanel, Reference, ReferenceTask, TaskKind, TaskOutcome, ViewMode,
-    reference_desc, reference_ui, same_limit,
+    converged, reference_ui, same_limit,
 };
 use super::render_job::{JobState, RenderJob};
 use super::settings::ViewSettings;
@@ -405,7 +405,7 @@ impl Viewer {
     /// Starts computing the converged reference of the image on screen
     /// (replacing a task under way).
     pub fn compute_reference(&mut self, ctx: &egui::Context) {
-        let desc = reference_desc(&self.render_desc());
+        let desc = converged(&self.render_desc());
         self.ref_task = Some(ReferenceTask::compute(ctx, desc));
     }
 

@@ -9,6 +9,7 @@
 
 use glam::{DVec2, DVec3};
 
+#[cfg(test)]
 /// A convex polygon of at most five vertices, the light's quad clipped to a
 /// hit point's horizon. Stored inline so that shading never allocates.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -17,6 +18,7 @@ pub struct ClippedPolygon {
     pub len: usize,
 }
 
+#[cfg(test)]
 impl ClippedPolygon {
     pub fn as_slice(&self) -> &[DVec3] {
         &self.verts[..self.len]
@@ -27,6 +29,7 @@ impl ClippedPolygon {
     }
 }
 
+#[cfg(test)]
 /// Clips a convex quad (vertices relative to the hit point, which is the
 /// origin) to the closed half-space `normal · x ≥ 0` by Sutherland–Hodgman.
 /// Vertex order (winding) is preserved; the result has 0, 3, 4 or 5
@@ -60,6 +63,7 @@ pub fn clip_to_horizon(quad: &[DVec3; 4], normal: DVec3) -> ClippedPolygon {
     out
 }
 
+#[cfg(test)]
 /// Lambert's polygon formula: the cosine-weighted solid angle of a polygon
 /// seen from the origin, normalised as a point-to-polygon form factor,
 ///
@@ -91,6 +95,7 @@ pub fn lambert_polygon(verts: &[DVec3], n: DVec3) -> f64 {
     (sum.abs() / (2.0 * std::f64::consts::PI)).min(1.0)
 }
 
+#[cfg(test)]
 /// [`lambert_polygon`] of the parallelogram `corner + a·edge_u + b·edge_v`,
 /// (a, b) ∈ \[0,1\]², seen from `p` with unit normal `n`, after clipping to
 /// the horizon: the form factor (1/π) ∫ max(0, n·ω) dω over its solid
@@ -273,6 +278,7 @@ fn small_polygon_integral(poly: &[DVec2], a: DVec2, b: f64, h: f64) -> f64 {
     total
 }
 
+#[cfg(test)]
 /// Unshadowed Blinn–Phong specular factor averaged uniformly over the
 /// parallelogram, matching the `sampled` model's specular term:
 ///
@@ -304,6 +310,7 @@ pub fn specular_area_average(
     specular_area_average_tol(p, n, v, shininess, corner, edge_u, edge_v, 1e-3)
 }
 
+#[cfg(test)]
 /// [`specular_area_average`] to a chosen relative tolerance, by adaptive
 /// tensor 4×4 Gauss–Legendre cubature over the light's (a, b) ∈ \[0,1\]².
 ///
@@ -453,9 +460,11 @@ pub fn specular_area_average_tol(
     total
 }
 
+#[cfg(test)]
 /// Most breakpoints per axis of the specular cubature's initial cells.
 const MAX_BREAKS: usize = 34;
 
+#[cfg(test)]
 /// Breakpoints lo = x₀ < x₁ < … = hi, spaced `step` next to `peak` and
 /// doubling away from it (at most 16 on each side).
 fn graded_breaks(lo: f64, hi: f64, peak: f64, step: f64) -> ([f64; MAX_BREAKS], usize) {

@@ -2,33 +2,48 @@
 //! rays, shading, tracer, progressive tiles, live edits and film/output. It
 //! knows nothing of the UI.
 //!
-//! The public API is the list of `pub use` below; the modules themselves
-//! are public only where the CLI's benchmarks and the tests reach inside.
+//! The API is the list of `pub use` below plus the public modules of the
+//! format (`scene_file`), the primitives (`geometry`), generated scenes and
+//! image files; hidden modules are internals that benchmarks and white-box
+//! tests reach into.
 
-pub mod analytic;
-pub mod camera;
+// The format, the primitives and the image files: public modules.
 pub mod compare;
-pub mod error;
 pub mod film;
 pub mod generate;
 pub mod geometry;
-pub mod light;
-pub mod live;
-pub mod math;
 pub mod output;
-pub mod progressive;
-pub mod rng;
-pub mod sampling;
-pub mod scene;
 pub mod scene_file;
-pub mod scene_transform;
-pub mod settings;
+
+// Internals that the benchmarks and white-box tests reach into; not part of
+// the API.
+#[doc(hidden)]
+pub mod math;
+#[doc(hidden)]
+pub mod rng;
+#[doc(hidden)]
+pub mod sampling;
+#[doc(hidden)]
 pub mod shading;
-pub mod shading_params;
+#[doc(hidden)]
 pub mod shadow;
-pub mod sobol;
-pub mod stats;
+#[doc(hidden)]
 pub mod tracer;
+
+// Internals, re-exported below where they are part of the API.
+pub(crate) mod analytic;
+pub(crate) mod camera;
+pub(crate) mod error;
+pub(crate) mod light;
+pub(crate) mod live;
+pub(crate) mod progressive;
+pub(crate) mod reference;
+pub(crate) mod scene;
+pub(crate) mod scene_transform;
+pub(crate) mod settings;
+pub(crate) mod shading_params;
+pub(crate) mod sobol;
+pub(crate) mod stats;
 
 pub use error::{ImageError, SceneError};
 pub use film::Film;
@@ -37,8 +52,9 @@ pub use progressive::{
     CancelToken, Cancelled, Pass, RenderOptions, RenderReport, TileRect, TileUpdate, pass_plan,
     render, render_image,
 };
-pub use scene::{Loaded, Scene};
+pub use reference::{REFERENCE_RAYS, REFERENCE_SAMPLING, REFERENCE_SEED, reference_desc};
+pub use scene::{HitTarget, Loaded, PACKET_THRESHOLD, SEED_ROOM_JSON, Scene};
 pub use scene_file::{AreaLightModel, Sampling, SceneDesc};
 pub use settings::RenderSettings;
 pub use shading_params::{LightColours, Material, ShadingParams};
-pub use stats::RayStats;
+pub use stats::{RayStats, SAVINGS, Saving};

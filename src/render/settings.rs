@@ -3,14 +3,13 @@
 
 use glam::{DVec3, Vec3};
 
-use super::sampling::points_per_hit;
 use super::scene_file::{AreaLightModel, Sampling, SceneDesc};
 
 /// Settings of one render, from the scene's `render` section.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RenderSettings {
-    /// Shadow rays asked for per hit point; [`RenderSettings::cast_rays`]
-    /// is how many the pattern casts.
+    /// Shadow rays asked for per hit point (`sampling::points_per_hit` is
+    /// how many the pattern casts).
     pub shadow_rays: u32,
     pub sampling: Sampling,
     pub max_depth: u32,
@@ -48,11 +47,5 @@ impl RenderSettings {
             adaptive: r.adaptive,
             skip: true,
         }
-    }
-
-    /// Shadow rays the pattern casts per hit point for the requested count
-    /// (the grid patterns round down to a square).
-    pub fn cast_rays(&self) -> usize {
-        points_per_hit(self.sampling, self.shadow_rays)
     }
 }

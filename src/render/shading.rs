@@ -137,7 +137,8 @@ pub fn light_terms(
             // unshadowed diffuse average times the visible share of the
             // sampled integrand. Noise-free wherever the light is wholly
             // visible or wholly hidden. The specular term has no closed form
-            // (see `analytic::specular_area_average`) and stays sampled.
+            // (`analytic::specular_area_average`, a test-only quadrature,
+            // shows what it converges to) and stays sampled.
             let t = sampled_terms(n, v, m.shininess, need_s, count, buf);
             let light = &scene.light.shape;
             let exact = if need_d {

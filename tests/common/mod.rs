@@ -8,7 +8,7 @@ use penumbra::render::{Loaded, SceneDesc};
 
 /// The seed room description, resized.
 pub fn seed_room(width: u32, height: u32) -> SceneDesc {
-    let mut desc = SceneDesc::from_json(penumbra::render::scene::SEED_ROOM_JSON).unwrap();
+    let mut desc = SceneDesc::from_json(penumbra::render::SEED_ROOM_JSON).unwrap();
     desc.camera.width = width;
     desc.camera.height = height;
     desc

@@ -11,15 +11,10 @@ use std::time::{Duration, Instant};
 
 use super::{CliError, build, render_once};
 use crate::render::output::{read_film, write_film};
-use crate::render::{AreaLightModel, Film, Sampling, SceneDesc};
+use crate::render::{AreaLightModel, Film, SceneDesc};
 
-/// Shadow rays per hit of a reference unless told otherwise.
-pub const REFERENCE_RAYS: u32 = 4096;
-
-/// The reference's seed: fixed, so the key does not depend on the sweep's
-/// seed, and unlike the default seed 1, so that the reference's random
-/// numbers are not the sweep's.
-pub const REFERENCE_SEED: u64 = 0x7265_6665_7265_6e63;
+pub use crate::render::REFERENCE_RAYS;
+use crate::render::reference_desc;
 
 /// Bump when the renderer changes what a reference looks like, so that old
 /// cache entries are not reused.
@@ -33,18 +28,6 @@ pub struct Reference {
     pub cached: bool,
     /// Render time (zero when cached).
     pub elapsed: Duration,
-}
-
-/// The scene as the reference renders it.
-pub fn reference_desc(desc: &SceneDesc, model: AreaLightModel, rays: u32) -> SceneDesc {
-    let mut d = desc.clone();
-    d.render.sampling = Sampling::Stratified;
-    d.render.shadow_rays = rays;
-    d.render.seed = REFERENCE_SEED;
-    d.render.area_light_model = model;
-    // The converged answer is the unbiased one.
-    d.render.adaptive = false;
-    d
 }
 
 /// Hex key of a reference: FNV-1a (64 bit) of the normalised scene JSON.

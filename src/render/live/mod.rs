@@ -328,8 +328,7 @@ impl LiveRender {
                     if respecular.contains(&true) {
                         respecular_tile(
                             &scene,
-                            &settings,
-                            &shading,
+                            &tracer,
                             &respecular,
                             &mut record,
                             &mut scratch.shadow,
@@ -389,13 +388,12 @@ impl LiveRender {
 /// shininess changed, from their recorded visibility.
 fn respecular_tile(
     scene: &Scene,
-    settings: &RenderSettings,
-    shading: &ShadingParams,
+    tracer: &Tracer,
     respecular: &[bool],
     record: &mut TileRecord,
     buf: &mut ShadowBuffers,
 ) {
-    let pattern = super::sampling::Pattern::new(settings.sampling, settings.shadow_rays);
+    let (settings, shading, pattern) = (tracer.settings, tracer.shading, &tracer.pattern);
     let count = pattern.count();
     let TileRecord {
         rect,
@@ -425,7 +423,7 @@ fn respecular_tile(
                     let mut rng = Rng::for_vertex(settings.seed, x, y, k as u32 + 1);
                     sampled_specular_again(
                         scene,
-                        &pattern,
+                        pattern,
                         &mut rng,
                         shape.to_light,
                         shape.normal,

@@ -19,7 +19,7 @@ use std::time::{Duration, Instant};
 use glam::Vec3;
 
 use super::film::Film;
-use super::live::record::{Budget, TileRecord, TileRecorder};
+use super::live::record::{Budget, TileRecord, TileRecorder, shininess_of};
 use super::scene::Scene;
 use super::settings::RenderSettings;
 use super::shading_params::ShadingParams;
@@ -247,6 +247,7 @@ pub(crate) fn render_passes(
     for (pass_index, &pass) in plan.iter().enumerate() {
         let tracer = Tracer::new(scene, settings, shading, pass.shadow_rays);
         let record = budget.filter(|_| pass_index + 1 == plan.len());
+        let shininess = shininess_of(shading);
         let next = AtomicUsize::new(0);
         let done = AtomicUsize::new(0);
         let stats = Mutex::new(RayStats::default());
@@ -261,8 +262,12 @@ pub(crate) fn render_passes(
                 let rect = tiles[i];
                 let traced_before = scratch.stats.traced();
                 if let Some(budget) = record {
-                    let mut rec =
-                        TileRecord::new(rect, tracer.pattern.count(), budget.shapes_allowed());
+                    let mut rec = TileRecord::new(
+                        rect,
+                        tracer.pattern.count(),
+                        budget.shapes_allowed(),
+                        shininess.clone(),
+                    );
                     if !render_tile_recorded(
                         &tracer,
                         rect,

@@ -24,7 +24,7 @@ use std::time::{Duration, Instant};
 use glam::Vec3;
 
 pub use edit::{EditClass, classify};
-use record::{Budget, TileRecord, TileRecorder};
+use record::{Budget, TileRecord, TileRecorder, shininess_of};
 
 use super::error::SceneError;
 use super::film::Film;
@@ -283,16 +283,9 @@ impl LiveRender {
         let current = self.current.as_mut().expect("a recorded frame");
         let settings = RenderSettings::from_desc(desc);
         let shading = ShadingParams::from_desc(desc);
-        let old = &current.shading;
-        // Materials whose specular factors must be computed again.
-        let respecular: Vec<bool> = shading
-            .materials
-            .iter()
-            .zip(&old.materials)
-            .map(|(m, o)| m.shininess != o.shininess)
-            .collect();
+        let shininess = shininess_of(&shading);
         let frame = current.frame.as_ref().expect("a recorded frame");
-        if respecular.contains(&true) && !frame.shapes {
+        if !frame.shapes && frame.tiles.iter().any(|t| lock(t).shininess != shininess) {
             // Above the memory cap the visibility was not kept.
             let scene = self.current.take().expect("a scene").scene;
             return self.retrace(desc, scene, settings, shading, options, cancel, on_tile);
@@ -325,11 +318,11 @@ impl LiveRender {
                     }
                     let mut record = lock(&tiles[i]);
                     let traced_before = scratch.stats.traced();
-                    if respecular.contains(&true) {
+                    if record.shininess != shininess {
                         respecular_tile(
                             &scene,
                             &tracer,
-                            &respecular,
+                            &shininess,
                             &mut record,
                             &mut scratch.shadow,
                         );
@@ -362,14 +355,9 @@ impl LiveRender {
         let result = in_pool(options.threads, run);
         let film = film.into_inner().unwrap_or_else(|e| e.into_inner());
         let stats = stats.into_inner().unwrap_or_else(|e| e.into_inner());
-        if let Err(e) = result {
-            // Some tiles may hold the new factors, others the old: nothing
-            // recorded can be trusted any more.
-            if respecular.contains(&true) || retraced.load(Ordering::Relaxed) > 0 {
-                current.frame = None;
-            }
-            return Err(e.into());
-        }
+        // Cancelled: every tile is consistent on its own (it knows the
+        // shininess of its factors), so the records stay.
+        result?;
         current.desc = desc.clone();
         current.settings = settings;
         current.shading = shading;
@@ -385,14 +373,20 @@ impl LiveRender {
 }
 
 /// Computes the specular factors of a tile's hits whose material's
-/// shininess changed, from their recorded visibility.
+/// shininess differs from `shininess`, from their recorded visibility.
 fn respecular_tile(
     scene: &Scene,
     tracer: &Tracer,
-    respecular: &[bool],
+    shininess: &Arc<[f32]>,
     record: &mut TileRecord,
     buf: &mut ShadowBuffers,
 ) {
+    let respecular: Vec<bool> = shininess
+        .iter()
+        .zip(record.shininess.iter())
+        .map(|(new, old)| new != old)
+        .collect();
+    record.shininess = shininess.clone();
     let (settings, shading, pattern) = (tracer.settings, tracer.shading, &tracer.pattern);
     let count = pattern.count();
     let TileRecord {
@@ -464,7 +458,12 @@ fn replay_tile(
     }
     // Record the tile again: the lengthened paths traced, the others copied.
     let rect = record.rect;
-    let mut fresh = TileRecord::new(rect, tracer.pattern.count(), record.shapes.is_some());
+    let mut fresh = TileRecord::new(
+        rect,
+        tracer.pattern.count(),
+        record.shapes.is_some(),
+        record.shininess.clone(),
+    );
     let mut next_short = short.iter().peekable();
     for (i, pixel) in out.iter_mut().enumerate() {
         if next_short.peek() == Some(&&i) {

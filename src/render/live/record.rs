@@ -9,12 +9,14 @@
 //! point). Per pixel: 5 (its first hit and how its path ended). At 960×540,
 //! 64 shadow rays, depth 4 on the seed room (670 k hits): about 40 MB.
 
+use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
 use glam::Vec3;
 
 use crate::render::progressive::TileRect;
 use crate::render::shading::LightTerms;
+use crate::render::shading_params::ShadingParams;
 use crate::render::shadow::ShadowBuffers;
 use crate::render::tracer::{HitRecord, PathEnd, PathSink};
 
@@ -43,6 +45,10 @@ pub struct TileRecord {
     pub hits: Vec<ColourHit>,
     /// The shininess tier, parallel to `hits` (absent above the memory cap).
     pub shapes: Option<Shapes>,
+    /// Per material, the shininess the specular factors were computed
+    /// with: each tile knows its own, so that a re-shade cancelled half-way
+    /// leaves every tile consistent (shared between tiles, not counted).
+    pub shininess: Arc<[f32]>,
 }
 
 /// The shininess tier of a tile.
@@ -55,7 +61,12 @@ pub struct Shapes {
 }
 
 impl TileRecord {
-    pub fn new(rect: TileRect, light_points: usize, with_shapes: bool) -> TileRecord {
+    pub fn new(
+        rect: TileRect,
+        light_points: usize,
+        with_shapes: bool,
+        shininess: Arc<[f32]>,
+    ) -> TileRecord {
         let pixels = (rect.w * rect.h) as usize;
         let mut starts = Vec::with_capacity(pixels + 1);
         starts.push(0);
@@ -69,6 +80,7 @@ impl TileRecord {
                 visible: Vec::with_capacity(pixels * light_points.div_ceil(64)),
                 words: light_points.div_ceil(64),
             }),
+            shininess,
         }
     }
 
@@ -107,6 +119,11 @@ impl TileRecord {
         self.ends.shrink_to_fit();
         self.hits.shrink_to_fit();
     }
+}
+
+/// The shininess of every material, as the records keep it.
+pub fn shininess_of(shading: &ShadingParams) -> Arc<[f32]> {
+    shading.materials.iter().map(|m| m.shininess).collect()
 }
 
 /// Records the paths of one tile as they are traced.

@@ -190,6 +190,27 @@ fn every_model_and_pattern_reshades_exactly() {
 }
 
 #[test]
+fn anti_aliased_frames_recombine_and_reshade_exactly() {
+    let mut live = LiveRender::default();
+    let mut d = room(48, 27);
+    d.render.samples_per_pixel = 5;
+    d.render.sampling = Sampling::Stratified;
+    step(&mut live, &d, "5 samples per pixel");
+    d.render.terms.diffuse = 0.4;
+    let r = step(&mut live, &d, "5 spp, strength");
+    assert_eq!(r.stats.traced(), 0);
+    material(&mut d, "steel").shininess = 4.0;
+    let r = step(&mut live, &d, "5 spp, shininess");
+    assert_eq!(r.stats.traced(), 0);
+    material(&mut d, "white").reflectivity = 0.3;
+    let r = step(&mut live, &d, "5 spp, reflectivity from 0");
+    assert!(r.retraced_pixels > 0);
+    d.render.samples_per_pixel = 2;
+    let r = step(&mut live, &d, "2 spp");
+    assert_eq!(r.class, EditClass::Retrace);
+}
+
+#[test]
 fn shadow_packets_of_a_crowded_room_reshade_exactly() {
     // From 256 objects on, shadow rays walk the light-frame BVH as packets.
     let mut d = generate(300, 5, Layout::Volume);
@@ -290,6 +311,7 @@ enum RandomEdit {
     Depth(u32),
     LightCorner(f64),
     Camera(f64),
+    Samples(u32),
 }
 
 fn apply(d: &mut SceneDesc, e: &RandomEdit) {
@@ -326,6 +348,7 @@ fn apply(d: &mut SceneDesc, e: &RandomEdit) {
         RandomEdit::Depth(n) => d.render.max_depth = *n,
         RandomEdit::LightCorner(x) => d.light.corner[2] += x,
         RandomEdit::Camera(x) => d.camera.position[0] += x,
+        RandomEdit::Samples(n) => d.render.samples_per_pixel = *n,
     }
 }
 
@@ -348,6 +371,7 @@ fn random_edit() -> impl Strategy<Value = RandomEdit> {
         1 => (1..6u32).prop_map(RandomEdit::Depth),
         1 => (-0.5..0.5f64).prop_map(RandomEdit::LightCorner),
         1 => (-0.5..0.5f64).prop_map(RandomEdit::Camera),
+        1 => (1..6u32).prop_map(RandomEdit::Samples),
     ]
 }
 

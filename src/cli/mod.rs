@@ -14,7 +14,7 @@ pub use bench::{BenchArgs, bench};
 pub use compare_cmd::compare;
 pub use render_cmd::{load_desc, load_scene, render};
 
-use crate::render::{AreaLightModel, Sampling};
+use crate::render::{AreaLightModel, FilterKind, Sampling};
 
 #[derive(Debug, Parser)]
 #[command(
@@ -91,6 +91,44 @@ pub struct SceneOverrides {
     /// Move the whole scene (camera included) by x,y,z.
     #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
     pub translate: Option<[f64; 3]>,
+    /// Camera samples per pixel (anti-aliasing; `render.samples_per_pixel`).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1024))]
+    pub spp: Option<u32>,
+    /// Reconstruction filter of several samples per pixel (default
+    /// blackman-harris).
+    #[arg(long, value_enum)]
+    pub filter: Option<FilterArg>,
+    /// Width of the Blackman–Harris filter in pixels (default 1.5).
+    #[arg(long, value_parser = parse_filter_width)]
+    pub filter_width: Option<f32>,
+}
+
+impl SceneOverrides {
+    /// The filter these options ask for, if they name one.
+    pub fn filter(&self) -> Option<FilterKind> {
+        match (self.filter, self.filter_width) {
+            (None, None) => None,
+            (Some(FilterArg::Box), _) => Some(FilterKind::Box),
+            (_, w) => Some(FilterKind::BlackmanHarris {
+                width: w.unwrap_or(FilterKind::DEFAULT.width()),
+            }),
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+pub enum FilterArg {
+    Box,
+    BlackmanHarris,
+}
+
+fn parse_filter_width(s: &str) -> Result<f32, String> {
+    let w: f32 = s.parse().map_err(|_| format!("{s:?} is not a number"))?;
+    if (0.5..=8.0).contains(&w) {
+        Ok(w)
+    } else {
+        Err(format!("{w} is out of range, expected 0.5..=8 pixels"))
+    }
 }
 
 #[derive(Debug, Args)]

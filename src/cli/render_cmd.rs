@@ -13,7 +13,12 @@ use crate::render::{
 /// overrides.
 pub fn load_scene(path: Option<&Path>, overrides: &SceneOverrides) -> Result<Loaded, CliError> {
     let desc = load_desc(path, overrides)?;
-    let loaded = Loaded::new(&desc);
+    let loaded = Loaded::new(&desc).map(|mut l| {
+        if let Some(f) = overrides.filter() {
+            l.settings.filter = f;
+        }
+        l
+    });
     match path {
         Some(p) => loaded.map_err(|e| CliError::input(e.in_file(p))),
         None => loaded.map_err(CliError::input),
@@ -59,6 +64,9 @@ pub fn load_desc(path: Option<&Path>, overrides: &SceneOverrides) -> Result<Scen
     }
     if o.adaptive {
         r.adaptive = true;
+    }
+    if let Some(n) = o.spp {
+        r.samples_per_pixel = n;
     }
     if let Some(f) = o.scale {
         desc = desc.scaled(f);

@@ -36,6 +36,7 @@ pub(crate) mod camera;
 pub(crate) mod error;
 pub(crate) mod light;
 pub(crate) mod live;
+pub(crate) mod pixel_filter;
 pub(crate) mod progressive;
 pub(crate) mod reference;
 pub(crate) mod scene;
@@ -48,6 +49,7 @@ pub(crate) mod stats;
 pub use error::{ImageError, SceneError};
 pub use film::Film;
 pub use live::{EditClass, LiveError, LiveRender, LiveReport, classify};
+pub use pixel_filter::FilterKind;
 pub use progressive::{
     CancelToken, Cancelled, Pass, RenderOptions, RenderReport, TileRect, TileUpdate, pass_plan,
     render, render_image,

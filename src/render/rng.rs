@@ -1,5 +1,5 @@
 //! A small, fast, seedable generator. Every hit point gets its own stream,
-//! keyed by (scene seed, pixel, depth), so an image does not depend on the
+//! keyed by (scene seed, pixel, camera sample, depth), so an image does not depend on the
 //! number of threads or the order in which tiles are rendered.
 
 /// SplitMix64 (Steele, Lea & Flood 2014): one add and a few multiplies
@@ -23,7 +23,24 @@ impl Rng {
         Rng { state: mix(seed) }
     }
 
-    /// The stream of one path vertex.
+    /// The stream of vertex `depth` of camera sample `sample` of pixel
+    /// (x, y). Sample 0 is the stream of a render with one sample per pixel
+    /// ([`Rng::for_vertex`]); depth 0 is the camera sample itself.
+    #[inline]
+    pub fn for_sample(seed: u64, x: u32, y: u32, sample: u32, depth: u32) -> Rng {
+        let base = Rng::for_vertex(seed, x, y, depth);
+        if sample == 0 {
+            return base;
+        }
+        Rng::new(
+            base.state
+                ^ mix((sample as u64)
+                    .wrapping_mul(0xD1B5_4A32_D192_ED03)
+                    .wrapping_add(GOLDEN)),
+        )
+    }
+
+    /// The stream of one path vertex of a pixel's first camera sample.
     #[inline]
     pub fn for_vertex(seed: u64, x: u32, y: u32, depth: u32) -> Rng {
         let key = mix(seed ^ GOLDEN)

@@ -40,6 +40,8 @@ pub mod limits {
     pub const MAX_SHADOW_RAYS: u32 = 4096;
     /// Most surface hits along one camera path.
     pub const MAX_DEPTH: u32 = 16;
+    /// Most camera samples per pixel.
+    pub const MAX_SAMPLES_PER_PIXEL: u32 = 1024;
     /// Most shadow rays traced for one image, counted as
     /// pixels × shadow points per hit × max_depth (about an hour of work).
     pub const MAX_SHADOW_WORK: u64 = 1 << 41;
@@ -215,6 +217,17 @@ pub struct RenderDesc {
     /// override). Omitted when unset.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub shininess_override: Option<f64>,
+    /// Camera samples per pixel (anti-aliasing); 1: one ray through the
+    /// pixel centre.
+    #[serde(default = "one_sample", skip_serializing_if = "is_one_sample")]
+    pub samples_per_pixel: u32,
+}
+
+fn one_sample() -> u32 {
+    1
+}
+fn is_one_sample(n: &u32) -> bool {
+    *n == 1
 }
 
 impl Default for RenderDesc {
@@ -230,6 +243,7 @@ impl Default for RenderDesc {
             shadows: true,
             adaptive: false,
             shininess_override: None,
+            samples_per_pixel: 1,
         }
     }
 }
@@ -571,14 +585,25 @@ impl SceneDesc {
         if let Some(s) = r.shininess_override {
             positive("render.shininess_override", s, MAX_SHININESS)?;
         }
+        if !(1..=limits::MAX_SAMPLES_PER_PIXEL).contains(&r.samples_per_pixel) {
+            return Err(SceneError::new(
+                "render.samples_per_pixel",
+                format!(
+                    "{} is out of range, expected 1..={}",
+                    r.samples_per_pixel,
+                    limits::MAX_SAMPLES_PER_PIXEL
+                ),
+            ));
+        }
         let pixels = c.width as u64 * c.height as u64;
         let points = super::sampling::points_per_hit(r.sampling, r.shadow_rays) as u64;
-        let work = pixels * points * r.max_depth as u64;
+        let spp = r.samples_per_pixel as u64;
+        let work = pixels * spp * points * r.max_depth as u64;
         if work > MAX_SHADOW_WORK {
             return Err(SceneError::new(
                 "render.shadow_rays",
                 format!(
-                    "{}×{} pixels × {points} shadow points × depth {} = {work} shadow rays exceeds the limit of {MAX_SHADOW_WORK}",
+                    "{}×{} pixels × {spp} samples × {points} shadow points × depth {} = {work} shadow rays exceeds the limit of {MAX_SHADOW_WORK}",
                     c.width, c.height, r.max_depth
                 ),
             ));

@@ -3,6 +3,7 @@
 
 use glam::{DVec3, Vec3};
 
+use super::pixel_filter::FilterKind;
 use super::scene_file::{AreaLightModel, Sampling, SceneDesc};
 
 /// Settings of one render, from the scene's `render` section.
@@ -26,6 +27,10 @@ pub struct RenderSettings {
     /// Skip work whose result is known (exact; see `shadow/`). Only
     /// switched off to measure what the skipping saves.
     pub skip: bool,
+    /// Camera samples per pixel; 1: one ray through the pixel centre.
+    pub samples_per_pixel: u32,
+    /// How samples are placed and weighed when there are several.
+    pub filter: FilterKind,
 }
 
 impl RenderSettings {
@@ -46,6 +51,8 @@ impl RenderSettings {
             shadows: r.shadows,
             adaptive: r.adaptive,
             skip: true,
+            samples_per_pixel: r.samples_per_pixel,
+            filter: FilterKind::DEFAULT,
         }
     }
 }

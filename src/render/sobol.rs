@@ -47,7 +47,6 @@ fn laine_karras_permutation(mut x: u32, seed: u32) -> u32 {
     x
 }
 
-#[cfg(test)]
 /// Owen scramble of a 32-bit fraction: each bit flipped by a hash of the
 /// bits above it.
 #[inline]
@@ -55,7 +54,6 @@ fn nested_uniform_scramble(x: u32, seed: u32) -> u32 {
     laine_karras_permutation(x.reverse_bits(), seed).reverse_bits()
 }
 
-#[cfg(test)]
 /// A 32-bit integer hash (Wellons' lowbias32) to derive independent
 /// per-dimension seeds from one seed.
 #[inline]
@@ -74,7 +72,6 @@ fn to_unit(x: u32) -> f32 {
     (x >> 8) as f32 * (1.0 / (1u32 << 24) as f32)
 }
 
-#[cfg(test)]
 /// Point `index` of the Owen-scrambled, shuffled 2-D Sobol' sequence for a
 /// given seed (use one seed per pixel, e.g. a hash of pixel and depth), in
 /// [0,1)². The index is first Owen-scrambled (Burley's shuffling, which

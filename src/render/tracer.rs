@@ -12,6 +12,7 @@ use glam::{DVec3, Vec3};
 
 use super::geometry::{Ray, spawn_origin};
 use super::live::record::ColourHit;
+use super::pixel_filter::PixelFilter;
 use super::rng::Rng;
 use super::sampling::Pattern;
 use super::scene::{HitTarget, Scene};
@@ -83,6 +84,8 @@ pub struct Tracer<'a> {
     pub settings: &'a RenderSettings,
     pub shading: &'a ShadingParams,
     pub pattern: Pattern,
+    /// Where a pixel's camera samples go, with more than one per pixel.
+    filter: Option<PixelFilter>,
 }
 
 /// Per-thread scratch space of a tracer.
@@ -105,7 +108,13 @@ impl<'a> Tracer<'a> {
             settings,
             shading,
             pattern: Pattern::new(settings.sampling, shadow_rays),
+            filter: (settings.samples_per_pixel > 1).then(|| PixelFilter::new(settings.filter)),
         }
+    }
+
+    /// Camera samples per pixel.
+    pub fn samples(&self) -> u32 {
+        self.settings.samples_per_pixel
     }
 
     pub fn scratch(&self) -> TraceScratch {
@@ -121,7 +130,10 @@ impl<'a> Tracer<'a> {
         self.trace(x, y, scratch, &mut ())
     }
 
-    /// Linear RGB of pixel (x, y), handing every hit to `sink`.
+    /// Linear RGB of pixel (x, y), handing every hit of every camera
+    /// sample's path to `sink`, sample by sample. One sample is the ray
+    /// through the pixel centre; several are placed by the filter and
+    /// averaged.
     pub fn trace<S: PathSink>(
         &self,
         x: u32,
@@ -129,8 +141,31 @@ impl<'a> Tracer<'a> {
         scratch: &mut TraceScratch,
         sink: &mut S,
     ) -> Vec3 {
+        let camera = &self.scene.camera;
+        let Some(filter) = &self.filter else {
+            return self.trace_path(x, y, 0, camera.pixel_ray(x, y), scratch, sink);
+        };
+        let spp = self.settings.samples_per_pixel;
+        let pixel_seed = Rng::for_sample(self.settings.seed, x, y, 0, 0).next_u64() as u32;
+        let mut sum = Vec3::ZERO;
+        for sample in 0..spp {
+            let (px, py) = filter.position(x, y, sample, pixel_seed);
+            sum += self.trace_path(x, y, sample, camera.ray(px, py), scratch, sink);
+        }
+        sum * (1.0 / spp as f32)
+    }
+
+    /// Linear RGB of one camera sample's path.
+    fn trace_path<S: PathSink>(
+        &self,
+        x: u32,
+        y: u32,
+        sample: u32,
+        mut ray: Ray,
+        scratch: &mut TraceScratch,
+        sink: &mut S,
+    ) -> Vec3 {
         let (scene, s, shading) = (self.scene, self.settings, self.shading);
-        let mut ray = scene.camera.pixel_ray(x, y);
         scratch.stats.camera += 1;
         let mut colour = Vec3::ZERO;
         let mut weight = 1.0f32;
@@ -165,7 +200,7 @@ impl<'a> Tracer<'a> {
                 inside,
                 material,
             };
-            let mut rng = Rng::for_vertex(s.seed, x, y, depth);
+            let mut rng = Rng::for_sample(s.seed, x, y, sample, depth);
             let local = if S::RECORD {
                 let buf = &mut scratch.shadow;
                 // Every factor is computed, so that a later edit of any
@@ -238,8 +273,29 @@ impl<'a> Tracer<'a> {
     }
 }
 
+/// The colour of a pixel from its recorded paths (`paths` yields each
+/// sample's hits and end), with the arithmetic of [`Tracer::trace`];
+/// `None` if an edit made a path longer than what was recorded.
+#[inline]
+pub fn replay_pixel<'r>(
+    mut paths: impl Iterator<Item = (&'r [ColourHit], PathEnd)>,
+    spp: u32,
+    settings: &RenderSettings,
+    shading: &ShadingParams,
+) -> Option<Vec3> {
+    if spp == 1 {
+        let (hits, end) = paths.next()?;
+        return replay(hits, end, settings, shading);
+    }
+    let mut sum = Vec3::ZERO;
+    for (hits, end) in paths {
+        sum += replay(hits, end, settings, shading)?;
+    }
+    Some(sum * (1.0 / spp as f32))
+}
+
 /// The colour of a recorded path under (possibly edited) shading
-/// parameters, with the arithmetic of [`Tracer::trace`]; `None` if the
+/// parameters, with the arithmetic of [`Tracer::trace_path`]; `None` if the
 /// edit makes the path longer than what was recorded (a reflectivity that
 /// was 0, or a weight that was below the cut-off), so it must be traced.
 #[inline]

@@ -21,7 +21,8 @@ pub enum EditClass {
     /// paths a reflectivity edit lengthens are traced.
     Reshade,
     /// The camera, the light's position or size, shadow rays, sampling,
-    /// model, depth, seed, shadows, adaptive: the objects and their BVH
+    /// model, depth, seed, shadows, adaptive, samples per pixel: the
+    /// objects and their BVH
     /// stand, every pixel is traced.
     Retrace,
     /// Objects, the set of materials: the scene is built again and every
@@ -109,6 +110,7 @@ pub fn classify(old: &SceneDesc, new: &SceneDesc) -> EditClass {
         shadows,
         adaptive,
         shininess_override,
+        samples_per_pixel,
     } = render;
     let r = &old.render;
     if (
@@ -127,7 +129,8 @@ pub fn classify(old: &SceneDesc, new: &SceneDesc) -> EditClass {
         &r.area_light_model,
         &r.shadows,
         &r.adaptive,
-    ) {
+    ) || *samples_per_pixel != r.samples_per_pixel
+    {
         return EditClass::Retrace;
     }
 

@@ -40,7 +40,7 @@ use super::shading::{nearest_point_specular, sampled_specular_again};
 use super::shading_params::ShadingParams;
 use super::shadow::ShadowBuffers;
 use super::stats::RayStats;
-use super::tracer::{Tracer, replay};
+use super::tracer::{Tracer, replay_pixel};
 
 /// Default memory cap of the records (see `record.rs` for the bytes per
 /// hit): the seed room at 960×540, 64 shadow rays, depth 4 needs ~40 MB.
@@ -397,7 +397,10 @@ fn respecular_tile(
         ..
     } = record;
     let shapes = shapes.as_ref().expect("the shininess tier");
-    for (i, w) in starts.windows(2).enumerate() {
+    let spp = tracer.samples() as usize;
+    // One path per camera sample, pixel by pixel.
+    for (path, w) in starts.windows(2).enumerate() {
+        let (i, sample) = (path / spp, (path % spp) as u32);
         let (x, y) = (rect.x + i as u32 % rect.w, rect.y + i as u32 / rect.w);
         for (k, h) in (w[0] as usize..w[1] as usize).enumerate() {
             let hit = &mut hits[h];
@@ -414,7 +417,7 @@ fn respecular_tile(
                         * (seen as f32 / count as f32)
                 }
                 AreaLightModel::Sampled | AreaLightModel::Analytic => {
-                    let mut rng = Rng::for_vertex(settings.seed, x, y, k as u32 + 1);
+                    let mut rng = Rng::for_sample(settings.seed, x, y, sample, k as u32 + 1);
                     sampled_specular_again(
                         scene,
                         pattern,
@@ -432,8 +435,8 @@ fn respecular_tile(
     }
 }
 
-/// The pixels of a tile from its records (into `out`), tracing the paths
-/// that an edit lengthened; returns how many were traced.
+/// The pixels of a tile from its records (into `out`), tracing the pixels
+/// whose paths an edit lengthened; returns how many were traced.
 fn replay_tile(
     tracer: &Tracer,
     record: &mut TileRecord,
@@ -442,10 +445,12 @@ fn replay_tile(
 ) -> usize {
     out.clear();
     let pixels = (record.rect.w * record.rect.h) as usize;
+    let spp = tracer.samples();
     let mut short = Vec::new();
     for i in 0..pixels {
-        let hits = &record.hits[record.pixel_hits(i)];
-        match replay(hits, record.ends[i], tracer.settings, tracer.shading) {
+        let paths = (i * spp as usize..(i + 1) * spp as usize)
+            .map(|p| (&record.hits[record.path_hits(p)], record.ends[p]));
+        match replay_pixel(paths, spp, tracer.settings, tracer.shading) {
             Some(c) => out.push(c),
             None => {
                 short.push(i);
@@ -456,7 +461,7 @@ fn replay_tile(
     if short.is_empty() {
         return 0;
     }
-    // Record the tile again: the lengthened paths traced, the others copied.
+    // Record the tile again: the lengthened pixels traced, the others copied.
     let rect = record.rect;
     let mut fresh = TileRecord::new(
         rect,
@@ -470,8 +475,10 @@ fn replay_tile(
             next_short.next();
             let (x, y) = (rect.x + i as u32 % rect.w, rect.y + i as u32 / rect.w);
             *pixel = tracer.trace(x, y, scratch, &mut TileRecorder { record: &mut fresh });
-        } else {
-            let range = record.pixel_hits(i);
+            continue;
+        }
+        for p in i * spp as usize..(i + 1) * spp as usize {
+            let range = record.path_hits(p);
             fresh.hits.extend_from_slice(&record.hits[range.clone()]);
             if let (Some(to), Some(from)) = (&mut fresh.shapes, &record.shapes) {
                 to.hits.extend_from_slice(&from.hits[range.clone()]);
@@ -479,7 +486,7 @@ fn replay_tile(
                     &from.visible[range.start * from.words..range.end * from.words],
                 );
             }
-            fresh.ends.push(record.ends[i]);
+            fresh.ends.push(record.ends[p]);
             fresh.starts.push(fresh.hits.len() as u32);
         }
     }

@@ -35,11 +35,12 @@ pub struct ShapeHit {
     pub view: Vec3,
 }
 
-/// The records of one tile's pixels, row by row.
+/// The records of one tile's paths: pixel by pixel, row by row, each
+/// pixel's camera samples in order.
 #[derive(Debug, Clone)]
 pub struct TileRecord {
     pub rect: TileRect,
-    /// Per pixel, the index of its first hit; one more entry at the end.
+    /// Per path, the index of its first hit; one more entry at the end.
     pub starts: Vec<u32>,
     pub ends: Vec<PathEnd>,
     pub hits: Vec<ColourHit>,
@@ -95,10 +96,10 @@ impl TileRecord {
             + shapes
     }
 
-    /// The hits of pixel `i` of the tile.
+    /// The hits of path `p` of the tile (pixel p / spp, sample p % spp).
     #[inline]
-    pub fn pixel_hits(&self, i: usize) -> std::ops::Range<usize> {
-        self.starts[i] as usize..self.starts[i + 1] as usize
+    pub fn path_hits(&self, p: usize) -> std::ops::Range<usize> {
+        self.starts[p] as usize..self.starts[p + 1] as usize
     }
 
     /// Gives back the spare capacity.

@@ -6,7 +6,9 @@
 //! - `--spheres N,… --scaling` times generated scenes of N spheres
 //!   ([`scaling`]);
 //! - `--target` measures the figures of the speed targets ([`target`]);
-//! - `--edits` times the viewer's answer to each class of edit ([`edits`]).
+//! - `--edits` times the viewer's answer to each class of edit ([`edits`]);
+//! - `--spp-split` shares a pixel's rays between camera samples and shadow
+//!   rays ([`split`]).
 //!
 //! Every time is the median of `--runs` renders (wall time of the render
 //! alone, not of building the scene), and every mode prints the machine's
@@ -17,6 +19,7 @@ pub mod plot;
 pub mod reference;
 pub mod scaling;
 pub mod slopes;
+pub mod split;
 pub mod sweep;
 pub mod target;
 
@@ -125,6 +128,14 @@ pub struct BenchArgs {
     /// one-shot render of the same settings.
     #[arg(long)]
     pub edits: bool,
+    /// Share each pixel's shadow-ray budget (16, 64, 256) between camera
+    /// samples and shadow rays (1 × 64, 4 × 16, 16 × 4, …) and compare each
+    /// split with an anti-aliased reference.
+    #[arg(long)]
+    pub spp_split: bool,
+    /// Camera samples per pixel of the renders (anti-aliasing).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1024))]
+    pub spp: Option<u32>,
 }
 
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, clap::ValueEnum)]
@@ -141,6 +152,8 @@ pub fn bench(args: &BenchArgs) -> Result<(), CliError> {
     let result = pool.install(|| {
         if args.edits {
             edits::run(args)
+        } else if args.spp_split {
+            split::run(args)
         } else if args.target {
             target::run(args)
         } else if args.slopes {
@@ -238,6 +251,9 @@ pub fn scenes(args: &BenchArgs) -> Result<Vec<BenchScene>, CliError> {
             }
             if let Some(seed) = args.seed {
                 s.desc.render.seed = seed;
+            }
+            if let Some(spp) = args.spp {
+                s.desc.render.samples_per_pixel = spp;
             }
             s.desc.validate().map_err(CliError::input)?;
             if let (Some(dir), Some(_)) = (&args.save_scenes, &args.spheres) {

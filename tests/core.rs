@@ -265,7 +265,7 @@ fn progressive_render_streams_every_tile_of_every_pass() {
         .unwrap();
     let seen = seen.into_inner().unwrap();
     let plan = penumbra::render::pass_plan(64);
-    assert_eq!(plan.len(), 3);
+    assert_eq!(plan.len(), 2, "{plan:?}");
     let tiles = 4 * 2;
     assert_eq!(seen.len(), plan.len() * tiles);
     for pass in 0..plan.len() {
@@ -546,4 +546,20 @@ fn tile_updates_count_the_rays_of_the_render() {
         )
         .unwrap();
     assert_eq!(rays.into_inner(), report.stats.traced());
+}
+
+#[test]
+fn pass_plans_leave_out_intermediate_passes_below_16_rays() {
+    let counts = |n: u32| -> Vec<(u32, u32)> {
+        penumbra::render::pass_plan(n)
+            .iter()
+            .map(|p| (p.shadow_rays, p.block))
+            .collect()
+    };
+    assert_eq!(counts(1), [(1, 8), (1, 1)]);
+    assert_eq!(counts(64), [(4, 8), (64, 1)]);
+    assert_eq!(counts(255), [(4, 8), (255, 1)]);
+    assert_eq!(counts(256), [(4, 8), (16, 1), (256, 1)]);
+    assert_eq!(counts(1024), [(4, 8), (64, 1), (1024, 1)]);
+    assert_eq!(counts(4096), [(4, 8), (16, 1), (256, 1), (4096, 1)]);
 }

@@ -98,14 +98,7 @@ impl Frame {
 pub struct LiveRender {
     cap: usize,
     current: Option<Current>,
-    /// How long the last full-quality pass took: when it is short, a
-    /// progressive re-trace goes from the preview straight to it.
-    last_final: Option<Duration>,
 }
-
-/// A final pass this quick needs no intermediate passes: it is on screen
-/// a few frames after the preview, and they would only add to its time.
-const QUICK_FINAL: Duration = Duration::from_secs(1);
 
 impl Default for LiveRender {
     fn default() -> Self {
@@ -116,11 +109,7 @@ impl Default for LiveRender {
 impl LiveRender {
     /// A live render whose records hold at most `cap` bytes.
     pub fn new(cap: usize) -> LiveRender {
-        LiveRender {
-            cap,
-            current: None,
-            last_final: None,
-        }
+        LiveRender { cap, current: None }
     }
 
     /// The scene of the last render, if any.
@@ -226,14 +215,11 @@ impl LiveRender {
             shadow_rays: settings.shadow_rays,
             block: 1,
         };
-        let plan = match (options.progressive, self.last_final) {
-            (false, _) => vec![final_pass],
-            (true, Some(t)) if t < QUICK_FINAL => {
-                vec![pass_plan(settings.shadow_rays)[0], final_pass]
-            }
-            (true, _) => pass_plan(settings.shadow_rays),
+        let plan = if options.progressive {
+            pass_plan(settings.shadow_rays)
+        } else {
+            vec![final_pass]
         };
-        let started = Instant::now();
         let (report, mut tiles) = in_pool(options.threads, || {
             render_passes(
                 &scene,
@@ -246,8 +232,6 @@ impl LiveRender {
                 Some(&budget),
             )
         })?;
-        // Mostly the final pass: the passes before it are cheap.
-        self.last_final = Some(started.elapsed());
         let shapes = budget.shapes_allowed();
         if !shapes {
             tiles.iter_mut().for_each(TileRecord::drop_shapes);

@@ -1,10 +1,11 @@
 use std::io::IsTerminal;
 use std::path::Path;
+use std::time::{Duration, Instant};
 
 use indicatif::{ProgressBar, ProgressStyle};
 
 use super::{CliError, RenderArgs, SceneOverrides};
-use crate::render::output::{FileKind, write_film};
+use crate::render::output::{FileKind, write_film, writes_interrupted};
 use crate::render::{CancelToken, RenderOptions, RenderReport, Scene, SceneDesc, TileUpdate};
 
 /// Loads a scene (the built-in seed room for `None`) and applies overrides.
@@ -52,7 +53,21 @@ pub fn load_scene(path: Option<&Path>, overrides: &SceneOverrides) -> Result<Sce
     if let Some(t) = o.translate {
         desc = desc.translated(t);
     }
-    let scene = Scene::new(desc);
+    // --scale and --translate go through the same validation as the file;
+    // the message says that they made the scene what it is.
+    let moved = match (o.scale, o.translate) {
+        (None, None) => String::new(),
+        (Some(s), None) => format!(" (after --scale {s})"),
+        (None, Some(t)) => format!(" (after --translate {},{},{})", t[0], t[1], t[2]),
+        (Some(s), Some(t)) => format!(
+            " (after --scale {s} --translate {},{},{})",
+            t[0], t[1], t[2]
+        ),
+    };
+    let scene = Scene::new(desc).map_err(|mut e| {
+        e.message += &moved;
+        e
+    });
     match path {
         Some(p) => scene.map_err(|e| CliError::input(e.in_file(p))),
         None => scene.map_err(CliError::input),
@@ -61,17 +76,19 @@ pub fn load_scene(path: Option<&Path>, overrides: &SceneOverrides) -> Result<Sce
 
 /// `penumbra render`.
 pub fn render(args: &RenderArgs) -> Result<(), CliError> {
+    let start = Instant::now();
     FileKind::of(&args.output).map_err(CliError::input)?;
+    if let Some(scene) = &args.scene {
+        super::safety::refuse_overwriting_inputs(&args.output, "output", &[("scene", scene)])?;
+    }
+    // Ctrl+C, SIGTERM and SIGHUP stop the render, or the write; no file is
+    // written and an existing one is untouched.
+    let cancel = CancelToken::new();
+    super::safety::handle_signals(&cancel);
     let mut scene = load_scene(args.scene.as_deref(), &args.overrides)?;
     scene.settings.skip = !args.no_skip;
+    let loading = start.elapsed();
 
-    let cancel = CancelToken::new();
-    {
-        let cancel = cancel.clone();
-        // Ctrl+C stops the render; no file is written. (Fails only if a
-        // handler is already set, as in tests running several renders.)
-        let _ = ctrlc::set_handler(move || cancel.cancel());
-    }
     let options = RenderOptions {
         threads: args.threads.map(|n| n as usize),
         progressive: args.progressive,
@@ -109,20 +126,38 @@ pub fn render(args: &RenderArgs) -> Result<(), CliError> {
     if cancel.is_cancelled() {
         return Err(CliError::other("interrupted: no image written"));
     }
-    write_film(&report.film, &args.output).map_err(CliError::other)?;
-    eprintln!("{}", summary(&scene, &report, options.threads));
+    write_film(&report.film, &args.output).map_err(|e| {
+        if writes_interrupted() {
+            CliError::other("interrupted: no image written")
+        } else {
+            CliError::other(e)
+        }
+    })?;
+    eprintln!(
+        "{}",
+        summary(&scene, &report, options.threads, loading, start.elapsed())
+    );
     Ok(())
 }
 
-/// One line: size, wall time, rays by kind, Mray/s.
-pub fn summary(scene: &Scene, report: &RenderReport, threads: Option<usize>) -> String {
+/// One line: size, wall time (in all, and of loading and rendering), rays
+/// by kind, Mray/s.
+pub fn summary(
+    scene: &Scene,
+    report: &RenderReport,
+    threads: Option<usize>,
+    loading: Duration,
+    total: Duration,
+) -> String {
     let s = &report.stats;
     let secs = report.elapsed.as_secs_f64();
     let threads = threads.unwrap_or_else(rayon::current_num_threads);
     format!(
-        "{}×{} in {:.3} s: {} camera, {} shadow, {} reflected rays traced; {} shadow rays answered without tracing; {:.1} Mray/s traced ({:.1} Mray/s with skipped) on {} threads",
+        "{}×{} in {:.3} s ({:.3} s loading, {:.3} s rendering, the rest writing): {} camera, {} shadow, {} reflected rays traced; {} shadow rays answered without tracing; {:.1} Mray/s traced ({:.1} Mray/s with skipped) on {} threads",
         scene.camera.width,
         scene.camera.height,
+        total.as_secs_f64(),
+        loading.as_secs_f64(),
         secs,
         s.camera,
         s.shadow,

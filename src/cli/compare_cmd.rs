@@ -20,7 +20,7 @@ pub fn compare(args: &CompareArgs) -> Result<(), CliError> {
     if let Some(path) = &args.diff {
         // The difference image is a PNG; anything else is bad input, as for
         // `render -o`.
-        if FileKind::of(path).map_err(CliError::input)? != FileKind::Png {
+        if !matches!(FileKind::of(path), Ok(FileKind::Png)) {
             return Err(CliError::input(format!(
                 "{}: the difference image is a PNG (expected .png)",
                 path.display()

@@ -55,14 +55,22 @@ pub fn load_scene(path: Option<&Path>, overrides: &SceneOverrides) -> Result<Sce
     }
     // --scale and --translate go through the same validation as the file;
     // the message says that they made the scene what it is.
-    let moved = match (o.scale, o.translate) {
-        (None, None) => String::new(),
-        (Some(s), None) => format!(" (after --scale {s})"),
-        (None, Some(t)) => format!(" (after --translate {},{},{})", t[0], t[1], t[2]),
-        (Some(s), Some(t)) => format!(
-            " (after --scale {s} --translate {},{},{})",
-            t[0], t[1], t[2]
-        ),
+    let n = |v: f64| {
+        if v == 0.0 || (1e-4..1e9).contains(&v.abs()) {
+            format!("{v}")
+        } else {
+            format!("{v:e}")
+        }
+    };
+    let scale = o.scale.map(|s| format!(" --scale {}", n(s)));
+    let translate = o
+        .translate
+        .map(|t| format!(" --translate {},{},{}", n(t[0]), n(t[1]), n(t[2])));
+    let moved: String = [scale, translate].into_iter().flatten().collect();
+    let moved = if moved.is_empty() {
+        moved
+    } else {
+        format!(" (after{moved})")
     };
     let scene = Scene::new(desc).map_err(|mut e| {
         e.message += &moved;

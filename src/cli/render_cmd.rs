@@ -89,13 +89,15 @@ pub fn render(args: &RenderArgs) -> Result<(), CliError> {
     if let Some(scene) = &args.scene {
         super::safety::refuse_overwriting_inputs(&args.output, "output", &[("scene", scene)])?;
     }
-    // Ctrl+C, SIGTERM and SIGHUP stop the render, or the write; no file is
-    // written and an existing one is untouched.
-    let cancel = CancelToken::new();
-    super::safety::handle_signals(&cancel);
     let mut scene = load_scene(args.scene.as_deref(), &args.overrides)?;
     scene.settings.skip = !args.no_skip;
     let loading = start.elapsed();
+    // Ctrl+C, SIGTERM and SIGHUP stop the render, or the write; no file is
+    // written and an existing one is untouched. Installed after loading: a
+    // signal while the scene is read (perhaps from a FIFO that blocks)
+    // ends the process at once, with nothing written yet.
+    let cancel = CancelToken::new();
+    super::safety::handle_signals(&cancel);
 
     let options = RenderOptions {
         threads: args.threads.map(|n| n as usize),

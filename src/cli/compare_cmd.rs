@@ -17,6 +17,7 @@ fn finite(film: &Film, path: &std::path::Path) -> Result<(), CliError> {
 
 /// `penumbra compare`.
 pub fn compare(args: &CompareArgs) -> Result<(), CliError> {
+    super::safety::remove_temp_files_on_signals();
     if let Some(path) = &args.diff {
         // The difference image is a PNG; anything else is bad input, as for
         // `render -o`.

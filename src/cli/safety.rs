@@ -53,13 +53,40 @@ pub fn handle_signals(cancel: &CancelToken) {
     // functions; SIG_IGN for SIGXFSZ.
     unsafe {
         for signal in FATAL {
-            let mut action: libc::sigaction = std::mem::zeroed();
-            action.sa_sigaction = remove_and_die as extern "C" fn(libc::c_int) as usize;
-            action.sa_flags = libc::SA_RESETHAND;
-            libc::sigemptyset(&mut action.sa_mask);
-            libc::sigaction(signal, &action, std::ptr::null_mut());
+            install_remove_and_die(signal);
         }
         libc::signal(libc::SIGXFSZ, libc::SIG_IGN);
+    }
+}
+
+/// For commands without a render to stop (`compare`, `bench`): SIGINT,
+/// SIGTERM and SIGHUP too remove the temporary file being written and end
+/// the process at once, as the other fatal signals do (see
+/// [`handle_signals`]).
+pub fn remove_temp_files_on_signals() {
+    // SAFETY: as in handle_signals.
+    unsafe {
+        for signal in FATAL
+            .into_iter()
+            .chain([libc::SIGINT, libc::SIGTERM, libc::SIGHUP])
+        {
+            install_remove_and_die(signal);
+        }
+        libc::signal(libc::SIGXFSZ, libc::SIG_IGN);
+    }
+}
+
+/// # Safety
+/// Replaces the disposition of `signal` for the whole process.
+unsafe fn install_remove_and_die(signal: libc::c_int) {
+    // SAFETY: a zeroed sigaction is valid; the handler only calls
+    // async-signal-safe functions.
+    unsafe {
+        let mut action: libc::sigaction = std::mem::zeroed();
+        action.sa_sigaction = remove_and_die as extern "C" fn(libc::c_int) as usize;
+        action.sa_flags = libc::SA_RESETHAND;
+        libc::sigemptyset(&mut action.sa_mask);
+        libc::sigaction(signal, &action, std::ptr::null_mut());
     }
 }
 

@@ -528,8 +528,13 @@ fn extreme_but_valid_scenes_render_finite_pixels() {
     type Edit = Box<dyn Fn(&mut Value)>;
     let cases: Vec<(&str, Edit)> = vec![
         (
-            "subnormal radius",
-            Box::new(|v| v["objects"][7]["radius"] = json!(1e-320)),
+            // The smallest radius supported (a subnormal one is refused).
+            "smallest radius",
+            Box::new(|v| {
+                let d: SceneDesc = SceneDesc::from_json(&v.to_string()).unwrap();
+                let r = 1.01 * limits::MIN_FEATURE * d.size_and_offset().0;
+                v["objects"][7]["radius"] = json!(r);
+            }),
         ),
         (
             "coordinates at the limit",
@@ -559,13 +564,13 @@ fn extreme_but_valid_scenes_render_finite_pixels() {
         ),
         (
             "a light nearly a line",
-            Box::new(|v| v["light"]["edge_v"] = json!([2, 0, 1e-8])),
+            Box::new(|v| v["light"]["edge_v"] = json!([2, 0, 1e-7])),
         ),
         (
             "tiny scene far away",
             Box::new(|v| {
                 let d: SceneDesc = SceneDesc::from_json(&v.to_string()).unwrap();
-                *v = serde_json::from_str(&d.scaled(1e-4).translated([1e5, -1e5, 1e5]).to_json())
+                *v = serde_json::from_str(&d.scaled(1e-4).translated([1e3, -1e3, 1e3]).to_json())
                     .unwrap();
             }),
         ),

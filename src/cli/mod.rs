@@ -5,6 +5,7 @@
 pub mod bench;
 mod compare_cmd;
 mod render_cmd;
+pub mod safety;
 
 use std::path::PathBuf;
 

@@ -1,10 +1,11 @@
 use std::io::IsTerminal;
 use std::path::Path;
+use std::time::{Duration, Instant};
 
 use indicatif::{ProgressBar, ProgressStyle};
 
 use super::{CliError, RenderArgs, SceneOverrides};
-use crate::render::output::{FileKind, write_film};
+use crate::render::output::{FileKind, write_film, writes_interrupted};
 use crate::render::{
     CancelToken, Loaded, RenderOptions, RenderReport, Scene, SceneDesc, TileUpdate,
 };
@@ -13,7 +14,31 @@ use crate::render::{
 /// overrides.
 pub fn load_scene(path: Option<&Path>, overrides: &SceneOverrides) -> Result<Loaded, CliError> {
     let desc = load_desc(path, overrides)?;
-    let loaded = Loaded::new(&desc).map(|mut l| {
+    let o = overrides;
+    // --scale and --translate go through the same validation as the file;
+    // the message says that they made the scene what it is.
+    let n = |v: f64| {
+        if v == 0.0 || (1e-4..1e9).contains(&v.abs()) {
+            format!("{v}")
+        } else {
+            format!("{v:e}")
+        }
+    };
+    let scale = o.scale.map(|s| format!(" --scale {}", n(s)));
+    let translate = o
+        .translate
+        .map(|t| format!(" --translate {},{},{}", n(t[0]), n(t[1]), n(t[2])));
+    let moved: String = [scale, translate].into_iter().flatten().collect();
+    let moved = if moved.is_empty() {
+        moved
+    } else {
+        format!(" (after{moved})")
+    };
+    let loaded = Loaded::new(&desc).map_err(|mut e| {
+        e.message += &moved;
+        e
+    });
+    let loaded = loaded.map(|mut l| {
         if let Some(f) = overrides.filter() {
             l.settings.filter = f;
         }
@@ -79,18 +104,22 @@ pub fn load_desc(path: Option<&Path>, overrides: &SceneOverrides) -> Result<Scen
 
 /// `penumbra render`.
 pub fn render(args: &RenderArgs) -> Result<(), CliError> {
+    let start = Instant::now();
     FileKind::of(&args.output).map_err(CliError::input)?;
+    if let Some(scene) = &args.scene {
+        super::safety::refuse_overwriting_inputs(&args.output, "output", &[("scene", scene)])?;
+    }
     let mut loaded = load_scene(args.scene.as_deref(), &args.overrides)?;
     loaded.settings.skip = !args.no_skip;
     let scene = loaded.scene.clone();
-
+    let loading = start.elapsed();
+    // Ctrl+C, SIGTERM and SIGHUP stop the render, or the write; no file is
+    // written and an existing one is untouched. Installed after loading: a
+    // signal while the scene is read (perhaps from a FIFO that blocks)
+    // ends the process at once, with nothing written yet.
     let cancel = CancelToken::new();
-    {
-        let cancel = cancel.clone();
-        // Ctrl+C stops the render; no file is written. (Fails only if a
-        // handler is already set, as in tests running several renders.)
-        let _ = ctrlc::set_handler(move || cancel.cancel());
-    }
+    super::safety::handle_signals(&cancel);
+
     let options = RenderOptions {
         threads: args.threads.map(|n| n as usize),
         progressive: args.progressive,
@@ -128,20 +157,38 @@ pub fn render(args: &RenderArgs) -> Result<(), CliError> {
     if cancel.is_cancelled() {
         return Err(CliError::other("interrupted: no image written"));
     }
-    write_film(&report.film, &args.output).map_err(CliError::other)?;
-    eprintln!("{}", summary(&scene, &report, options.threads));
+    write_film(&report.film, &args.output).map_err(|e| {
+        if writes_interrupted() {
+            CliError::other("interrupted: no image written")
+        } else {
+            CliError::other(e)
+        }
+    })?;
+    eprintln!(
+        "{}",
+        summary(&scene, &report, options.threads, loading, start.elapsed())
+    );
     Ok(())
 }
 
-/// One line: size, wall time, rays by kind, Mray/s.
-pub fn summary(scene: &Scene, report: &RenderReport, threads: Option<usize>) -> String {
+/// One line: size, wall time (in all, and of loading and rendering), rays
+/// by kind, Mray/s.
+pub fn summary(
+    scene: &Scene,
+    report: &RenderReport,
+    threads: Option<usize>,
+    loading: Duration,
+    total: Duration,
+) -> String {
     let s = &report.stats;
     let secs = report.elapsed.as_secs_f64();
     let threads = threads.unwrap_or_else(rayon::current_num_threads);
     format!(
-        "{}×{} in {:.3} s: {} camera, {} shadow, {} reflected rays traced; {} shadow rays answered without tracing; {:.1} Mray/s traced ({:.1} Mray/s with skipped) on {} threads",
+        "{}×{} in {:.3} s ({:.3} s loading, {:.3} s rendering, the rest writing): {} camera, {} shadow, {} reflected rays traced; {} shadow rays answered without tracing; {:.1} Mray/s traced ({:.1} Mray/s with skipped) on {} threads",
         scene.camera.width,
         scene.camera.height,
+        total.as_secs_f64(),
+        loading.as_secs_f64(),
         secs,
         s.camera,
         s.shadow,

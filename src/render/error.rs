@@ -32,11 +32,15 @@ fn path_prefix(path: &str) -> String {
 }
 
 impl SceneError {
+    /// An error at `path`. Values from the file that the path or message
+    /// quote (names, keys, strings) are cut to [`MAX_QUOTED`] characters
+    /// with their full length shown, so that the error stays one short line
+    /// whatever the input.
     pub fn new(path: impl Into<String>, message: impl Into<String>) -> Self {
         SceneError {
             file: None,
-            path: path.into(),
-            message: message.into(),
+            path: cut_path(&path.into()),
+            message: cut_quoted(&message.into()),
         }
     }
 
@@ -46,6 +50,82 @@ impl SceneError {
             self.file = Some(file.into());
         }
         self
+    }
+}
+
+/// Longest value from the input quoted in full in an error message.
+pub const MAX_QUOTED: usize = 80;
+
+/// `s` itself if it has at most [`MAX_QUOTED`] characters, else its start,
+/// an ellipsis and its length: `aaaa… (10000000 characters)`.
+pub fn cut(s: &str) -> String {
+    match s.char_indices().nth(MAX_QUOTED) {
+        None => s.to_string(),
+        Some((end, _)) => format!("{}… ({} characters)", &s[..end], s.chars().count()),
+    }
+}
+
+/// A JSON path with every over-long segment (a long material name or key)
+/// cut.
+fn cut_path(path: &str) -> String {
+    if path.len() <= MAX_QUOTED {
+        return path.to_string();
+    }
+    path.split('.').map(cut).collect::<Vec<_>>().join(".")
+}
+
+/// A message with every over-long quoted value (between backticks, as
+/// serde quotes keys and variants, or double quotes, as `{:?}` and serde's
+/// "invalid value" quote strings) cut; the quotes are kept.
+fn cut_quoted(msg: &str) -> String {
+    if msg.len() <= MAX_QUOTED {
+        return msg.to_string();
+    }
+    let mut out = String::with_capacity(msg.len().min(4 * MAX_QUOTED));
+    let mut rest = msg;
+    while let Some(open) = rest.find(['`', '"']) {
+        let quote = rest.as_bytes()[open];
+        out.push_str(&rest[..=open]);
+        let body = &rest[open + 1..];
+        // The closing quote: the next one not escaped by a backslash.
+        let mut close = None;
+        let mut escaped = false;
+        for (i, b) in body.bytes().enumerate() {
+            if escaped {
+                escaped = false;
+            } else if b == b'\\' && quote == b'"' {
+                escaped = true;
+            } else if b == quote {
+                close = Some(i);
+                break;
+            }
+        }
+        match close {
+            Some(i) => {
+                out.push_str(&cut(&body[..i]));
+                out.push(quote as char);
+                rest = &body[i + 1..];
+            }
+            None => {
+                out.push_str(&cut(body));
+                rest = "";
+            }
+        }
+    }
+    out.push_str(rest);
+    cut_unquoted(&out)
+}
+
+/// A last guard for values quoted in no known way: a message of more than
+/// 16 × [`MAX_QUOTED`] characters is cut as a whole.
+fn cut_unquoted(msg: &str) -> String {
+    match msg.char_indices().nth(16 * MAX_QUOTED) {
+        None => msg.to_string(),
+        Some((end, _)) => format!(
+            "{}… (message of {} characters cut)",
+            &msg[..end],
+            msg.chars().count()
+        ),
     }
 }
 

@@ -30,7 +30,23 @@ impl Film {
 
     /// Copies a `w`-wide block of pixels (rows packed) into the image at
     /// (x, y).
+    ///
+    /// Every pixel must be finite: debug builds report the offenders (how
+    /// many, and the first) and panic; release builds refuse to write such
+    /// an image (see [`super::output::write_film`]).
     pub fn write_block(&mut self, x: u32, y: u32, w: u32, block: &[Vec3]) {
+        #[cfg(debug_assertions)]
+        {
+            let bad = block.iter().filter(|p| !p.is_finite()).count();
+            if bad > 0 {
+                let i = block.iter().position(|p| !p.is_finite()).unwrap_or(0);
+                let (bx, by) = (x + i as u32 % w, y + i as u32 / w);
+                panic!(
+                    "{bad} non-finite pixels in the block at ({x}, {y}), the first at ({bx}, {by}): {}",
+                    block[i]
+                );
+            }
+        }
         let stride = self.width as usize;
         for (row, src) in block.chunks_exact(w as usize).enumerate() {
             let start = (y as usize + row) * stride + x as usize;
@@ -50,6 +66,18 @@ impl Film {
     /// Whether any pixel is NaN or infinite.
     pub fn has_non_finite(&self) -> bool {
         self.pixels.iter().any(|p| !p.is_finite())
+    }
+
+    /// How many pixels are NaN or infinite, and where the first one (in
+    /// row-major order) is; `None` if every pixel is finite.
+    pub fn non_finite(&self) -> Option<(usize, (u32, u32))> {
+        let first = self.pixels.iter().position(|p| !p.is_finite())?;
+        let count = self.pixels[first..]
+            .iter()
+            .filter(|p| !p.is_finite())
+            .count();
+        let w = self.width.max(1) as usize;
+        Some((count, ((first % w) as u32, (first / w) as u32)))
     }
 }
 

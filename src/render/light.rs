@@ -40,6 +40,17 @@ impl AreaLight {
     /// component is positive clamps to 1, negative to 0, and zero keeps
     /// `p`'s own (clamped) coordinate — the exact limit of the finite case,
     /// with no offset and no NaN.
+    ///
+    /// Two corners equally far from the intersection behind `p` (within its
+    /// rounding) are a tie the report leaves open. It is not rare: with the
+    /// camera in the light's plane, every point of a face at right angles to
+    /// that plane has the same intersection (the camera's mirror image), so
+    /// a camera on a plane of symmetry of the light ties a whole region.
+    /// The tie goes to the corner farther from `p`: the limit as the
+    /// intersection moves towards `p`, which is where it goes when the
+    /// camera leaves the plane on the light's dark side (the side that
+    /// points in the plane count as, see [`AreaLight::illuminates`]). So
+    /// the image is continuous as the camera comes down to the plane.
     pub fn nearest_point(&self, p: DVec3, dir: DVec3) -> DVec3 {
         let light = &self.shape;
         let denom = light.normal.dot(dir);
@@ -62,14 +73,26 @@ impl AreaLight {
         } else {
             let q = p + dir * t;
             let corners = [DVec2::ZERO, DVec2::X, DVec2::ONE, DVec2::Y];
-            *corners
-                .iter()
-                .max_by(|a, b| {
-                    let da = (light.point(**a) - q).length_squared();
-                    let db = (light.point(**b) - q).length_squared();
-                    da.total_cmp(&db)
-                })
-                .expect("four corners")
+            let d2 = corners.map(|c| (light.point(c) - q).length_squared());
+            let far = d2.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+            // The rounding of q (and of the corners): a few ulps of the
+            // largest magnitude involved, times the distance.
+            let reach = p.abs().max_element()
+                + (dir * t).abs().max_element()
+                + light.corner.abs().max_element()
+                + light.edge_u.abs().max_element()
+                + light.edge_v.abs().max_element();
+            let tol = 256.0 * f64::EPSILON * reach * far.sqrt();
+            let mut best = (0, f64::NEG_INFINITY);
+            for (i, c) in corners.iter().enumerate() {
+                if d2[i] >= far - tol {
+                    let from_p = (light.point(*c) - p).length_squared();
+                    if from_p >= best.1 {
+                        best = (i, from_p);
+                    }
+                }
+            }
+            corners[best.0]
         };
         light.point(uv)
     }

@@ -3,8 +3,9 @@
 //! complete, so a failed or interrupted write never leaves a partial file
 //! and never touches an existing one.
 
-use std::io::{BufWriter, Write};
+use std::io::{BufWriter, Cursor, Seek, SeekFrom, Write};
 use std::path::Path;
+use std::sync::atomic::{AtomicBool, AtomicPtr, Ordering};
 
 use glam::Vec3;
 use image::{ImageFormat, ImageReader};
@@ -37,10 +38,160 @@ impl FileKind {
     }
 }
 
+/// Largest image file read (`compare`, the bench's cache, the viewer's
+/// reference): an uncompressed 16384×16384 f32 RGB OpenEXR, the largest
+/// image penumbra writes, and room for its headers. The limit holds before
+/// anything is buffered, for pipes and devices too.
+pub const MAX_IMAGE_BYTES: u64 = 16384 * 16384 * 12 + (1 << 20);
+
+static INTERRUPTED: AtomicBool = AtomicBool::new(false);
+
+/// Makes every atomic write in progress or to come fail (the CLI calls it
+/// on SIGINT, SIGTERM and SIGHUP): its temporary file is removed and the
+/// target left untouched.
+pub fn interrupt_writes() {
+    INTERRUPTED.store(true, Ordering::SeqCst);
+}
+
+/// Whether [`interrupt_writes`] was called.
+pub fn writes_interrupted() -> bool {
+    INTERRUPTED.load(Ordering::SeqCst)
+}
+
+/// The message of a write stopped by [`interrupt_writes`].
+pub const INTERRUPTED_MESSAGE: &str = "interrupted: no file written";
+
+/// Temporary files being written, as C strings, for
+/// [`remove_temp_files`] to find from a signal handler. A slot's string
+/// is never freed (a handler may be reading it): a few dozen bytes per
+/// write.
+static TEMP_FILES: [AtomicPtr<libc::c_char>; 16] =
+    [const { AtomicPtr::new(std::ptr::null_mut()) }; 16];
+
+/// A temporary file's entry in [`TEMP_FILES`], cleared when dropped.
+struct Registered(Option<usize>);
+
+impl Registered {
+    fn new(path: &Path) -> Registered {
+        use std::os::unix::ffi::OsStrExt;
+        let Ok(c) = std::ffi::CString::new(path.as_os_str().as_bytes()) else {
+            return Registered(None);
+        };
+        let ptr = c.into_raw();
+        for (i, slot) in TEMP_FILES.iter().enumerate() {
+            if slot
+                .compare_exchange(
+                    std::ptr::null_mut(),
+                    ptr,
+                    Ordering::SeqCst,
+                    Ordering::SeqCst,
+                )
+                .is_ok()
+            {
+                return Registered(Some(i));
+            }
+        }
+        // More writes at once than slots: this one is not cleaned up by a
+        // fatal signal (the others are).
+        drop(unsafe { std::ffi::CString::from_raw(ptr) });
+        Registered(None)
+    }
+}
+
+impl Drop for Registered {
+    fn drop(&mut self) {
+        if let Some(i) = self.0 {
+            TEMP_FILES[i].store(std::ptr::null_mut(), Ordering::SeqCst);
+        }
+    }
+}
+
+/// Removes every temporary file being written. Async-signal-safe (atomic
+/// loads and unlink(2) only): for a handler of a fatal signal, which then
+/// lets the signal end the process.
+pub fn remove_temp_files() {
+    for slot in &TEMP_FILES {
+        let p = slot.load(Ordering::SeqCst);
+        if !p.is_null() {
+            // SAFETY: a registered pointer is a NUL-terminated string that
+            // is never freed.
+            unsafe { libc::unlink(p) };
+        }
+    }
+}
+
+/// The file an atomic write writes to: fails every write once
+/// [`interrupt_writes`] is called, and keeps the first error of the file
+/// itself, so that a full disk is reported as such rather than in the
+/// encoder's words.
+pub struct AtomicFile {
+    file: std::fs::File,
+    first_error: Option<String>,
+}
+
+impl AtomicFile {
+    fn check(&self) -> std::io::Result<()> {
+        if writes_interrupted() {
+            return Err(std::io::Error::other(INTERRUPTED_MESSAGE));
+        }
+        Ok(())
+    }
+
+    fn keep<T>(&mut self, r: std::io::Result<T>) -> std::io::Result<T> {
+        if let Err(e) = &r
+            && self.first_error.is_none()
+        {
+            self.first_error = Some(os_message(e));
+        }
+        r
+    }
+}
+
+impl Write for AtomicFile {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        self.check()?;
+        let r = self.file.write(buf);
+        self.keep(r)
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.check()?;
+        let r = self.file.flush();
+        self.keep(r)
+    }
+}
+
+impl Seek for AtomicFile {
+    fn seek(&mut self, pos: SeekFrom) -> std::io::Result<u64> {
+        self.check()?;
+        let r = self.file.seek(pos);
+        self.keep(r)
+    }
+}
+
+/// An I/O error's own words, without the path some wrappers (tempfile)
+/// add: the temporary file's name is no business of the user's.
+fn os_message(e: &std::io::Error) -> String {
+    let mut source: Option<&(dyn std::error::Error + 'static)> = Some(e);
+    while let Some(s) = source {
+        if let Some(io) = s.downcast_ref::<std::io::Error>()
+            && let Some(code) = io.raw_os_error()
+        {
+            return std::io::Error::from_raw_os_error(code).to_string();
+        }
+        source = s.source();
+    }
+    if e.get_ref()
+        .is_some_and(|inner| inner.to_string() == INTERRUPTED_MESSAGE)
+    {
+        return INTERRUPTED_MESSAGE.into();
+    }
+    e.kind().to_string()
+}
+
 /// Writes `path` atomically with the bytes `write` produces.
 pub fn write_atomic(
     path: &Path,
-    write: impl FnOnce(&mut BufWriter<std::fs::File>) -> Result<(), String>,
+    write: impl FnOnce(&mut BufWriter<AtomicFile>) -> Result<(), String>,
 ) -> Result<(), ImageError> {
     let fail = |message: String| ImageError::Write {
         path: path.to_owned(),
@@ -50,6 +201,20 @@ pub fn write_atomic(
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
     };
+    match std::fs::metadata(dir) {
+        Ok(m) if m.is_dir() => {}
+        Ok(_) => return Err(fail(format!("{} is not a folder", dir.display()))),
+        Err(e) => {
+            return Err(fail(format!(
+                "cannot write into the folder {}: {}",
+                dir.display(),
+                os_message(&e)
+            )));
+        }
+    }
+    if writes_interrupted() {
+        return Err(fail(INTERRUPTED_MESSAGE.into()));
+    }
     let mut builder = tempfile::Builder::new();
     builder.prefix(".penumbra-").suffix(".part");
     // The new file keeps an existing file's permissions, or gets the usual
@@ -63,20 +228,56 @@ pub fn write_atomic(
                 std::fs::Permissions::from_mode(0o644)
             }),
     );
-    let tmp = builder
-        .tempfile_in(dir)
-        .map_err(|e| fail(format!("cannot create a file in {}: {e}", dir.display())))?;
-    let mut out = BufWriter::new(tmp.reopen().map_err(|e| fail(e.to_string()))?);
-    write(&mut out).map_err(&fail)?;
-    out.flush().map_err(|e| fail(e.to_string()))?;
-    drop(out);
-    tmp.persist(path).map_err(|e| fail(e.error.to_string()))?;
+    let tmp = builder.tempfile_in(dir).map_err(|e| {
+        fail(format!(
+            "cannot create a file in {}: {}",
+            dir.display(),
+            os_message(&e)
+        ))
+    })?;
+    let registered = Registered::new(tmp.path());
+    let file = tmp.reopen().map_err(|e| fail(os_message(&e)))?;
+    let mut out = BufWriter::new(AtomicFile {
+        file,
+        first_error: None,
+    });
+    let written = write(&mut out).and_then(|()| out.flush().map_err(|e| os_message(&e)));
+    let first_error = match out.into_inner() {
+        Ok(f) => f.first_error,
+        Err(e) => e.into_parts().1.into_parts().0.first_error,
+    };
+    if let Err(message) = written {
+        // The file's own error (a full disk) says more than the encoder's
+        // account of it; an interruption says it all.
+        let message = if writes_interrupted() {
+            INTERRUPTED_MESSAGE.to_string()
+        } else {
+            first_error.unwrap_or(message)
+        };
+        return Err(fail(message));
+    }
+    if writes_interrupted() {
+        return Err(fail(INTERRUPTED_MESSAGE.into()));
+    }
+    tmp.persist(path).map_err(|e| fail(os_message(&e.error)))?;
+    drop(registered);
     Ok(())
 }
 
 /// Writes a film as PNG (sRGB 8-bit) or EXR (linear f32), by extension.
+/// A film with NaN or infinite pixels is refused, not written: such a
+/// pixel is a bug, and a file holding it would pass it on.
 pub fn write_film(film: &Film, path: &Path) -> Result<(), ImageError> {
-    match FileKind::of(path)? {
+    let kind = FileKind::of(path)?;
+    if let Some((count, (x, y))) = film.non_finite() {
+        return Err(ImageError::Write {
+            path: path.to_owned(),
+            message: format!(
+                "{count} pixels are NaN or infinite (the first at ({x}, {y})): not written"
+            ),
+        });
+    }
+    match kind {
         FileKind::Png => write_rgb8(path, film.width, film.height, &film.to_srgb8()),
         FileKind::Exr => {
             let data: Vec<f32> = film.pixels.iter().flat_map(|p| p.to_array()).collect();
@@ -103,23 +304,32 @@ pub fn write_rgb8(path: &Path, width: u32, height: u32, rgb: &[u8]) -> Result<()
     })
 }
 
-/// Reads a PNG (decoded from sRGB to linear) or EXR (linear) image.
+/// Reads a PNG (decoded from sRGB to linear) or EXR (linear) image. The
+/// format, and with it the transfer function, is the one the bytes are in,
+/// whatever the file's name says. At most [`MAX_IMAGE_BYTES`] are read.
 pub fn read_film(path: &Path) -> Result<Film, ImageError> {
-    let kind = FileKind::of(path)?;
     let fail = |message: String| ImageError::Read {
         path: path.to_owned(),
         message,
     };
-    let img = ImageReader::open(path)
-        .map_err(|e| fail(e.to_string()))?
+    let bytes = super::scene_file::read_bounded(path, MAX_IMAGE_BYTES).map_err(fail)?;
+    let reader = ImageReader::new(Cursor::new(bytes))
         .with_guessed_format()
-        .map_err(|e| fail(e.to_string()))?
-        .decode()
         .map_err(|e| fail(e.to_string()))?;
+    let linear = match reader.format() {
+        Some(ImageFormat::OpenExr) => true,
+        Some(ImageFormat::Png) => false,
+        _ => return Err(fail("not a PNG or OpenEXR image".into())),
+    };
+    let img = reader.decode().map_err(|e| fail(e.to_string()))?;
     let (width, height) = (img.width(), img.height());
-    let pixels = match kind {
-        FileKind::Png => img
-            .into_rgb8()
+    let pixels = if linear {
+        img.into_rgb32f()
+            .pixels()
+            .map(|p| Vec3::new(p[0], p[1], p[2]))
+            .collect()
+    } else {
+        img.into_rgb8()
             .pixels()
             .map(|p| {
                 Vec3::new(
@@ -128,16 +338,65 @@ pub fn read_film(path: &Path) -> Result<Film, ImageError> {
                     decode_channel(p[2]),
                 )
             })
-            .collect(),
-        FileKind::Exr => img
-            .into_rgb32f()
-            .pixels()
-            .map(|p| Vec3::new(p[0], p[1], p[2]))
-            .collect(),
+            .collect()
     };
     Ok(Film {
         width,
         height,
         pixels,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A disk that fills up after `room` bytes.
+    struct Full {
+        inner: Cursor<Vec<u8>>,
+        room: usize,
+    }
+
+    impl Write for Full {
+        fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+            if self.inner.get_ref().len() + buf.len() > self.room {
+                return Err(std::io::Error::from_raw_os_error(libc::ENOSPC));
+            }
+            self.inner.write(buf)
+        }
+        fn flush(&mut self) -> std::io::Result<()> {
+            Ok(())
+        }
+    }
+
+    impl Seek for Full {
+        fn seek(&mut self, pos: SeekFrom) -> std::io::Result<u64> {
+            self.inner.seek(pos)
+        }
+    }
+
+    #[test]
+    fn a_full_disk_is_reported_as_such() {
+        // What the encoder says of a full disk: not a word about the disk.
+        let img = image::Rgb32FImage::from_raw(64, 64, vec![0.5; 64 * 64 * 3]).unwrap();
+        let mut full = Full {
+            inner: Cursor::new(Vec::new()),
+            room: 1000,
+        };
+        let encoder = img
+            .write_to(&mut full, ImageFormat::OpenExr)
+            .unwrap_err()
+            .to_string();
+        // What the file said first, which write_atomic reports instead.
+        let mut file = AtomicFile {
+            file: tempfile::tempfile().unwrap(),
+            first_error: None,
+        };
+        let r: std::io::Result<()> = Err(std::io::Error::from_raw_os_error(libc::ENOSPC));
+        let _ = file.keep(r);
+        let kept = file.first_error.unwrap();
+        assert!(kept.contains("No space left on device"), "{kept}");
+        assert!(!kept.to_lowercase().contains("decod"), "{kept}");
+        eprintln!("encoder: {encoder}; reported: {kept}");
+    }
 }

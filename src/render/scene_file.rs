@@ -45,6 +45,48 @@ pub mod limits {
     /// Most shadow rays traced for one image, counted as
     /// pixels × shadow points per hit × max_depth (about an hour of work).
     pub const MAX_SHADOW_WORK: u64 = 1 << 41;
+    /// Smallest scene size (the largest side of the box around the camera,
+    /// the light and every bounded object), in world units: below it the
+    /// f32 shadow rays lose their precision (a room 2e-9 across is the
+    /// last that renders right).
+    pub const MIN_SCENE_SIZE: f64 = 1e-6;
+    /// Farthest any point of the scene may be from the origin, in scene
+    /// sizes: farther, f64 hit points lose the precision the image needs.
+    pub const MAX_OFFSET: f64 = 1e6;
+    /// Smallest light edge, light width, rect edge, rect width and sphere
+    /// radius, in scene sizes (the `analytic` model is exact down to about
+    /// 1e-12; a light 1e-200 across would go dark).
+    pub const MIN_FEATURE: f64 = 1e-9;
+}
+
+/// Reads at most `limit` bytes of a file, pipe or device: the limit holds
+/// before anything is buffered, whatever the file reports as its size
+/// (`/dev/zero`, `/dev/stdin`, a FIFO). The message says what went wrong,
+/// without the file name.
+pub fn read_bounded(path: &Path, limit: u64) -> Result<Vec<u8>, String> {
+    use std::io::Read;
+    let file = std::fs::File::open(path).map_err(|e| format!("cannot read: {e}"))?;
+    let meta = file.metadata().map_err(|e| format!("cannot read: {e}"))?;
+    if meta.is_dir() {
+        return Err("cannot read: is a directory".into());
+    }
+    if meta.is_file() && meta.len() > limit {
+        return Err(format!(
+            "file is {} bytes, at most {limit} are read",
+            meta.len()
+        ));
+    }
+    let hint = if meta.is_file() { meta.len() } else { 0 };
+    let mut bytes = Vec::with_capacity(hint.min(limit) as usize);
+    file.take(limit + 1)
+        .read_to_end(&mut bytes)
+        .map_err(|e| format!("cannot read: {e}"))?;
+    if bytes.len() as u64 > limit {
+        return Err(format!(
+            "more than {limit} bytes (at most {limit} are read; stopped there)"
+        ));
+    }
+    Ok(bytes)
 }
 
 pub type Vec3Desc = [f64; 3];
@@ -361,14 +403,27 @@ fn path_error<E: std::fmt::Display>(
     prefix: &str,
     err: serde_path_to_error::Error<E>,
 ) -> SceneError {
-    let inner = err.path().to_string();
+    let mut inner = err.path().to_string();
+    let message = err.inner().to_string();
+    // serde names a duplicate field in the message, at its object's path:
+    // the path of the field itself is the more useful one.
+    if let Some(field) = message
+        .strip_prefix("duplicate field `")
+        .and_then(|rest| rest.split('`').next())
+    {
+        inner = if inner == "." {
+            field.to_string()
+        } else {
+            format!("{inner}.{field}")
+        };
+    }
     let path = match (prefix.is_empty(), inner == ".") {
         (_, true) => prefix.to_string(),
         (true, false) => inner,
         (false, false) if inner.starts_with('[') => format!("{prefix}{inner}"),
         (false, false) => format!("{prefix}.{inner}"),
     };
-    SceneError::new(path, err.into_inner().to_string())
+    SceneError::new(path, message)
 }
 
 /// Refuses an array where the format has an object (a section, a material).
@@ -446,6 +501,8 @@ fn parse_object(index: usize, value: Value) -> Result<ObjectDesc, SceneError> {
 impl SceneDesc {
     /// Parses and validates a scene from JSON text.
     pub fn from_json(text: &str) -> Result<SceneDesc, SceneError> {
+        // A UTF-8 byte order mark (some editors write one) is skipped.
+        let text = text.strip_prefix('\u{feff}').unwrap_or(text);
         let mut de = serde_json::Deserializer::from_str(text);
         let typed: Result<RawScene, _> =
             serde_path_to_error::deserialize(&mut de).map_err(|e| path_error("", e));
@@ -457,6 +514,9 @@ impl SceneDesc {
         }
         let raw = typed?;
         de.end().map_err(|e| SceneError::new("", e.to_string()))?;
+        // serde keeps the last of two equal keys in a map (materials, the
+        // objects' fields) without a word: refused instead.
+        duplicates::check(text)?;
         if raw.objects.len() > limits::MAX_OBJECTS {
             return Err(SceneError::new(
                 "objects",
@@ -488,15 +548,7 @@ impl SceneDesc {
     /// Reads, parses and validates a scene file; errors name the file.
     pub fn load(path: &Path) -> Result<SceneDesc, SceneError> {
         let fail = |msg: String| SceneError::new("", msg).in_file(path);
-        let meta = std::fs::metadata(path).map_err(|e| fail(format!("cannot read: {e}")))?;
-        if meta.len() > limits::MAX_FILE_BYTES {
-            return Err(fail(format!(
-                "file is {} bytes, at most {} are read",
-                meta.len(),
-                limits::MAX_FILE_BYTES
-            )));
-        }
-        let bytes = std::fs::read(path).map_err(|e| fail(format!("cannot read: {e}")))?;
+        let bytes = read_bounded(path, limits::MAX_FILE_BYTES).map_err(fail)?;
         let text = String::from_utf8(bytes).map_err(|_| fail("not UTF-8 text".into()))?;
         SceneDesc::from_json(&text).map_err(|e| e.in_file(path))
     }
@@ -689,7 +741,295 @@ impl SceneDesc {
                 }
             }
         }
+        self.check_numeric_range()
+    }
+
+    /// The scene's size: the largest side of the axis-aligned box around
+    /// the camera, the light and every bounded object (planes left out),
+    /// and the largest absolute coordinate of those and of the planes'
+    /// points. Assumes the fields themselves are valid.
+    pub fn size_and_offset(&self) -> (f64, f64) {
+        let mut lo = [f64::INFINITY; 3];
+        let mut hi = [f64::NEG_INFINITY; 3];
+        let mut grow = |p: Vec3Desc, r: Vec3Desc| {
+            for i in 0..3 {
+                lo[i] = lo[i].min(p[i] - r[i]);
+                hi[i] = hi[i].max(p[i] + r[i]);
+            }
+        };
+        grow(self.camera.position, [0.0; 3]);
+        let l = &self.light;
+        for c in corners(l.corner, l.edge_u, l.edge_v) {
+            grow(c, [0.0; 3]);
+        }
+        let mut offset = 0.0f64;
+        for o in &self.objects {
+            match o {
+                ObjectDesc::Plane(pl) => offset = offset.max(max_abs(pl.point)),
+                ObjectDesc::Rect(r) => {
+                    for c in corners(r.corner, r.edge_u, r.edge_v) {
+                        grow(c, [0.0; 3]);
+                    }
+                }
+                ObjectDesc::Box(b) => {
+                    // The exact bounds of the box rotated about its centre.
+                    let (sin, cos) = b.rotate_y_deg.to_radians().sin_cos();
+                    let h = [
+                        (b.max[0] - b.min[0]) * 0.5,
+                        (b.max[1] - b.min[1]) * 0.5,
+                        (b.max[2] - b.min[2]) * 0.5,
+                    ];
+                    let centre = [
+                        (b.min[0] + b.max[0]) * 0.5 + b.translate[0],
+                        (b.min[1] + b.max[1]) * 0.5 + b.translate[1],
+                        (b.min[2] + b.max[2]) * 0.5 + b.translate[2],
+                    ];
+                    let r = [
+                        cos.abs() * h[0] + sin.abs() * h[2],
+                        h[1],
+                        sin.abs() * h[0] + cos.abs() * h[2],
+                    ];
+                    grow(centre, r);
+                }
+                ObjectDesc::Sphere(s) => grow(s.center, [s.radius; 3]),
+            }
+        }
+        let size = (0..3).map(|i| hi[i] - lo[i]).fold(0.0, f64::max);
+        let offset = (0..3).fold(offset, |m, i| m.max(lo[i].abs()).max(hi[i].abs()));
+        (size, offset)
+    }
+
+    /// The numeric range the renderer supports (`limits::MIN_SCENE_SIZE`,
+    /// `MAX_OFFSET`, `MIN_FEATURE`): inside it images match the same scene
+    /// at scale 1 at the origin; outside it the scene is refused.
+    fn check_numeric_range(&self) -> Result<(), SceneError> {
+        use limits::*;
+        let (size, offset) = self.size_and_offset();
+        if size < MIN_SCENE_SIZE {
+            return Err(SceneError::new(
+                "",
+                format!(
+                    "the scene is {} across (the box around camera.position, the light and the bounded objects), \
+                     at least {MIN_SCENE_SIZE:e} is supported: scale it up",
+                    sig(size)
+                ),
+            ));
+        }
+        if offset > MAX_OFFSET * size {
+            let (path, v) = self.farthest_coordinate();
+            return Err(SceneError::new(
+                path,
+                format!(
+                    "{} is {} scene sizes from the origin (the scene is {} across), \
+                     at most {MAX_OFFSET:e} are supported: move the scene towards the origin",
+                    sig(v),
+                    sig((v.abs() / size).round()),
+                    sig(size)
+                ),
+            ));
+        }
+        let least = MIN_FEATURE * size;
+        let small = |path: String, what: &str, v: f64| -> Result<(), SceneError> {
+            if v >= least {
+                return Ok(());
+            }
+            Err(SceneError::new(
+                path,
+                format!(
+                    "{what} {} is below the smallest supported size, {MIN_FEATURE:e} of the scene's size {} = {}",
+                    sig(v),
+                    sig(size),
+                    sig(least)
+                ),
+            ))
+        };
+        let flat = |path: &str, u: Vec3Desc, v: Vec3Desc| -> Result<(), SceneError> {
+            let (nu, nv) = (norm(u), norm(v));
+            small(format!("{path}.edge_u"), "length", nu)?;
+            small(format!("{path}.edge_v"), "length", nv)?;
+            // Width across the longer edge: area / longer edge.
+            let width = nu.min(nv) * sin_angle(u, v);
+            small(
+                format!("{path}.edge_v"),
+                "width (area / longer edge)",
+                width,
+            )
+        };
+        flat("light", self.light.edge_u, self.light.edge_v)?;
+        for (i, o) in self.objects.iter().enumerate() {
+            match o {
+                ObjectDesc::Rect(r) => flat(&format!("objects[{i}]"), r.edge_u, r.edge_v)?,
+                ObjectDesc::Sphere(s) => small(format!("objects[{i}].radius"), "radius", s.radius)?,
+                ObjectDesc::Plane(_) | ObjectDesc::Box(_) => {}
+            }
+        }
         Ok(())
+    }
+
+    /// The path and value of the coordinate farthest from the origin, for
+    /// the message of a scene too far from it.
+    fn farthest_coordinate(&self) -> (String, f64) {
+        let mut best = (String::new(), 0.0f64);
+        let mut consider = |path: String, v: Vec3Desc| {
+            for (i, x) in v.iter().enumerate() {
+                if x.abs() > best.1.abs() {
+                    best = (format!("{path}[{i}]"), *x);
+                }
+            }
+        };
+        consider("camera.position".into(), self.camera.position);
+        consider("light.corner".into(), self.light.corner);
+        for (i, o) in self.objects.iter().enumerate() {
+            let p = format!("objects[{i}]");
+            match o {
+                ObjectDesc::Plane(pl) => consider(format!("{p}.point"), pl.point),
+                ObjectDesc::Rect(r) => consider(format!("{p}.corner"), r.corner),
+                ObjectDesc::Box(b) => {
+                    consider(format!("{p}.min"), b.min);
+                    consider(format!("{p}.max"), b.max);
+                    consider(format!("{p}.translate"), b.translate);
+                }
+                ObjectDesc::Sphere(s) => consider(format!("{p}.center"), s.center),
+            }
+        }
+        best
+    }
+}
+
+fn corners(c: Vec3Desc, u: Vec3Desc, v: Vec3Desc) -> [Vec3Desc; 4] {
+    let add = |a: Vec3Desc, b: Vec3Desc| [a[0] + b[0], a[1] + b[1], a[2] + b[2]];
+    [c, add(c, u), add(add(c, u), v), add(c, v)]
+}
+
+fn max_abs(v: Vec3Desc) -> f64 {
+    v.iter().fold(0.0f64, |m, x| m.max(x.abs()))
+}
+
+/// Duplicate keys: a walk over the whole document that refuses the second
+/// of two equal keys in any object, naming its path.
+mod duplicates {
+    use std::cell::RefCell;
+    use std::collections::HashSet;
+    use std::fmt;
+
+    use serde::de::{DeserializeSeed, Deserializer, Error, MapAccess, SeqAccess, Visitor};
+
+    use super::SceneError;
+
+    enum Segment {
+        Key(String),
+        Index(usize),
+    }
+
+    #[derive(Default)]
+    struct State {
+        path: Vec<Segment>,
+        found: Option<SceneError>,
+    }
+
+    impl State {
+        fn path_with(&self, last: &str) -> String {
+            let mut out = String::new();
+            for s in self
+                .path
+                .iter()
+                .chain(std::iter::once(&Segment::Key(last.into())))
+            {
+                match s {
+                    Segment::Key(k) if out.is_empty() => out.push_str(k),
+                    Segment::Key(k) => {
+                        out.push('.');
+                        out.push_str(k);
+                    }
+                    Segment::Index(i) => out.push_str(&format!("[{i}]")),
+                }
+            }
+            out
+        }
+    }
+
+    struct Walk<'a>(&'a RefCell<State>);
+
+    impl<'de> DeserializeSeed<'de> for Walk<'_> {
+        type Value = ();
+        fn deserialize<D: Deserializer<'de>>(self, d: D) -> Result<(), D::Error> {
+            d.deserialize_any(self)
+        }
+    }
+
+    impl<'de> Visitor<'de> for Walk<'_> {
+        type Value = ();
+        fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+            f.write_str("any JSON value")
+        }
+        fn visit_bool<E>(self, _: bool) -> Result<(), E> {
+            Ok(())
+        }
+        fn visit_i64<E>(self, _: i64) -> Result<(), E> {
+            Ok(())
+        }
+        fn visit_u64<E>(self, _: u64) -> Result<(), E> {
+            Ok(())
+        }
+        fn visit_f64<E>(self, _: f64) -> Result<(), E> {
+            Ok(())
+        }
+        fn visit_str<E>(self, _: &str) -> Result<(), E> {
+            Ok(())
+        }
+        fn visit_unit<E>(self) -> Result<(), E> {
+            Ok(())
+        }
+        fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<(), A::Error> {
+            let mut i = 0;
+            loop {
+                self.0.borrow_mut().path.push(Segment::Index(i));
+                let more = seq.next_element_seed(Walk(self.0))?.is_some();
+                self.0.borrow_mut().path.pop();
+                if !more {
+                    return Ok(());
+                }
+                i += 1;
+            }
+        }
+        fn visit_map<A: MapAccess<'de>>(self, mut map: A) -> Result<(), A::Error> {
+            let mut seen = HashSet::new();
+            while let Some(key) = map.next_key::<String>()? {
+                if seen.contains(&key) {
+                    let mut state = self.0.borrow_mut();
+                    let path = state.path_with(&key);
+                    let what = if state.path.len() == 1
+                        && matches!(&state.path[0], Segment::Key(k) if k == "materials")
+                    {
+                        "duplicate material name"
+                    } else {
+                        "duplicate key"
+                    };
+                    state.found = Some(SceneError::new(
+                        path,
+                        format!("{what} {key:?}: each may appear only once in its object"),
+                    ));
+                    return Err(A::Error::custom("duplicate key"));
+                }
+                self.0.borrow_mut().path.push(Segment::Key(key.clone()));
+                map.next_value_seed(Walk(self.0))?;
+                self.0.borrow_mut().path.pop();
+                seen.insert(key);
+            }
+            Ok(())
+        }
+    }
+
+    /// Refuses a document with two equal keys in one object. Other errors
+    /// are left to the typed parse, which has run before.
+    pub fn check(text: &str) -> Result<(), SceneError> {
+        let state = RefCell::new(State::default());
+        let mut de = serde_json::Deserializer::from_str(text);
+        let result = Walk(&state).deserialize(&mut de);
+        match (result, state.into_inner().found) {
+            (_, Some(e)) => Err(e),
+            _ => Ok(()),
+        }
     }
 }
 
@@ -731,6 +1071,11 @@ fn num(v: f64) -> String {
     } else {
         format!("{v:e}")
     }
+}
+
+/// A measured number for a message: four significant digits.
+fn sig(v: f64) -> String {
+    format!("{v:.3e}")
 }
 
 fn scalar(path: &str, v: f64, lo: f64, hi: f64) -> Result<(), SceneError> {

@@ -147,6 +147,7 @@ pub enum PlotTime {
 
 /// `penumbra bench`.
 pub fn bench(args: &BenchArgs) -> Result<(), CliError> {
+    crate::cli::safety::remove_temp_files_on_signals();
     println!("load average at start: {}", load_average());
     let pool = thread_pool(args.threads)?;
     let result = pool.install(|| {

@@ -376,6 +376,15 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
             "--csv and --plot name one file: use --out with several --spheres counts",
         ));
     }
+    // Refused before any work: an output that is the scene file.
+    if let Some(input) = &args.scene {
+        for scene in &scenes {
+            for (explicit, ext, what) in [(&args.csv, "csv", "CSV"), (&args.plot, "png", "plot")] {
+                let out = output_path(args, explicit, scene, ext);
+                crate::cli::safety::refuse_overwriting_inputs(&out, what, &[("scene", input)])?;
+            }
+        }
+    }
     let plan = SweepPlan::from_args(args);
     for scene in &scenes {
         let d = &scene.desc;

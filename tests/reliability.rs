@@ -1,0 +1,779 @@
+//! Reliability, round two: the numeric range the renderer supports (and
+//! refuses beyond), bounded reads, outputs that would destroy inputs,
+//! signals during the write, duplicate keys, long values in messages,
+//! `compare`'s inputs, and the `nearest_point` model's singular case.
+//! Each test checks what "Guarantees and limits" in the README promises.
+
+mod common;
+
+use std::io::Write;
+use std::path::Path;
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+use common::{files_in, penumbra};
+use penumbra::render::SEED_ROOM_JSON;
+use penumbra::render::compare::compare;
+use penumbra::render::scene_file::limits;
+use penumbra::render::{Film, Loaded, SceneDesc};
+use proptest::prelude::*;
+
+fn seed(width: u32, height: u32) -> SceneDesc {
+    common::seed_room(width, height)
+}
+
+fn render(desc: &SceneDesc) -> Film {
+    let scene = Loaded::new(desc).unwrap_or_else(|e| panic!("{e}"));
+    let film = scene.render_image();
+    if let Some((n, at)) = film.non_finite() {
+        panic!("{n} non-finite pixels, the first at {at:?}");
+    }
+    film
+}
+
+fn stderr(o: &std::process::Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+fn bin() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_penumbra"))
+}
+
+fn scratch() -> tempfile::TempDir {
+    tempfile::Builder::new()
+        .prefix("penumbra-reliability-")
+        .tempdir()
+        .unwrap()
+}
+
+// ---------------------------------------------------------------- item 1
+
+/// The seed room at 40×24 with 16 shadow rays: small enough for many cases.
+fn small_room() -> SceneDesc {
+    let mut d = seed(40, 24);
+    d.render.shadow_rays = 16;
+    d
+}
+
+/// The supported scales of the seed room: its size from
+/// `limits::MIN_SCENE_SIZE` up to where a coordinate reaches
+/// `limits::MAX_COORD`.
+fn scale_range() -> (f64, f64) {
+    let d = small_room();
+    let (size, offset) = d.size_and_offset();
+    (limits::MIN_SCENE_SIZE / size, limits::MAX_COORD / offset)
+}
+
+/// The README's bound: RMSE against the same scene at scale 1 at the
+/// origin, over the whole supported range of scale and translation.
+const RMSE_BOUND: f64 = 1e-7;
+
+proptest! {
+    // PENUMBRA_RANGE_CASES=N runs N cases of each (48 by default).
+    #![proptest_config(ProptestConfig {
+        cases: std::env::var("PENUMBRA_RANGE_CASES").ok().and_then(|n| n.parse().ok()).unwrap_or(48),
+        ..ProptestConfig::default()
+    })]
+
+    #[test]
+    fn every_supported_scale_renders_finite_pixels_that_match_scale_one(t in 0.0f64..=1.0) {
+        let (lo, hi) = scale_range();
+        // Log-uniform over the whole range, both ends included.
+        let s = lo * (hi / lo).powf(t) * (1.0 - 1e-12);
+        let base = small_room();
+        let reference = render(&base);
+        let film = render(&base.clone().scaled(s));
+        let c = compare(&reference, &film).unwrap();
+        prop_assert!(c.rmse < RMSE_BOUND, "scale {s:e}: rmse {:e}, max diff {} at {:?}", c.rmse, c.max_diff, c.max_at);
+    }
+
+    #[test]
+    fn every_supported_translation_renders_finite_pixels_that_match_the_origin(
+        t in 0.0f64..=1.0, scale_t in 0.0f64..=1.0, dir in 0usize..26,
+    ) {
+        let (lo, hi) = scale_range();
+        let s = lo * (hi / lo).powf(scale_t);
+        let base = small_room().scaled(s);
+        let (size, offset) = base.size_and_offset();
+        // The translation that puts the scene's farthest point at up to
+        // MAX_OFFSET sizes (and MAX_COORD), log-uniform from 1 size.
+        let most = (limits::MAX_OFFSET * size).min(limits::MAX_COORD) - offset;
+        prop_assume!(most > size);
+        let d = size * (most / size).powf(t) * (1.0 - 1e-9);
+        let (i, j, k) = (dir % 3, dir / 3 % 3, dir / 9 % 3);
+        let sign = |n: usize| n as f64 - 1.0;
+        let v = glam::DVec3::new(sign(i), sign(j), sign(k) + if dir == 13 { 1.0 } else { 0.0 });
+        let v = v / v.abs().max_element() * d;
+        let reference = render(&base);
+        let film = render(&base.clone().translated(v.to_array()));
+        let c = compare(&reference, &film).unwrap();
+        prop_assert!(c.rmse < RMSE_BOUND, "scale {s:e} moved {v}: rmse {:e}, max diff {} at {:?}", c.rmse, c.max_diff, c.max_at);
+    }
+}
+
+#[test]
+fn scenes_outside_the_supported_range_are_refused_naming_the_field() {
+    let (lo, hi) = scale_range();
+    let base = small_room();
+    for (what, desc, path, words) in [
+        ("too small", base.clone().scaled(lo * 0.99), "", "across"),
+        (
+            "scale 1e-30",
+            base.clone().scaled(1e-30),
+            "",
+            "at least 1e-6",
+        ),
+        (
+            "too large",
+            base.clone().scaled(hi * 1.01),
+            "camera.position",
+            "out of range",
+        ),
+        (
+            "too far from the origin",
+            base.clone().scaled(1e-3).translated([1e6, 0.0, 0.0]),
+            "objects[2].point[0]",
+            "scene sizes from the origin",
+        ),
+    ] {
+        let e = Loaded::new(&desc)
+            .err()
+            .unwrap_or_else(|| panic!("{what}: accepted"));
+        assert!(e.path.starts_with(path), "{what}: {e}");
+        assert!(e.message.contains(words), "{what}: {e}");
+    }
+}
+
+#[test]
+fn the_cli_refuses_scale_and_translate_outside_the_range_with_exit_2() {
+    let dir = scratch();
+    let out = dir.path().join("x.exr");
+    let o = out.to_str().unwrap();
+    for args in [
+        vec!["--scale", "1e-30"],
+        vec!["--scale", "1e-12"],
+        vec!["--scale", "1e-3", "--translate", "1e6,0,0"],
+    ] {
+        let mut full = vec!["render", "-o", o, "--width", "16", "--height", "9"];
+        full.extend(&args);
+        let r = penumbra(&full);
+        let err = stderr(&r);
+        assert_eq!(r.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains("(after --scale"), "{args:?}: {err}");
+        assert!(!out.exists(), "{args:?}");
+    }
+}
+
+#[test]
+fn a_film_with_non_finite_pixels_is_not_written() {
+    let dir = scratch();
+    let mut film = Film::new(4, 3);
+    film.pixels[5] = glam::Vec3::new(f32::NAN, 0.0, 0.0);
+    film.pixels[7] = glam::Vec3::splat(f32::INFINITY);
+    for name in ["x.exr", "x.png"] {
+        let path = dir.path().join(name);
+        let e = penumbra::render::output::write_film(&film, &path)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("2 pixels are NaN or infinite (the first at (1, 1))"),
+            "{e}"
+        );
+        assert!(!path.exists());
+    }
+    assert!(files_in(dir.path()).is_empty());
+}
+
+// ---------------------------------------------------------------- item 2
+
+/// The seed room's light shrunk about its centre to `edge` world units.
+fn with_light(edge: f64) -> SceneDesc {
+    let mut d = small_room();
+    let l = &mut d.light;
+    let c = [l.corner[0] + 1.0, l.corner[1], l.corner[2] + 1.0];
+    l.corner = [c[0] - edge / 2.0, c[1], c[2] - edge / 2.0];
+    l.edge_u = [edge, 0.0, 0.0];
+    l.edge_v = [0.0, 0.0, edge];
+    d
+}
+
+#[test]
+fn lights_below_the_smallest_supported_size_are_refused() {
+    let size = small_room().size_and_offset().0;
+    for edge in [1e-200, 1e-15 * size, 0.99 * limits::MIN_FEATURE * size] {
+        let e = Loaded::new(&with_light(edge))
+            .err()
+            .unwrap_or_else(|| panic!("{edge:e} accepted"));
+        assert_eq!(e.path, "light.edge_u", "{e}");
+        assert!(
+            e.message.contains("below the smallest supported size"),
+            "{e}"
+        );
+    }
+    // A light that is long but nearly a line, and a sphere of 1e-320.
+    let mut thin = small_room();
+    thin.light.edge_v = [0.0, 0.0, 1e-12];
+    let e = Loaded::new(&thin).unwrap_err();
+    assert_eq!(e.path, "light.edge_v", "{e}");
+    let mut line = small_room();
+    line.light.edge_v = [2.0, 0.0, 1e-12];
+    assert!(Loaded::new(&line).is_err());
+    let mut dot = small_room();
+    let penumbra::render::scene_file::ObjectDesc::Sphere(s) = &mut dot.objects[7] else {
+        panic!("the seed room's object 7 is its sphere")
+    };
+    s.radius = 1e-320;
+    assert_eq!(Loaded::new(&dot).unwrap_err().path, "objects[7].radius");
+}
+
+#[test]
+fn the_smallest_supported_light_lights_the_room_under_every_model() {
+    use penumbra::render::AreaLightModel;
+    let size = small_room().size_and_offset().0;
+    let tiny = 1.01 * limits::MIN_FEATURE * size;
+    for model in AreaLightModel::ALL {
+        let mut small = with_light(1e-6);
+        small.render.area_light_model = model;
+        let mut smallest = with_light(tiny);
+        smallest.render.area_light_model = model;
+        let (a, b) = (render(&small), render(&smallest));
+        let c = compare(&a, &b).unwrap();
+        // Both are point lights for this room: the same image to rounding.
+        assert!(
+            c.rmse < 1e-6,
+            "{model:?}: rmse {:e} against a 1e-3 light",
+            c.rmse
+        );
+        let lit: f32 = b.pixels.iter().map(|p| p.max_element()).sum();
+        let mut dark = smallest.clone();
+        dark.render.terms.diffuse = 0.0;
+        dark.render.terms.specular = 0.0;
+        let ambient: f32 = render(&dark).pixels.iter().map(|p| p.max_element()).sum();
+        assert!(
+            lit > 1.5 * ambient,
+            "{model:?}: the light went dark ({lit} vs ambient {ambient})"
+        );
+    }
+}
+
+// ---------------------------------------------------------------- item 3
+
+#[test]
+fn a_device_of_endless_bytes_is_refused_promptly_with_exit_2() {
+    let dir = scratch();
+    let out = dir.path().join("x.png");
+    let start = Instant::now();
+    let r = penumbra(&["render", "/dev/zero", "-o", out.to_str().unwrap()]);
+    let err = stderr(&r);
+    assert_eq!(r.status.code(), Some(2), "{err}");
+    assert!(err.contains("/dev/zero: more than 67108864 bytes"), "{err}");
+    assert!(
+        start.elapsed() < Duration::from_secs(20),
+        "{:?}",
+        start.elapsed()
+    );
+    assert!(!out.exists());
+    // The same for an image to compare.
+    let png = dir.path().join("a.png");
+    std::fs::write(&png, b"not an image").unwrap();
+    let r = penumbra(&["compare", "/dev/zero", png.to_str().unwrap()]);
+    assert_eq!(r.status.code(), Some(2), "{}", stderr(&r));
+    assert!(
+        stderr(&r).contains("/dev/zero: more than"),
+        "{}",
+        stderr(&r)
+    );
+}
+
+#[test]
+fn a_scene_piped_through_stdin_is_bounded_too() {
+    let dir = scratch();
+    let out = dir.path().join("x.png");
+    let feed = |extra: usize| {
+        let mut child = bin()
+            .args(["render", "/dev/stdin", "-o", out.to_str().unwrap()])
+            .args(["--width", "8", "--height", "8"])
+            .stdin(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        let mut stdin = child.stdin.take().unwrap();
+        let writer = std::thread::spawn(move || {
+            // JSON allows any amount of white space after the value.
+            let _ = stdin.write_all(SEED_ROOM_JSON.as_bytes());
+            let chunk = vec![b' '; 1 << 20];
+            let mut left = extra;
+            while left > 0 {
+                let n = left.min(chunk.len());
+                if stdin.write_all(&chunk[..n]).is_err() {
+                    break;
+                }
+                left -= n;
+            }
+        });
+        let o = child.wait_with_output().unwrap();
+        writer.join().unwrap();
+        o
+    };
+    let o = feed(1 << 20);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = feed(65 << 20);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("more than 67108864 bytes"),
+        "{}",
+        stderr(&o)
+    );
+}
+
+// ---------------------------------------------------------------- item 4
+
+#[test]
+fn an_output_that_is_an_input_is_refused_through_links() {
+    let dir = scratch();
+    let d = dir.path();
+    let scene = d.join("s.png");
+    std::fs::write(&scene, SEED_ROOM_JSON).unwrap();
+    std::os::unix::fs::symlink(&scene, d.join("link.png")).unwrap();
+    std::fs::hard_link(&scene, d.join("hard.png")).unwrap();
+    for out in ["s.png", "link.png", "hard.png"] {
+        let r = penumbra(&[
+            "render",
+            scene.to_str().unwrap(),
+            "-o",
+            d.join(out).to_str().unwrap(),
+            "--width",
+            "8",
+            "--height",
+            "8",
+        ]);
+        let err = stderr(&r);
+        assert_eq!(r.status.code(), Some(2), "{out}: {err}");
+        assert!(
+            err.contains("is the same file as the scene"),
+            "{out}: {err}"
+        );
+        assert_eq!(std::fs::read_to_string(&scene).unwrap(), SEED_ROOM_JSON);
+    }
+    // compare --diff over either input.
+    let a = d.join("a.png");
+    let b = d.join("b.png");
+    for p in [&a, &b] {
+        let r = penumbra(&[
+            "render",
+            "-o",
+            p.to_str().unwrap(),
+            "--width",
+            "8",
+            "--height",
+            "8",
+        ]);
+        assert!(r.status.success(), "{}", stderr(&r));
+    }
+    std::os::unix::fs::symlink(&b, d.join("b-link.png")).unwrap();
+    let before = std::fs::read(&b).unwrap();
+    for diff in ["a.png", "b.png", "b-link.png"] {
+        let r = penumbra(&[
+            "compare",
+            a.to_str().unwrap(),
+            b.to_str().unwrap(),
+            "--diff",
+            d.join(diff).to_str().unwrap(),
+        ]);
+        let err = stderr(&r);
+        assert_eq!(r.status.code(), Some(2), "{diff}: {err}");
+        assert!(err.contains("is the same file as the"), "{diff}: {err}");
+    }
+    assert_eq!(std::fs::read(&b).unwrap(), before);
+    // The bench's CSV and plot.
+    let json = d.join("scene.json");
+    std::fs::write(&json, SEED_ROOM_JSON).unwrap();
+    for flag in ["--csv", "--plot"] {
+        let r = penumbra(&[
+            "bench",
+            json.to_str().unwrap(),
+            flag,
+            json.to_str().unwrap(),
+            "--quick",
+        ]);
+        assert_eq!(r.status.code(), Some(2), "{flag}: {}", stderr(&r));
+        assert_eq!(std::fs::read_to_string(&json).unwrap(), SEED_ROOM_JSON);
+    }
+}
+
+// ---------------------------------------------------------------- item 5
+
+/// Starts a render of a large EXR over `target` (which holds "precious"),
+/// waits until its temporary file appears (the write has begun: rendering
+/// an ambient-only image takes moments, writing 200 MB longer), sends
+/// `signal`, and returns the exit status and stderr.
+fn signal_during_write(signal: &str) -> (std::process::ExitStatus, String, Vec<String>) {
+    let dir = scratch();
+    let target = dir.path().join("big.exr");
+    std::fs::write(&target, b"precious").unwrap();
+    let mut child = bin()
+        .args(["render", "-o", target.to_str().unwrap()])
+        .args([
+            "--width",
+            "4096",
+            "--height",
+            "4096",
+            "--shadow-rays",
+            "1",
+            "--depth",
+            "1",
+        ])
+        .args(["--terms", "1,0,0"])
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let start = Instant::now();
+    let part = loop {
+        let part = files_in(dir.path())
+            .into_iter()
+            .find(|f| f.ends_with(".part"));
+        if let Some(p) = part {
+            break p;
+        }
+        assert!(
+            start.elapsed() < Duration::from_secs(60),
+            "no temporary file appeared"
+        );
+        assert!(
+            child.try_wait().unwrap().is_none(),
+            "finished before writing"
+        );
+        std::thread::sleep(Duration::from_micros(200));
+    };
+    let sent = Command::new("kill")
+        .args([&format!("-{signal}"), &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(sent.success());
+    let o = child.wait_with_output().unwrap();
+    assert_eq!(
+        std::fs::read(&target).unwrap(),
+        b"precious",
+        "{signal}: target touched"
+    );
+    let left = files_in(dir.path());
+    assert!(!left.contains(&part), "{signal}: {part} left behind");
+    (o.status, stderr(&o), left)
+}
+
+#[test]
+fn sigterm_sighup_and_sigint_during_the_write_leave_no_temporary_file() {
+    for signal in ["TERM", "HUP", "INT"] {
+        let (status, err, left) = signal_during_write(signal);
+        assert_eq!(status.code(), Some(1), "{signal}: {err}");
+        assert!(
+            err.contains("interrupted: no image written"),
+            "{signal}: {err}"
+        );
+        assert_eq!(left, vec!["big.exr"], "{signal}");
+    }
+}
+
+#[test]
+fn other_fatal_signals_during_the_write_remove_the_temporary_file() {
+    use std::os::unix::process::ExitStatusExt;
+    for (signal, number) in [("USR1", libc::SIGUSR1), ("QUIT", libc::SIGQUIT)] {
+        let (status, _, left) = signal_during_write(signal);
+        assert_eq!(status.signal(), Some(number), "{signal}");
+        assert_eq!(left, vec!["big.exr"], "{signal}");
+    }
+}
+
+#[test]
+fn sigterm_during_the_render_stops_it_without_a_file() {
+    let dir = scratch();
+    let out = dir.path().join("keep.png");
+    std::fs::write(&out, b"precious").unwrap();
+    let child = bin()
+        .args(["render", "-o", out.to_str().unwrap()])
+        .args([
+            "--width",
+            "1920",
+            "--height",
+            "1080",
+            "--shadow-rays",
+            "4096",
+        ])
+        .args(["--threads", "1"])
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(Duration::from_millis(500));
+    let sent = Command::new("kill")
+        .args(["-TERM", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(sent.success());
+    let o = child.wait_with_output().unwrap();
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(stderr(&o).contains("interrupted: no image written"));
+    assert_eq!(std::fs::read(&out).unwrap(), b"precious");
+    assert_eq!(files_in(dir.path()), vec!["keep.png"]);
+}
+
+#[test]
+fn a_file_size_limit_fails_the_write_with_its_own_words() {
+    let dir = scratch();
+    let out = dir.path().join("big.exr");
+    // 100 blocks of 1 KiB: far less than the 200×150 EXR (360 kB).
+    let script = format!(
+        "ulimit -f 100; exec '{}' render -o '{}' --width 200 --height 150 --shadow-rays 1",
+        env!("CARGO_BIN_EXE_penumbra"),
+        out.display()
+    );
+    let o = Command::new("sh").args(["-c", &script]).output().unwrap();
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(err.contains("File too large"), "{err}");
+    assert!(!err.to_lowercase().contains("decod"), "{err}");
+    assert!(
+        files_in(dir.path()).is_empty(),
+        "{:?}",
+        files_in(dir.path())
+    );
+}
+
+// ---------------------------------------------------------------- item 7
+
+#[test]
+fn duplicate_keys_are_refused_with_their_path() {
+    let materials = r#""materials": {"#;
+    assert!(SEED_ROOM_JSON.contains(materials));
+    let twice = SEED_ROOM_JSON.replacen(
+        materials,
+        r#""materials": { "red": { "ambient": [0, 0, 0], "diffuse": [0, 0, 0], "specular": [0, 0, 0], "shininess": 1, "reflectivity": 0 },"#,
+        1,
+    );
+    let e = SceneDesc::from_json(&twice).unwrap_err();
+    assert_eq!(e.path, "materials.red", "{e}");
+    assert!(e.message.contains("duplicate material name \"red\""), "{e}");
+
+    let radius = r#""radius": 1"#;
+    assert!(SEED_ROOM_JSON.contains(radius));
+    let e =
+        SceneDesc::from_json(&SEED_ROOM_JSON.replacen(radius, r#""radius": 1, "radius": 2"#, 1))
+            .unwrap_err();
+    assert_eq!(e.path, "objects[7].radius", "{e}");
+    assert!(e.message.contains("duplicate key"), "{e}");
+
+    let e = SceneDesc::from_json(&SEED_ROOM_JSON.replacen(
+        r#""format": 1"#,
+        r#""format": 1, "format": 1"#,
+        1,
+    ))
+    .unwrap_err();
+    assert_eq!(e.path, "format", "{e}");
+}
+
+#[test]
+fn long_values_are_cut_in_error_lines() {
+    let long = "x".repeat(10_000_000);
+    let unknown =
+        SEED_ROOM_JSON.replacen(r#""format": 1"#, &format!(r#""format": 1, "{long}": 0"#), 1);
+    let material = SEED_ROOM_JSON.replacen(
+        r#""material": "white""#,
+        &format!(r#""material": "{long}""#),
+        1,
+    );
+    let name = SEED_ROOM_JSON.replacen(
+        r#""materials": {"#,
+        &format!(r#""materials": {{ "{long}": {{ "shininess": -1, "ambient": [0, 0, 0], "diffuse": [0, 0, 0], "specular": [0, 0, 0], "reflectivity": 0 }},"#),
+        1,
+    );
+    for text in [&unknown, &material, &name] {
+        assert!(text.len() > 10_000_000);
+    }
+    for (what, text) in [
+        ("unknown key", unknown),
+        ("unknown material", material),
+        ("material name", name),
+    ] {
+        let e = SceneDesc::from_json(&text).unwrap_err().to_string();
+        assert!(e.len() < 2000, "{what}: a line of {} bytes", e.len());
+        assert!(e.contains("(10000000 characters)"), "{what}: {e}");
+    }
+}
+
+#[test]
+fn a_byte_order_mark_is_accepted() {
+    let dir = scratch();
+    let path = dir.path().join("bom.json");
+    std::fs::write(&path, format!("\u{feff}{SEED_ROOM_JSON}")).unwrap();
+    let desc = SceneDesc::load(&path).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(desc, SceneDesc::from_json(SEED_ROOM_JSON).unwrap());
+}
+
+#[test]
+fn compare_refuses_non_finite_pixels_with_count_and_position() {
+    let dir = scratch();
+    let mut film = Film::new(5, 4);
+    film.pixels[7] = glam::Vec3::new(0.0, f32::NAN, 0.0);
+    film.pixels[12] = glam::Vec3::splat(f32::NEG_INFINITY);
+    // Written by hand: write_film itself refuses such a film.
+    let data: Vec<f32> = film.pixels.iter().flat_map(|p| p.to_array()).collect();
+    let nan = dir.path().join("nan.exr");
+    image::Rgb32FImage::from_raw(5, 4, data)
+        .unwrap()
+        .save(&nan)
+        .unwrap();
+    let fine = dir.path().join("fine.exr");
+    penumbra::render::output::write_film(&Film::new(5, 4), &fine).unwrap();
+    let diff = dir.path().join("d.png");
+    let r = penumbra(&[
+        "compare",
+        fine.to_str().unwrap(),
+        nan.to_str().unwrap(),
+        "--diff",
+        diff.to_str().unwrap(),
+    ]);
+    let err = stderr(&r);
+    assert_eq!(r.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("nan.exr: 2 pixels are NaN or infinite, the first at (2, 1)"),
+        "{err}"
+    );
+    assert!(!diff.exists());
+}
+
+#[test]
+fn compare_decodes_by_content_and_exits_2_for_a_bad_diff_name() {
+    let dir = scratch();
+    let d = dir.path();
+    let png = d.join("a.png");
+    let r = penumbra(&[
+        "render",
+        "-o",
+        png.to_str().unwrap(),
+        "--width",
+        "16",
+        "--height",
+        "9",
+    ]);
+    assert!(r.status.success());
+    // PNG bytes under an .exr name: decoded as the PNG they are.
+    let disguised = d.join("a.exr");
+    std::fs::copy(&png, &disguised).unwrap();
+    let out = common::penumbra_ok(&[
+        "compare",
+        png.to_str().unwrap(),
+        disguised.to_str().unwrap(),
+    ]);
+    assert!(out.starts_with("rmse 0.000000e0"), "{out}");
+    for name in ["x.jpg", "x.exr"] {
+        let r = penumbra(&[
+            "compare",
+            png.to_str().unwrap(),
+            png.to_str().unwrap(),
+            "--diff",
+            d.join(name).to_str().unwrap(),
+        ]);
+        assert_eq!(r.status.code(), Some(2), "{name}: {}", stderr(&r));
+        assert!(!d.join(name).exists());
+    }
+    let r = penumbra(&[
+        "render",
+        "-o",
+        d.join("x.jpg").to_str().unwrap(),
+        "--width",
+        "8",
+        "--height",
+        "8",
+    ]);
+    assert_eq!(r.status.code(), Some(2));
+}
+
+#[test]
+fn a_missing_output_folder_is_named_without_the_temporary_file() {
+    let dir = scratch();
+    let out = dir.path().join("no/such/folder/x.png");
+    let r = penumbra(&[
+        "render",
+        "-o",
+        out.to_str().unwrap(),
+        "--width",
+        "8",
+        "--height",
+        "8",
+    ]);
+    let err = stderr(&r);
+    assert_eq!(r.status.code(), Some(1), "{err}");
+    assert!(err.contains("no/such/folder"), "{err}");
+    assert!(err.contains("No such file or directory"), "{err}");
+    assert!(
+        !err.contains(".part") && !err.contains(".penumbra-"),
+        "{err}"
+    );
+}
+
+#[test]
+fn the_summary_line_counts_loading() {
+    let dir = scratch();
+    let out = dir.path().join("x.png");
+    let r = penumbra(&[
+        "render",
+        "-o",
+        out.to_str().unwrap(),
+        "--width",
+        "8",
+        "--height",
+        "8",
+    ]);
+    let err = stderr(&r);
+    assert!(r.status.success(), "{err}");
+    // "8×8 in T s (L s loading, R s rendering, ...)" with T >= L + R.
+    let nums: Vec<f64> = err
+        .split(|c: char| !(c.is_ascii_digit() || c == '.'))
+        .filter(|s| s.contains('.'))
+        .take(3)
+        .map(|s| s.parse().unwrap())
+        .collect();
+    assert!(err.contains(" s loading, "), "{err}");
+    assert_eq!(nums.len(), 3, "{err}");
+    assert!(nums[0] + 0.0015 >= nums[1] + nums[2], "{err}");
+}
+
+// ---------------------------------------------------------------- item 8
+
+fn camera_in_light_plane(lift: f64) -> SceneDesc {
+    let path =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/stress/camera-in-light-plane.json");
+    let mut d = SceneDesc::load(&path).unwrap();
+    assert_eq!(
+        d.camera.position[1], d.light.corner[1],
+        "the camera is in the light's plane"
+    );
+    d.camera.position[1] += lift;
+    d.camera.look_at[1] += lift;
+    d
+}
+
+#[test]
+fn the_nearest_point_model_is_continuous_as_the_camera_reaches_the_lights_plane() {
+    let at = render(&camera_in_light_plane(0.0));
+    let centre_row = at.height / 2;
+    for lift in [1e-12, 1e-9, 1e-5] {
+        let above = render(&camera_in_light_plane(lift));
+        let c = compare(&at, &above).unwrap();
+        // Left out: the row that looks along the plane (it grazes the sand
+        // box's top, which lies in it), and single pixels whose ray meets
+        // an edge of the room exactly.
+        let off: Vec<(u32, u32)> = (0..at.pixels.len() as u32)
+            .map(|i| (i % at.width, i / at.width))
+            .filter(|&(x, y)| {
+                y != centre_row && (at.get(x, y) - above.get(x, y)).abs().max_element() > 1e-3
+            })
+            .collect();
+        assert!(
+            off.len() <= 8,
+            "lift {lift:e}: {} pixels differ, e.g. {:?} (rmse {:e})",
+            off.len(),
+            &off[..off.len().min(8)],
+            c.rmse
+        );
+    }
+}

@@ -146,9 +146,13 @@ mod tests {
             let u = k as f32 / 1000.0;
             let o = f.offset(u);
             assert!(o.abs() <= half + 1e-6, "{o}");
-            let mirrored = f.offset(1.0 - u - 1e-3);
-            assert!((o + mirrored).abs() < 2e-2, "u {u}: {o} vs {mirrored}");
+            // Away from the thin tails, where the inverse CDF is steep.
+            if (20..=980).contains(&k) {
+                let mirrored = f.offset(1.0 - u);
+                assert!((o + mirrored).abs() < 1e-2, "u {u}: {o} vs {mirrored}");
+            }
         }
+        assert!(f.offset(0.0) < -0.5 && f.offset(0.999_9) > 0.5);
         // Most of its weight is near the centre: the median of |offset| is
         // well inside half a pixel.
         assert!(f.offset(0.75).abs() < 0.25, "{}", f.offset(0.75));

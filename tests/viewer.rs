@@ -630,3 +630,39 @@ fn values_outside_the_sliders_ranges_load_show_and_stay_unchanged() {
     assert_eq!(worker.render.shadow_rays, 4096);
     assert_eq!(worker.render.terms.diffuse, 10.0);
 }
+
+#[test]
+fn a_finished_image_is_refined_to_more_samples_exactly() {
+    let mut options = ViewerOptions::new(small_room());
+    options.refine_spp = 4;
+    let mut h = harness(options);
+    settle(&mut h);
+    // Refinement runs on by itself: 2, then 4 samples per pixel.
+    let start = std::time::Instant::now();
+    let film = loop {
+        h.step();
+        if let Some(JobState::Finished(f)) = h.state().render_state()
+            && f.samples == 4
+        {
+            break (*f.film).clone();
+        }
+        assert!(start.elapsed() < WAIT, "no refinement to 4 samples");
+        std::thread::sleep(Duration::from_millis(5));
+    };
+    let mut four = small_room();
+    four.render.samples_per_pixel = 4;
+    assert_eq!(film, core_render(&four), "level 4 is the 4-spp render");
+    // Its last tiles reach the texture, and the status bar says so.
+    for _ in 0..3 {
+        h.step();
+    }
+    assert_shows(h.state(), &film);
+    h.get_by_label("4 spp");
+    // An edit shows the scene's own samples again, then refines anew.
+    h.state_mut().edit(|d, _| d.render.terms.specular = 0.5);
+    settle(&mut h);
+    match h.state().render_state() {
+        Some(JobState::Finished(f)) => assert!(f.samples <= 4),
+        other => panic!("{other:?}"),
+    }
+}

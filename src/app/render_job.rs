@@ -17,7 +17,10 @@ use egui::Color32;
 use super::worker::{Shared, Stop, Worker};
 use crate::render::film::encode_srgb8;
 use crate::render::progressive::{CancelToken, RenderOptions, TileRect};
-use crate::render::{EditClass, Film, LiveError, LiveRender, LiveReport, Scene, SceneDesc};
+use crate::render::{
+    EditClass, Film, LiveError, LiveRender, LiveReport, RenderSettings, Scene, SceneDesc,
+    ShadingParams, TileUpdate,
+};
 
 /// One finished tile, ready for `TextureHandle::set_partial`.
 pub struct TileMsg {
@@ -32,6 +35,11 @@ pub struct TileMsg {
     pub tiles_total: usize,
     /// Rays traced for the tile.
     pub rays: u64,
+    /// Camera samples per pixel of the tile.
+    pub samples: u32,
+    /// Part of a refinement of a finished image (see
+    /// [`RenderJob::with_refinement`]), not of the requested render.
+    pub refinement: bool,
 }
 
 /// How the render of one generation ended (or that it has not). Cheap to
@@ -61,6 +69,9 @@ pub struct FinishedRender {
     pub since_request: Duration,
     /// Bytes of the recorded paths the next edit can reuse.
     pub record_bytes: usize,
+    /// Camera samples per pixel of `film`: the scene's own, or more once
+    /// the worker refined the finished image.
+    pub samples: u32,
 }
 
 struct Request {
@@ -94,6 +105,9 @@ struct State {
     started: u64,
     /// Test hook: the next render panics inside a tile callback.
     panic_next: bool,
+    /// Once a render is finished and nothing else is asked for, add camera
+    /// samples up to this many per pixel (1: never).
+    refine_to: u32,
 }
 
 impl Stop for State {
@@ -117,17 +131,28 @@ pub struct RenderJob {
 }
 
 impl RenderJob {
+    /// A worker that renders what it is asked and stops there.
     pub fn new(repaint: egui::Context) -> RenderJob {
-        let worker =
-            Worker::spawn(
-                "penumbra-render",
-                State::default(),
-                repaint,
-                |inner| match render_pool(false) {
-                    Some(pool) => pool.install(|| worker_loop(inner)),
-                    None => worker_loop(inner),
-                },
-            );
+        RenderJob::with_refinement(repaint, 1)
+    }
+
+    /// A worker that, once a render is finished and no new request waits,
+    /// keeps refining it with more camera samples per pixel (2, 4, 8, …) up
+    /// to `refine_to`; each level is the image `penumbra render --spp N`
+    /// gives, streamed tile by tile over the last one.
+    pub fn with_refinement(repaint: egui::Context, refine_to: u32) -> RenderJob {
+        let worker = Worker::spawn(
+            "penumbra-render",
+            State {
+                refine_to,
+                ..State::default()
+            },
+            repaint,
+            |inner| match render_pool(false) {
+                Some(pool) => pool.install(|| worker_loop(inner)),
+                None => worker_loop(inner),
+            },
+        );
         RenderJob { worker }
     }
 
@@ -308,7 +333,8 @@ fn worker_loop(inner: &Inner) {
         }
         let state = match result {
             Ok(Ok(Some(report))) => JobState::Finished(Arc::new(FinishedRender {
-                desc: req.desc,
+                samples: req.desc.render.samples_per_pixel,
+                desc: req.desc.clone(),
                 traced_rays: report.stats.traced(),
                 elapsed: report.elapsed,
                 class: report.class,
@@ -323,6 +349,7 @@ fn worker_loop(inner: &Inner) {
                 panic_message(payload.as_ref())
             )),
         };
+        let finished = matches!(state, JobState::Finished(_));
         {
             let mut s = inner.lock();
             s.running = None;
@@ -331,6 +358,106 @@ fn worker_loop(inner: &Inner) {
             }
         }
         inner.announce();
+        if finished && let Some(scene) = live.scene() {
+            let scene = scene.clone();
+            let refined =
+                std::panic::catch_unwind(AssertUnwindSafe(|| refine(inner, &req, &scene)));
+            if refined.is_err() {
+                live = LiveRender::default();
+            }
+        }
+    }
+}
+
+/// Converts a finished tile for the texture and hands it to the UI, unless
+/// a newer request replaced `generation`.
+fn deliver(inner: &Inner, req: &Request, t: &TileUpdate, samples: u32, refinement: bool) {
+    let generation = req.generation;
+    // Convert on the worker: the UI only copies bytes into the texture.
+    let pixels: Vec<Color32> = t
+        .pixels
+        .iter()
+        .map(|&p| {
+            let [r, g, b] = encode_srgb8(p);
+            Color32::from_rgb(r, g, b)
+        })
+        .collect();
+    {
+        let mut s = inner.lock();
+        if s.latest != generation {
+            return;
+        }
+        if let Some((g, film)) = &mut s.film
+            && *g == generation
+        {
+            film.write_block(t.rect.x, t.rect.y, t.rect.w, t.pixels);
+        }
+        if !matches!(s.first_tile, Some((g, _)) if g == generation) {
+            s.first_tile = Some((generation, req.at.elapsed()));
+        }
+        s.tiles.push(TileMsg {
+            generation,
+            rect: t.rect,
+            pixels,
+            pass_index: t.pass_index,
+            pass_count: t.pass_count,
+            shadow_rays: t.pass.shadow_rays,
+            tiles_done: t.tiles_done,
+            tiles_total: t.tiles_total,
+            rays: t.rays,
+            samples,
+            refinement,
+        });
+    }
+    inner.repaint();
+}
+
+/// Refines a finished render with more camera samples per pixel, level by
+/// level, while no new request waits. Each level renders every sample
+/// again (a pixel is the average of its own samples, so level N equals a
+/// fresh render at N samples); the records of the scene's own level stay
+/// with the live render for the next edit.
+fn refine(inner: &Inner, req: &Request, scene: &Arc<Scene>) {
+    let (refine_to, spp) = (inner.lock().refine_to, req.desc.render.samples_per_pixel);
+    let mut settings = RenderSettings::from_desc(&req.desc);
+    let shading = ShadingParams::from_desc(&req.desc);
+    let options = RenderOptions {
+        threads: None,
+        progressive: false,
+        tile_size: 32,
+    };
+    let mut level = (spp + 1).next_power_of_two();
+    while level <= refine_to {
+        let cancel = CancelToken::new();
+        {
+            let mut s = inner.lock();
+            if s.pending.is_some() || s.shutdown || s.latest != req.generation {
+                return;
+            }
+            s.running = Some(cancel.clone());
+        }
+        settings.samples_per_pixel = level;
+        let result = crate::render::render(scene, &settings, &shading, &options, &cancel, &|t| {
+            deliver(inner, req, t, level, true)
+        });
+        let mut s = inner.lock();
+        s.running = None;
+        let Ok(report) = result else { return };
+        if s.latest != req.generation {
+            return;
+        }
+        if let Some((g, JobState::Finished(f))) = &s.state
+            && *g == req.generation
+        {
+            let mut refined = (**f).clone();
+            refined.film = Arc::new(report.film);
+            refined.samples = level;
+            refined.traced_rays = report.stats.traced();
+            s.state = Some((req.generation, JobState::Finished(Arc::new(refined))));
+        }
+        drop(s);
+        inner.announce();
+        level *= 2;
     }
 }
 
@@ -350,41 +477,7 @@ fn run_one(
         if panic_now {
             panic!("injected test panic");
         }
-        // Convert on the worker: the UI only copies bytes into the texture.
-        let pixels: Vec<Color32> = t
-            .pixels
-            .iter()
-            .map(|&p| {
-                let [r, g, b] = encode_srgb8(p);
-                Color32::from_rgb(r, g, b)
-            })
-            .collect();
-        {
-            let mut s = inner.lock();
-            if s.latest != req.generation {
-                return;
-            }
-            if let Some((g, film)) = &mut s.film
-                && *g == req.generation
-            {
-                film.write_block(t.rect.x, t.rect.y, t.rect.w, t.pixels);
-            }
-            if !matches!(s.first_tile, Some((g, _)) if g == req.generation) {
-                s.first_tile = Some((req.generation, req.at.elapsed()));
-            }
-            s.tiles.push(TileMsg {
-                generation: req.generation,
-                rect: t.rect,
-                pixels,
-                pass_index: t.pass_index,
-                pass_count: t.pass_count,
-                shadow_rays: t.pass.shadow_rays,
-                tiles_done: t.tiles_done,
-                tiles_total: t.tiles_total,
-                rays: t.rays,
-            });
-        }
-        inner.repaint();
+        deliver(inner, req, t, req.desc.render.samples_per_pixel, false);
     });
     if let Some(scene) = live.scene() {
         inner.lock().scene = Some((req.generation, scene.clone()));

@@ -23,6 +23,11 @@ pub struct Progress {
     pub rays: u64,
     /// Set when the render ended: its time and rays traced (all passes).
     pub finished: Option<(Duration, u64)>,
+    /// Camera samples per pixel of the image on screen, and the tiles of a
+    /// refinement to more samples received so far (see
+    /// `RenderJob::with_refinement`): (samples, tiles done, tiles).
+    pub samples: u32,
+    pub refining: Option<(u32, usize, usize)>,
 }
 
 impl Progress {
@@ -37,10 +42,28 @@ impl Progress {
             tiles_total: 0,
             rays: 0,
             finished: None,
+            samples: 1,
+            refining: None,
         }
     }
 
     pub fn on_tile(&mut self, t: &TileMsg) {
+        if t.refinement {
+            // A refinement of the finished image: its own progress.
+            let done = match self.refining {
+                Some((to, done, _)) if to == t.samples => done.max(t.tiles_done),
+                _ => t.tiles_done,
+            };
+            self.refining = Some((t.samples, done, t.tiles_total));
+            if done == t.tiles_total {
+                self.samples = t.samples;
+                self.refining = None;
+            }
+            return;
+        }
+        if self.pass_count == 0 {
+            self.samples = t.samples;
+        }
         self.rays += t.rays;
         // Tiles of one pass arrive in any order; keep the furthest.
         if (t.pass_index, t.tiles_done) >= (self.pass_index, self.tiles_done)
@@ -85,6 +108,17 @@ pub fn status_ui(
                 "{} samples/hit",
                 points_per_hit(progress.sampling, progress.shadow_rays.max(1))
             ));
+            ui.separator();
+            let spp = match progress.refining {
+                Some((to, done, total)) => format!(
+                    "{} spp, refining to {to}: {}%",
+                    progress.samples,
+                    done * 100 / total.max(1)
+                ),
+                None => format!("{} spp", progress.samples),
+            };
+            ui.label(spp)
+                .on_hover_text("Camera samples per pixel (anti-aliasing)");
             ui.separator();
         }
         let elapsed = match progress.finished {

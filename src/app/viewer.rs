@@ -50,6 +50,9 @@ pub struct ViewerOptions {
     /// Change a slider by itself at this interval (for measuring
     /// `--log-timings` without a person at the mouse).
     pub wiggle: Option<Duration>,
+    /// Refine a finished image with camera samples up to this many per
+    /// pixel while nothing changes (1: never, as for `new`).
+    pub refine_spp: u32,
 }
 
 impl ViewerOptions {
@@ -60,6 +63,7 @@ impl ViewerOptions {
             scene_path: None,
             log_timings: false,
             wiggle: None,
+            refine_spp: 1,
         }
     }
 }
@@ -115,6 +119,8 @@ pub struct Viewer {
     /// The latest readout and its error image.
     error: Option<ErrorShown>,
     error_texture: Option<TextureHandle>,
+    /// Camera samples per pixel to refine a finished image to.
+    refine_spp: u32,
     /// Tiles received of the pass being streamed: (generation, pass, count).
     pass_tiles: (u64, usize, usize),
     /// The latest pass complete on screen: (generation, pass, pass count).
@@ -149,6 +155,7 @@ impl Viewer {
             pick: None,
             timings: Timings::new(options.log_timings),
             wiggle: options.wiggle.map(|d| (d, Instant::now(), 0)),
+            refine_spp: options.refine_spp,
             reference: None,
             ref_task: None,
             ref_match: None,
@@ -743,7 +750,7 @@ impl Viewer {
         if self.job.is_some() {
             return;
         }
-        self.job = Some(RenderJob::new(ctx.clone()));
+        self.job = Some(RenderJob::with_refinement(ctx.clone(), self.refine_spp));
         self.errors = Some(ErrorJob::new(ctx.clone()));
         self.texture = Some(ctx.load_texture("render", self.shown.clone(), TextureOptions::LINEAR));
         self.watch(ctx);

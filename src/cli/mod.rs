@@ -52,6 +52,11 @@ pub struct ViewArgs {
     /// to measure `--log-timings` without a person at the mouse.
     #[arg(long, value_name = "SECS", hide = true)]
     pub wiggle: Option<f64>,
+    /// Once the requested quality is reached and nothing changes, refine
+    /// the image with more camera samples per pixel up to this many (1:
+    /// never; default 16).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1024))]
+    pub refine_spp: Option<u32>,
 }
 
 /// Overrides of a scene's settings.

@@ -84,6 +84,10 @@ pub struct SceneOverrides {
     /// (faster, biased).
     #[arg(long)]
     pub adaptive: bool,
+    /// Cut-away: camera rays pass through planes seen from behind (as the
+    /// viewer's "Cut-away" does; shadows and reflections unchanged).
+    #[arg(long)]
+    pub cutaway: bool,
     /// Multiply every coordinate and length of the scene (camera included)
     /// by this factor: the image stays the same.
     #[arg(long, value_parser = parse_scale)]

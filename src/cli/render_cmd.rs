@@ -60,6 +60,9 @@ pub fn load_desc(path: Option<&Path>, overrides: &SceneOverrides) -> Result<Scen
     if o.adaptive {
         r.adaptive = true;
     }
+    if o.cutaway {
+        r.cutaway = true;
+    }
     if let Some(f) = o.scale {
         desc = desc.scaled(f);
     }

@@ -21,7 +21,7 @@ pub enum EditClass {
     /// paths a reflectivity edit lengthens are traced.
     Reshade,
     /// The camera, the light's position or size, shadow rays, sampling,
-    /// model, depth, seed, shadows, adaptive: the objects and their BVH
+    /// model, depth, seed, shadows, adaptive, cut-away: the objects and their BVH
     /// stand, every pixel is traced.
     Retrace,
     /// Objects, the set of materials: the scene is built again and every
@@ -108,6 +108,7 @@ pub fn classify(old: &SceneDesc, new: &SceneDesc) -> EditClass {
         background,
         shadows,
         adaptive,
+        cutaway,
         shininess_override,
     } = render;
     let r = &old.render;
@@ -119,6 +120,7 @@ pub fn classify(old: &SceneDesc, new: &SceneDesc) -> EditClass {
         area_light_model,
         shadows,
         adaptive,
+        cutaway,
     ) != (
         &r.shadow_rays,
         &r.sampling,
@@ -127,6 +129,7 @@ pub fn classify(old: &SceneDesc, new: &SceneDesc) -> EditClass {
         &r.area_light_model,
         &r.shadows,
         &r.adaptive,
+        &r.cutaway,
     ) {
         return EditClass::Retrace;
     }

@@ -357,6 +357,7 @@ fn dragging_the_image_orbits_the_camera_and_double_click_picks() {
     assert_eq!(h.state().desc().camera, before);
     settle(&mut h);
 
+    let film = finished(h.state());
     // Double-click the middle of the image: the back wall is there.
     h.event(egui::Event::PointerMoved(centre));
     h.step();
@@ -378,9 +379,15 @@ fn dragging_the_image_orbits_the_camera_and_double_click_picks() {
     let pick = h.state().pick().expect("double-click shows a pick").clone();
     assert!(pick.what.contains("objects["), "{pick:?}");
     assert!(pick.material.is_some());
-    let film = finished(h.state());
     let (x, y) = pick.pixel;
     assert_eq!(pick.linear_rgb, Some(film.get(x, y).to_array()));
+    // The double-click also made that point the pivot: the camera stayed
+    // and turned to it, so it is now at the image's centre.
+    let cam = h.state().desc().camera.clone();
+    assert_eq!(cam.position, before.position);
+    assert_ne!(cam.look_at, before.look_at);
+    let (sx, sy) = penumbra::app::camera_control::project(&cam, cam.look_at.into()).unwrap();
+    assert!((sx - 32.0).abs() < 1e-6 && (sy - 18.0).abs() < 1e-6);
 }
 
 // ----- reference and error readout ---------------------------------------

@@ -16,9 +16,11 @@ pub mod controls;
 pub mod error_view;
 pub mod export;
 pub mod file_dialog;
+pub mod history;
 pub mod reference;
 pub mod render_job;
 pub mod settings;
+pub mod shortcuts;
 pub mod status;
 pub mod timings;
 pub mod viewer;
@@ -35,16 +37,24 @@ use crate::render::scene::SEED_ROOM_JSON;
 
 impl ViewerOptions {
     /// Reads the scene named on the command line (the seed room if none).
+    /// A file that is missing or broken is no reason to give up: the
+    /// viewer starts on the seed room with the error in its banner and
+    /// loads the file once it is valid.
     pub fn from_args(args: &ViewArgs) -> Result<ViewerOptions, String> {
-        let desc = match &args.scene {
-            Some(p) => SceneDesc::load(p).map_err(|e| e.to_string())?,
-            None => SceneDesc::from_json(SEED_ROOM_JSON).map_err(|e| e.to_string())?,
+        let seed = || SceneDesc::from_json(SEED_ROOM_JSON).map_err(|e| e.to_string());
+        let (desc, startup_error) = match &args.scene {
+            Some(p) => match SceneDesc::load(p) {
+                Ok(d) => (d, None),
+                Err(e) => (seed()?, Some(e.to_string())),
+            },
+            None => (seed()?, None),
         };
         Ok(ViewerOptions {
             desc,
             scene_path: args.scene.clone(),
             log_timings: args.log_timings,
             wiggle: args.wiggle.map(Duration::from_secs_f64),
+            startup_error,
         })
     }
 }

@@ -473,14 +473,18 @@ impl Viewer {
     /// Moves the camera back along its view direction until the scene's
     /// finite part (bounded objects and the light) fills the view.
     pub fn frame_all(&mut self) {
-        let Some(scene) = self.job.as_ref().and_then(RenderJob::scene) else {
-            return;
+        // The worker's scene, or (while it builds one) a scene of our own.
+        let scene = match self.job.as_ref().and_then(RenderJob::scene) {
+            Some(s) => s,
+            None => match crate::render::Loaded::new(&self.render_desc()) {
+                Ok(l) => l.scene,
+                Err(_) => return,
+            },
         };
         let mut b = crate::render::geometry::Aabb::from_points(&scene.light.shape.corners());
         if let Some(o) = scene.object_bounds {
             b = b.union(o);
         }
-        // The render may be at another scale than the description.
         frame_all(&mut self.desc.camera, b.min, b.max);
         self.restart();
     }

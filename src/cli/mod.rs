@@ -22,9 +22,14 @@ use crate::render::{AreaLightModel, Sampling};
     version,
     about = "Phong ray tracer with a rectangular area light: viewer and CLI"
 )]
+#[command(args_conflicts_with_subcommands = true)]
 pub struct Cli {
     #[command(subcommand)]
     pub command: Option<Command>,
+    /// Without a command: the viewer's options (`penumbra --log-timings`,
+    /// `penumbra scene.json`), as for `penumbra view`.
+    #[command(flatten)]
+    pub view: ViewArgs,
 }
 
 #[derive(Debug, Subcommand)]

@@ -1019,3 +1019,59 @@ fn f1_shows_the_help_and_the_menus_reach_every_command() {
     h.step();
     assert!(h.state().desc().render.cutaway);
 }
+
+/// eframe's storage in memory.
+#[derive(Default)]
+struct MemStorage(std::collections::HashMap<String, String>);
+
+impl eframe::Storage for MemStorage {
+    fn get_string(&self, key: &str) -> Option<String> {
+        self.0.get(key).cloned()
+    }
+    fn set_string(&mut self, key: &str, value: String) {
+        self.0.insert(key.to_string(), value);
+    }
+    fn remove_string(&mut self, key: &str) {
+        self.0.remove(key);
+    }
+    fn flush(&mut self) {}
+}
+
+#[test]
+fn the_last_scene_recent_files_and_view_settings_are_remembered() {
+    use eframe::App;
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("kept.json");
+    write(&path, &small_room().to_json());
+    let mut h = harness(ViewerOptions::new(small_room()));
+    settle(&mut h);
+    drop_file(&mut h, path.clone());
+    h.step();
+    h.get_by_role_and_label(Role::Slider, "Resolution scale")
+        .set_value_accesskit(0.5);
+    h.step();
+    h.key_press(egui::Key::Space);
+    h.step();
+
+    // Saved through eframe's storage (off unless asked: `--no-persist`
+    // and tests leave nothing behind).
+    let mut storage = MemStorage::default();
+    h.state_mut().save(&mut storage);
+    assert!(storage.0.is_empty(), "persist is off by default");
+    h.state_mut().persist = true;
+    h.state_mut().save(&mut storage);
+    let stored: penumbra::app::Persisted =
+        eframe::get_value(&storage, penumbra::app::Persisted::KEY).expect("stored");
+    let abs = std::path::absolute(&path).unwrap();
+    assert_eq!(stored.last_scene.as_ref(), Some(&abs));
+    assert_eq!(stored.recent, vec![abs.clone()]);
+    assert_eq!(stored.last_dir.as_deref(), abs.parent());
+
+    // The next run takes it back.
+    let mut next = Viewer::new(ViewerOptions::new(small_room()));
+    next.restore_persisted(stored);
+    assert_eq!(next.view_settings().resolution_scale, 0.5);
+    assert!(!next.panel_visible());
+    assert_eq!(next.recent(), &[abs]);
+    assert!(!next.can_undo(), "restoring is not an edit");
+}

@@ -138,12 +138,36 @@ pub struct Viewer {
     title: String,
     /// Quitting with unsaved edits was confirmed.
     quit_confirmed: bool,
+    /// Remember settings between runs (off: `--no-persist`, and in tests).
+    pub persist: bool,
     /// Where the inspector popup opens (the double-click's position).
     pick_pos: Option<egui::Pos2>,
     /// Scene files opened lately, newest first.
     recent: Vec<PathBuf>,
     /// The folder the file dialog was last in.
     last_dir: Option<PathBuf>,
+}
+
+/// What the viewer remembers between runs (eframe's storage; the window's
+/// geometry and the side panel's sections open or closed are eframe's and
+/// egui's own).
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default)]
+pub struct Persisted {
+    /// The scene shown at exit (opened again by a bare `penumbra`).
+    pub last_scene: Option<PathBuf>,
+    pub recent: Vec<PathBuf>,
+    /// The folder the file dialog was last in.
+    pub last_dir: Option<PathBuf>,
+    pub panel_hidden: bool,
+    pub resolution_scale: Option<f64>,
+    pub error_view: bool,
+    pub error_exposure: f32,
+}
+
+impl Persisted {
+    /// The key in eframe's storage.
+    pub const KEY: &'static str = "penumbra-viewer";
 }
 
 /// What waits for "discard unsaved edits?".
@@ -184,6 +208,7 @@ impl Viewer {
             title: String::new(),
             quit_confirmed: false,
             pick_pos: None,
+            persist: false,
             recent: Vec::new(),
             last_dir: None,
             desc,
@@ -213,6 +238,42 @@ impl Viewer {
             error_texture: None,
             pass_tiles: (0, 0, 0),
             last_pass: None,
+        }
+    }
+
+    /// Takes what the last run remembered (not the scene: the caller
+    /// chose which to open).
+    pub fn restore_persisted(&mut self, p: Persisted) {
+        self.recent = p.recent;
+        self.last_dir = p.last_dir;
+        self.panel_visible = !p.panel_hidden;
+        if let Some(s) = p.resolution_scale
+            && ViewSettings::SCALE_RANGE.contains(&s)
+        {
+            self.view.resolution_scale = s;
+            self.history.reset(self.snapshot());
+        }
+        self.view_mode = if p.error_view {
+            ViewMode::Error
+        } else {
+            ViewMode::Image
+        };
+        self.error_exposure = p.error_exposure;
+    }
+
+    /// What to remember for the next run.
+    pub fn persisted(&self) -> Persisted {
+        Persisted {
+            last_scene: self
+                .scene_path
+                .as_ref()
+                .map(|p| std::path::absolute(p).unwrap_or_else(|_| p.clone())),
+            recent: self.recent.clone(),
+            last_dir: self.last_dir.clone(),
+            panel_hidden: !self.panel_visible,
+            resolution_scale: Some(self.view.resolution_scale),
+            error_view: self.view_mode == ViewMode::Error,
+            error_exposure: self.error_exposure,
         }
     }
 
@@ -1453,6 +1514,16 @@ impl Viewer {
 impl eframe::App for Viewer {
     fn ui(&mut self, ui: &mut Ui, frame: &mut eframe::Frame) {
         self.show(ui, frame.info().cpu_usage);
+    }
+
+    fn save(&mut self, storage: &mut dyn eframe::Storage) {
+        if self.persist {
+            eframe::set_value(storage, Persisted::KEY, &self.persisted());
+        }
+    }
+
+    fn persist_egui_memory(&self) -> bool {
+        self.persist
     }
 }
 

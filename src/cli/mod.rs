@@ -52,6 +52,10 @@ pub struct ViewArgs {
     /// Log UI frame times and render latencies to stderr.
     #[arg(long)]
     pub log_timings: bool,
+    /// Neither read nor write the remembered window, last scene, recent
+    /// files and view settings (for tests and scripts).
+    #[arg(long)]
+    pub no_persist: bool,
     /// Change the ambient slider by itself every SECS seconds (six times),
     /// to measure `--log-timings` without a person at the mouse.
     #[arg(long, value_name = "SECS", hide = true)]

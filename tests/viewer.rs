@@ -1075,3 +1075,99 @@ fn the_last_scene_recent_files_and_view_settings_are_remembered() {
     assert_eq!(next.recent(), &[abs]);
     assert!(!next.can_undo(), "restoring is not an edit");
 }
+
+#[test]
+fn the_file_dialog_starts_in_the_scenes_folder_keeps_its_size_and_asks_before_replacing() {
+    let dir = tempfile::tempdir().unwrap();
+    let sub = dir.path().join("sub");
+    std::fs::create_dir(&sub).unwrap();
+    for k in 0..30 {
+        std::fs::write(sub.join(format!("s{k:02}.json")), "{}").unwrap();
+    }
+    let path = dir.path().join("room.json");
+    write(&path, &small_room().to_json());
+    let mut options = ViewerOptions::new(small_room());
+    options.scene_path = Some(path.clone());
+    let mut h = harness(options);
+    settle(&mut h);
+
+    // Save scene… starts in the scene's folder with its name: the file
+    // exists, so Save asks first and "Keep it" writes nothing.
+    h.key_press_modifiers(
+        egui::Modifiers::COMMAND | egui::Modifiers::SHIFT,
+        egui::Key::S,
+    );
+    h.step();
+    h.step();
+    let d = h.state_mut().dialog_mut().expect("the save dialog");
+    assert_eq!(d.dir(), std::path::absolute(dir.path()).unwrap());
+    assert_eq!(d.path, "room.json");
+    let window = h.get_by_label("Save scene").rect();
+    h.state_mut().edit(|d, _| d.render.terms.ambient = 0.25);
+    h.get_by_role_and_label(Role::Button, "Save").click();
+    h.step();
+    assert!(
+        h.state_mut()
+            .dialog_mut()
+            .unwrap()
+            .overwrite_pending()
+            .is_some()
+    );
+    h.step();
+    h.get_by_label_contains("exists.");
+    assert_eq!(
+        h.get_by_label("Save scene").rect(),
+        window,
+        "the question moved it"
+    );
+    h.get_by_role_and_label(Role::Button, "Keep it").click();
+    h.step();
+    assert!(h.state_mut().dialog_mut().is_some());
+    assert_eq!(SceneDesc::load(&path).unwrap(), small_room());
+
+    // Into a folder with many files: the dialog neither grows nor moves.
+    h.get_by_label("sub/").click();
+    h.step();
+    h.step();
+    assert_eq!(h.get_by_label("Save scene").rect(), window);
+
+    // Back up, Save, Replace: written.
+    h.get_by_label("../").click();
+    h.step();
+    h.state_mut().dialog_mut().unwrap().path = "room.json".into();
+    h.step();
+    h.get_by_role_and_label(Role::Button, "Save").click();
+    h.step();
+    h.step();
+    h.get_by_role_and_label(Role::Button, "Replace").click();
+    h.step();
+    h.state_mut().wait_for_saves(WAIT);
+    assert!(h.state_mut().dialog_mut().is_none());
+    assert_eq!(SceneDesc::load(&path).unwrap().render.terms.ambient, 0.25);
+
+    // The next dialog starts where the last one was.
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::O);
+    h.step();
+    let d = h.state_mut().dialog_mut().expect("the open dialog");
+    assert_eq!(d.dir(), std::path::absolute(dir.path()).unwrap());
+}
+
+#[test]
+fn at_500_points_wide_the_status_bar_wraps_instead_of_being_cut_off() {
+    let mut h = Harness::builder()
+        .with_size([500.0, 700.0])
+        .with_step_dt(1.0 / 60.0)
+        .build_ui_state(
+            |ui, v: &mut Viewer| v.show(ui, None),
+            Viewer::new(ViewerOptions::new(small_room())),
+        );
+    h.step();
+    settle(&mut h);
+    h.step();
+    for label in ["pass 2 of 2", "16 samples/hit"] {
+        let r = h.get_by_label(label).rect();
+        assert!(r.right() <= 500.0 && r.left() >= 0.0, "{label} at {r:?}");
+    }
+    let r = h.get_by_label_contains("Mray/s").rect();
+    assert!(r.right() <= 500.0, "Mray/s at {r:?}");
+}

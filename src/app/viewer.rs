@@ -517,8 +517,11 @@ impl Viewer {
             Command::About => self.about_open = true,
             Command::Escape => {
                 // The topmost overlay only.
-                let closed = self.confirm.take().is_some() || self.dialog.take().is_some();
-                if closed {
+                if self.confirm.take().is_some() {
+                    return;
+                }
+                if let Some(d) = self.dialog.take() {
+                    self.last_dir = Some(d.dir().to_path_buf());
                     return;
                 }
                 if self.help_open || self.about_open {
@@ -962,20 +965,44 @@ impl Viewer {
         }
     }
 
+    /// Opens the path dialog. It starts in the folder last used in it;
+    /// before that, in the scene's folder (the current one for the seed
+    /// room).
     fn open_dialog(&mut self, purpose: Purpose) {
-        let suggested = match purpose {
-            Purpose::SavePng => PathBuf::from("penumbra.png"),
-            Purpose::SaveScene => self
+        let scene_dir = self
+            .scene_path
+            .as_ref()
+            .and_then(|p| std::path::absolute(p).ok())
+            .and_then(|p| p.parent().map(Path::to_path_buf));
+        let dir = self
+            .last_dir
+            .clone()
+            .filter(|d| d.is_dir())
+            .or(scene_dir)
+            .unwrap_or_else(|| std::env::current_dir().unwrap_or_else(|_| PathBuf::from(".")));
+        let stem = self
+            .scene_path
+            .as_ref()
+            .and_then(|p| p.file_stem())
+            .map(|s| s.to_string_lossy().into_owned());
+        let name = match purpose {
+            Purpose::SavePng => format!("{}.png", stem.as_deref().unwrap_or("penumbra")),
+            Purpose::SaveScene => format!("{}.json", stem.as_deref().unwrap_or("scene")),
+            Purpose::OpenScene => self
                 .scene_path
-                .clone()
-                .unwrap_or_else(|| PathBuf::from("scene.json")),
-            Purpose::OpenScene => self.scene_path.clone().unwrap_or_default(),
+                .as_ref()
+                .and_then(|p| p.file_name())
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_default(),
             Purpose::OpenReference => match self.reference.as_ref().map(|r| &r.origin) {
-                Some(Origin::Loaded(p)) => p.clone(),
-                _ => PathBuf::from("reference.exr"),
+                Some(Origin::Loaded(p)) => p
+                    .file_name()
+                    .map(|n| n.to_string_lossy().into_owned())
+                    .unwrap_or_default(),
+                _ => "reference.exr".into(),
             },
         };
-        self.dialog = Some(PathDialog::new(purpose, &suggested));
+        self.dialog = Some(PathDialog::new(purpose, &dir.join(name)));
     }
 
     /// The open path dialog, if any (tests fill in its path).
@@ -1096,7 +1123,11 @@ impl Viewer {
         if let Some(d) = &mut self.dialog {
             match d.show(&ctx) {
                 DialogResult::Open => {}
-                DialogResult::Cancelled => self.dialog = None,
+                DialogResult::Cancelled => {
+                    // The folder browsed to is where the next dialog starts.
+                    self.last_dir = Some(d.dir().to_path_buf());
+                    self.dialog = None;
+                }
                 DialogResult::Chosen(purpose, path) => {
                     self.dialog = None;
                     self.remember_dir(&path);

@@ -997,9 +997,16 @@ fn f1_shows_the_help_and_the_menus_reach_every_command() {
     assert!(h.state().help_open());
     h.get_by_label("Frame all: the whole scene in view");
     h.get_by_label("Undo the last edit");
+    h.get_by_label("F1 / ?");
+    h.get_by_label("Ctrl+Shift+Z / Ctrl+Y");
     h.key_press(egui::Key::Escape);
     h.step();
     assert!(!h.state().help_open());
+    h.key_press(egui::Key::Questionmark);
+    h.step();
+    assert!(h.state().help_open(), "? opens the help too");
+    h.key_press(egui::Key::Escape);
+    h.step();
 
     h.get_by_label("Help").click();
     h.step();

@@ -102,6 +102,15 @@ pub const MOUSE: &[(&str, &str)] = &[
     ),
 ];
 
+/// One key as text: egui's names, except `?` for the question mark.
+fn key_text(ctx: &egui::Context, k: &KeyboardShortcut) -> String {
+    if k.logical_key == Key::Questionmark {
+        "?".into()
+    } else {
+        ctx.format_shortcut(k)
+    }
+}
+
 /// The keys of `command` as text ("Ctrl+Shift+Z / Ctrl+Y").
 pub fn keys_text(ctx: &egui::Context, command: Command) -> String {
     BINDINGS
@@ -109,7 +118,7 @@ pub fn keys_text(ctx: &egui::Context, command: Command) -> String {
         .find(|b| b.0 == command)
         .map(|b| {
             b.1.iter()
-                .map(|k| ctx.format_shortcut(k))
+                .map(|k| key_text(ctx, k))
                 .collect::<Vec<_>>()
                 .join(" / ")
         })

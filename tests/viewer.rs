@@ -717,7 +717,12 @@ fn an_orbit_about_the_pivot_keeps_it_in_view_with_the_cutaway() {
         let seen = camera_distance(h.state(), x, y, true).expect("a surface");
         assert!((seen - dist).abs() < 1e-6 * dist, "hidden: {seen} < {dist}");
     }
-    // Without the cut-away a wall stands between (the bug this fixes).
+    // Without the cut-away a wall stands between (the bug this fixes), and
+    // the viewer says so.
+    h.key_press(egui::Key::C);
+    h.step();
+    assert!(!h.state().desc().render.cutaway);
+    assert!(h.state().notice().unwrap().contains("behind a wall"));
     let cam = h.state().desc().camera.clone();
     let dist = (pivot - glam::DVec3::from(cam.position)).length();
     let blocked = camera_distance(h.state(), 32.0, 18.0, false).unwrap();

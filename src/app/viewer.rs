@@ -621,6 +621,9 @@ impl Viewer {
             self.notice = Some("reference cancelled: the image changed".into());
         }
         self.ref_match = self.reference.as_ref().map(|r| r.check(&desc));
+        if !desc.render.cutaway && behind_a_plane(&desc) {
+            self.notice = Some("the camera is behind a wall: C (cut-away) sees through it".into());
+        }
         self.last_pass = None;
         self.progress = Progress::new(desc.render.sampling);
         let generation = job.restart(desc);
@@ -1631,4 +1634,18 @@ pub fn about_lines() -> Vec<String> {
         format!("render threads: {threads}"),
         format!("license: {}", env!("CARGO_PKG_LICENSE")),
     ]
+}
+
+/// Whether the camera stands behind one of the scene's planes (on the side
+/// its normal points away from), where the plane hides everything else.
+pub fn behind_a_plane(desc: &SceneDesc) -> bool {
+    use crate::render::scene_file::ObjectDesc;
+    let cam = glam::DVec3::from(desc.camera.position);
+    desc.objects.iter().any(|o| match o {
+        ObjectDesc::Plane(p) => {
+            let n = glam::DVec3::from(p.normal);
+            n.dot(cam - glam::DVec3::from(p.point)) < 0.0
+        }
+        _ => false,
+    })
 }

@@ -633,6 +633,9 @@ fn values_outside_the_sliders_ranges_load_show_and_stay_unchanged() {
         &d,
         "showing the controls changed the scene"
     );
+    // The worker takes the request in its own time (later under load).
+    step_until(&mut h, |v| v.worker_desc().is_some());
+    assert_eq!(h.state().desc(), &d);
     let worker = h.state().worker_desc().expect("a render started").1;
     assert_eq!(worker.render.shadow_rays, 4096);
     assert_eq!(worker.render.terms.diffuse, 10.0);

@@ -6,7 +6,7 @@ use penumbra::cli::{self, Cli, CliError, Command};
 
 fn main() {
     let cli = Cli::parse();
-    let result = match cli.command.unwrap_or(Command::View(Default::default())) {
+    let result = match cli.command.unwrap_or(Command::View(cli.view)) {
         Command::View(args) => penumbra::app::run(&args).map_err(CliError::input),
         Command::Render(args) => cli::render(&args),
         Command::Compare(args) => cli::compare(&args),

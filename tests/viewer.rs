@@ -357,6 +357,7 @@ fn dragging_the_image_orbits_the_camera_and_double_click_picks() {
     assert_eq!(h.state().desc().camera, before);
     settle(&mut h);
 
+    let film = finished(h.state());
     // Double-click the middle of the image: the back wall is there.
     h.event(egui::Event::PointerMoved(centre));
     h.step();
@@ -378,9 +379,15 @@ fn dragging_the_image_orbits_the_camera_and_double_click_picks() {
     let pick = h.state().pick().expect("double-click shows a pick").clone();
     assert!(pick.what.contains("objects["), "{pick:?}");
     assert!(pick.material.is_some());
-    let film = finished(h.state());
     let (x, y) = pick.pixel;
     assert_eq!(pick.linear_rgb, Some(film.get(x, y).to_array()));
+    // The double-click also made that point the pivot: the camera stayed
+    // and turned to it, so it is now at the image's centre.
+    let cam = h.state().desc().camera.clone();
+    assert_eq!(cam.position, before.position);
+    assert_ne!(cam.look_at, before.look_at);
+    let (sx, sy) = penumbra::app::camera_control::project(&cam, cam.look_at.into()).unwrap();
+    assert!((sx - 32.0).abs() < 1e-6 && (sy - 18.0).abs() < 1e-6);
 }
 
 // ----- reference and error readout ---------------------------------------
@@ -626,9 +633,558 @@ fn values_outside_the_sliders_ranges_load_show_and_stay_unchanged() {
         &d,
         "showing the controls changed the scene"
     );
+    // The worker takes the request in its own time (later under load).
+    step_until(&mut h, |v| v.worker_desc().is_some());
+    assert_eq!(h.state().desc(), &d);
     let worker = h.state().worker_desc().expect("a render started").1;
     assert_eq!(worker.render.shadow_rays, 4096);
     assert_eq!(worker.render.terms.diffuse, 10.0);
+}
+
+// ----- camera, undo, unsaved edits, launch, keys ----------------------------
+
+use penumbra::app::camera_control::project;
+use penumbra::app::viewer::Confirm;
+
+/// A file dropped on the window, as eframe hands it to egui.
+#[derive(Debug)]
+struct Dropped(std::path::PathBuf);
+
+impl egui::DroppedFile for Dropped {
+    fn path(&self) -> &Path {
+        &self.0
+    }
+    fn bytes(&self) -> Result<Vec<u8>, String> {
+        std::fs::read(&self.0).map_err(|e| e.to_string())
+    }
+}
+
+fn drop_file(h: &mut Harness<'static, Viewer>, path: std::path::PathBuf) {
+    h.input_mut()
+        .dropped_files
+        .push(std::sync::Arc::new(Dropped(path)));
+}
+
+/// Drags on the image from `from` by `by` in a few steps (one gesture).
+fn drag_image(h: &mut Harness<'static, Viewer>, from: egui::Pos2, by: egui::Vec2) {
+    h.drag_at(from);
+    h.step();
+    for k in 1..=4 {
+        h.hover_at(from + by * (k as f32 / 4.0));
+        h.step();
+    }
+    h.drop_at(from + by);
+    h.step();
+}
+
+/// The nearest surface the camera ray through image point (x, y) meets:
+/// its distance, for the scene as the viewer renders it.
+fn camera_distance(v: &Viewer, x: f64, y: f64, cutaway: bool) -> Option<f64> {
+    let loaded = Loaded::new(&v.render_desc()).unwrap();
+    let ray = loaded.scene.camera.ray(x, y);
+    loaded.scene.camera_hit(&ray, cutaway).map(|(_, t)| t)
+}
+
+#[test]
+fn an_orbit_about_the_pivot_keeps_it_in_view_with_the_cutaway() {
+    let mut h = harness(ViewerOptions::new(small_room()));
+    settle(&mut h);
+    // The pivot on the first bounded object found left of the centre row
+    // (a sphere or box, not a wall): double-click there.
+    let loaded = Loaded::new(&h.state().render_desc()).unwrap();
+    let px = (0..64)
+        .find(|&x| {
+            let ray = loaded.scene.camera.pixel_ray(x, 24);
+            matches!(loaded.scene.closest_hit(&ray),
+                Some((penumbra::render::HitTarget::Object(i), _))
+                    if loaded.scene.objects[i as usize].bounds.is_some())
+        })
+        .expect("an object in the row");
+    assert!(h.state_mut().set_pivot_at(px, 24));
+    let pivot = glam::DVec3::from(h.state().desc().camera.look_at);
+    h.get_by_role_and_label(Role::CheckBox, "Cut-away").click();
+    h.step();
+    assert!(h.state().desc().render.cutaway);
+
+    // Orbit far round (well past the ~100 px that put the camera behind a
+    // wall): the pivot stays at the image's centre and, with the cut-away,
+    // nothing hides it.
+    let centre = egui::pos2(800.0, 450.0);
+    for _ in 0..3 {
+        drag_image(&mut h, centre, egui::vec2(160.0, 0.0));
+        let cam = h.state().desc().camera.clone();
+        assert_eq!(glam::DVec3::from(cam.look_at), pivot);
+        let (x, y) = project(&cam, pivot).expect("the pivot is in front");
+        assert!((x - 32.0).abs() < 1e-6 && (y - 18.0).abs() < 1e-6);
+        let dist = (pivot - glam::DVec3::from(cam.position)).length();
+        let seen = camera_distance(h.state(), x, y, true).expect("a surface");
+        assert!((seen - dist).abs() < 1e-6 * dist, "hidden: {seen} < {dist}");
+    }
+    // Without the cut-away a wall stands between (the bug this fixes), and
+    // the viewer says so.
+    h.key_press(egui::Key::C);
+    h.step();
+    assert!(!h.state().desc().render.cutaway);
+    assert!(h.state().notice().unwrap().contains("behind a wall"));
+    let cam = h.state().desc().camera.clone();
+    let dist = (pivot - glam::DVec3::from(cam.position)).length();
+    let blocked = camera_distance(h.state(), 32.0, 18.0, false).unwrap();
+    assert!(
+        blocked < dist * 0.999,
+        "no wall in the way: test orbit too short"
+    );
+    settle(&mut h);
+    // The viewer's image is the core's render of the cut-away scene.
+    assert_eq!(finished(h.state()), core_render(&h.state().render_desc()));
+}
+
+#[test]
+fn frame_all_shows_the_whole_scene_and_home_resets_the_camera() {
+    let mut h = harness(ViewerOptions::new(small_room()));
+    settle(&mut h);
+    let home = h.state().desc().camera.clone();
+    // Far off, zoomed in on a corner.
+    h.state_mut().edit(|d, _| {
+        d.camera.position = [9.0, 1.0, 30.0];
+        d.camera.look_at = [3.0, 0.5, 2.0];
+    });
+    h.key_press(egui::Key::F);
+    h.step();
+    let cam = h.state().desc().camera.clone();
+    assert_ne!(cam.position, [9.0, 1.0, 30.0]);
+    let loaded = Loaded::new(&h.state().render_desc()).unwrap();
+    let b = loaded.scene.object_bounds.unwrap();
+    let mut points: Vec<glam::DVec3> = loaded.scene.light.shape.corners().to_vec();
+    for i in 0..8 {
+        points.push(glam::DVec3::new(
+            if i & 1 == 0 { b.min.x } else { b.max.x },
+            if i & 2 == 0 { b.min.y } else { b.max.y },
+            if i & 4 == 0 { b.min.z } else { b.max.z },
+        ));
+    }
+    for p in points {
+        let (x, y) = project(&cam, p).expect("in front");
+        assert!(
+            (0.0..=64.0).contains(&x) && (0.0..=36.0).contains(&y),
+            "{p} at ({x}, {y})"
+        );
+    }
+    h.key_press(egui::Key::Home);
+    h.step();
+    assert_eq!(h.state().desc().camera, home);
+}
+
+#[test]
+fn undo_restores_the_image_bit_for_bit_and_a_drag_is_one_step() {
+    let mut h = harness(ViewerOptions::new(small_room()));
+    settle(&mut h);
+    let original = finished(h.state());
+    let camera = h.state().desc().camera.clone();
+    assert!(!h.state().can_undo());
+
+    // A real mouse drag along the "Shadow rays" slider: many values, one step.
+    let rect = h.get_by_role_and_label(Role::Slider, "Shadow rays").rect();
+    let start = rect.center();
+    h.drag_at(start);
+    h.step();
+    for dx in [-20.0, -40.0, -60.0, -80.0] {
+        h.hover_at(start + egui::vec2(dx, 0.0));
+        h.step();
+    }
+    h.drop_at(start + egui::vec2(-80.0, 0.0));
+    h.step();
+    let rays = h.state().desc().render.shadow_rays;
+    assert!(rays < 16, "the drag moved the slider: {rays}");
+    // Then an orbit (another drag) and a toggle.
+    drag_image(&mut h, egui::pos2(800.0, 450.0), egui::vec2(60.0, 20.0));
+    assert_ne!(h.state().desc().camera, camera);
+    h.get_by_role_and_label(Role::CheckBox, "Shadows").click();
+    h.step();
+    settle(&mut h);
+    let edited = finished(h.state());
+    assert_ne!(edited, original);
+
+    // Three steps back (Ctrl+Z): the original image, bit for bit.
+    for _ in 0..3 {
+        h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
+        h.step();
+    }
+    assert_eq!(h.state().desc(), &small_room());
+    settle(&mut h);
+    assert_eq!(finished(h.state()), original);
+    assert_shows(h.state(), &original);
+    assert!(!h.state().can_undo());
+    assert!(!h.state_mut().undo(), "nothing more to undo");
+
+    // Redo all three (Ctrl+Shift+Z twice, Ctrl+Y once): the edited image.
+    h.key_press_modifiers(
+        egui::Modifiers::COMMAND | egui::Modifiers::SHIFT,
+        egui::Key::Z,
+    );
+    h.step();
+    assert_eq!(h.state().desc().render.shadow_rays, rays);
+    assert_eq!(h.state().desc().camera, camera);
+    h.key_press_modifiers(
+        egui::Modifiers::COMMAND | egui::Modifiers::SHIFT,
+        egui::Key::Z,
+    );
+    h.step();
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Y);
+    h.step();
+    assert!(!h.state().desc().render.shadows);
+    settle(&mut h);
+    assert_eq!(finished(h.state()), edited);
+}
+
+#[test]
+fn unsaved_edits_mark_the_title_and_quit_or_open_asks_first() {
+    let dir = tempfile::tempdir().unwrap();
+    let other = dir.path().join("other.json");
+    let mut o = small_room();
+    o.render.shadow_rays = 4;
+    write(&other, &o.to_json());
+    let mut h = harness(ViewerOptions::new(small_room()));
+    settle(&mut h);
+    assert_eq!(h.state().title(), "seed room — penumbra");
+    assert!(!h.state().is_dirty());
+    h.get_by_role_and_label(Role::CheckBox, "Specular").click();
+    h.step();
+    assert!(h.state().is_dirty());
+    assert_eq!(h.state().title(), "seed room • — penumbra");
+
+    // Quit with unsaved edits: a question, and Cancel keeps everything.
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Q);
+    h.step();
+    let ctx = h.ctx.clone();
+    h.state_mut().request_quit(&ctx);
+    h.step();
+    h.step();
+    assert_eq!(h.state().confirm(), Some(&Confirm::Quit));
+    h.get_by_label("Unsaved changes");
+    h.get_by_role_and_label(Role::Button, "Cancel").click();
+    h.step();
+    assert!(h.state().confirm().is_none());
+    assert!(!h.state().view_settings().specular);
+
+    // Opening (here by dropping a file) asks too; "Open" goes on.
+    drop_file(&mut h, other.clone());
+    h.step();
+    assert_eq!(h.state().confirm(), Some(&Confirm::Open(other.clone())));
+    h.step();
+    h.get_by_role_and_label(Role::Button, "Open").click();
+    h.step();
+    assert_eq!(h.state().scene_path(), Some(other.as_path()));
+    assert_eq!(h.state().desc(), &o);
+    assert!(!h.state().is_dirty());
+    assert_eq!(h.state().title(), "other.json — penumbra");
+    // Undo does not cross into another file.
+    assert!(!h.state().can_undo());
+}
+
+#[test]
+fn dropping_a_scene_file_opens_it_and_a_png_loads_a_reference() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("dropped.json");
+    let mut d = small_room();
+    d.render.terms.ambient = 0.5;
+    write(&scene, &d.to_json());
+    let mut h = harness(ViewerOptions::new(small_room()));
+    settle(&mut h);
+    drop_file(&mut h, scene.clone());
+    h.step();
+    assert_eq!(h.state().scene_path(), Some(scene.as_path()));
+    assert_eq!(h.state().recent()[0], std::path::absolute(&scene).unwrap());
+    settle(&mut h);
+    assert_eq!(finished(h.state()), core_render(&d));
+
+    let png = dir.path().join("ref.exr");
+    write_film(&core_render(&d), &png).unwrap();
+    drop_file(&mut h, png);
+    h.step();
+    settle_reference(&mut h);
+    assert_eq!(h.state().reference_match(), Some(Match::Same));
+    h.get_by_label("RMSE 0 · PSNR inf dB");
+}
+
+#[test]
+fn a_hot_reload_takes_the_files_changes_keeps_other_edits_and_is_undoable() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("room.json");
+    write(&path, &small_room().to_json());
+    let mut options = ViewerOptions::new(SceneDesc::load(&path).unwrap());
+    options.scene_path = Some(path.clone());
+    let mut h = harness(options);
+    settle(&mut h);
+    // Edits in the viewer: shadow rays, a material's shininess, the camera,
+    // a toggle.
+    h.state_mut().edit(|d, v| {
+        d.render.shadow_rays = 8;
+        d.materials.get_mut("steel").unwrap().shininess = 3.0;
+        d.camera.position[0] = 1.0;
+        v.specular = false;
+    });
+    h.step();
+    let edited = h.state().desc().clone();
+    // The file changes other fields, and one of the edited ones.
+    let mut file = small_room();
+    file.materials.get_mut("red").unwrap().diffuse = [0.1, 0.2, 0.9];
+    file.render.max_depth = 2;
+    file.materials.get_mut("steel").unwrap().shininess = 9.0;
+    write(&path, &file.to_json());
+    step_until(&mut h, |v| v.desc().render.max_depth == 2);
+    let d = h.state().desc().clone();
+    // The file's changes, field by field...
+    assert_eq!(d.materials["red"].diffuse, [0.1, 0.2, 0.9]);
+    assert_eq!(d.materials["steel"].shininess, 9.0);
+    // ...and every edit of a field the file left alone.
+    assert_eq!(d.render.shadow_rays, 8);
+    assert_eq!(d.camera.position[0], 1.0);
+    assert!(!h.state().view_settings().specular);
+    assert!(h.state().is_dirty());
+    let mut expected = file.clone();
+    expected.render.shadow_rays = 8;
+    expected.camera.position[0] = 1.0;
+    assert_eq!(d, expected);
+    // One Ctrl+Z: the state just before the reload.
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
+    h.step();
+    assert_eq!(h.state().desc(), &edited);
+}
+
+#[test]
+fn launch_with_a_broken_file_shows_the_seed_room_and_loads_it_once_fixed() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("broken.json");
+    std::fs::write(&path, "{ \"format\": 1, ").unwrap();
+    let args = penumbra::cli::ViewArgs {
+        scene: Some(path.clone()),
+        ..Default::default()
+    };
+    let options = ViewerOptions::from_args(&args).expect("the viewer starts");
+    let mut h = harness(options);
+    settle(&mut h);
+    let banner = h
+        .state()
+        .banner()
+        .expect("the error in the banner")
+        .to_string();
+    assert!(banner.contains("broken.json"), "{banner}");
+    h.get_by_label_contains("Error: ");
+    // The seed room on screen meanwhile.
+    let seed = SceneDesc::from_json(SEED_ROOM_JSON).unwrap();
+    assert_eq!(h.state().desc(), &seed);
+
+    let fixed = small_room();
+    write(&path, &fixed.to_json());
+    step_until(&mut h, |v| v.banner().is_none());
+    assert_eq!(h.state().desc(), &fixed);
+    settle(&mut h);
+    assert_eq!(finished(h.state()), core_render(&fixed));
+
+    // A missing file is the same: banner, seed room, loaded once written.
+    let missing = dir.path().join("later.json");
+    let args = penumbra::cli::ViewArgs {
+        scene: Some(missing.clone()),
+        ..Default::default()
+    };
+    let mut h = harness(ViewerOptions::from_args(&args).unwrap());
+    settle(&mut h);
+    assert!(h.state().banner().unwrap().contains("later.json"));
+    write(&missing, &fixed.to_json());
+    step_until(&mut h, |v| v.banner().is_none());
+    assert_eq!(h.state().desc(), &fixed);
+}
+
+#[test]
+fn f1_shows_the_help_and_the_menus_reach_every_command() {
+    let mut h = harness(ViewerOptions::new(small_room()));
+    settle(&mut h);
+    h.key_press(egui::Key::F1);
+    h.step();
+    h.step();
+    assert!(h.state().help_open());
+    h.get_by_label("Frame all: the whole scene in view");
+    h.get_by_label("Undo the last edit");
+    h.get_by_label("F1 / ?");
+    h.get_by_label("Ctrl+Shift+Z / Ctrl+Y");
+    h.key_press(egui::Key::Escape);
+    h.step();
+    assert!(!h.state().help_open());
+    h.key_press(egui::Key::Questionmark);
+    h.step();
+    assert!(h.state().help_open(), "? opens the help too");
+    h.key_press(egui::Key::Escape);
+    h.step();
+
+    h.get_by_label("Help").click();
+    h.step();
+    h.step();
+    h.get_by_label_contains("About penumbra").click();
+    h.step();
+    h.step();
+    assert!(h.state().about_open());
+    h.get_by_label_contains("CPU features");
+    h.get_by_label(&format!("penumbra {}", env!("CARGO_PKG_VERSION")));
+
+    // Space hides the side panel; C toggles the cut-away.
+    h.key_press(egui::Key::Space);
+    h.step();
+    assert!(!h.state().panel_visible());
+    h.key_press(egui::Key::C);
+    h.step();
+    assert!(h.state().desc().render.cutaway);
+}
+
+/// eframe's storage in memory.
+#[derive(Default)]
+struct MemStorage(std::collections::HashMap<String, String>);
+
+impl eframe::Storage for MemStorage {
+    fn get_string(&self, key: &str) -> Option<String> {
+        self.0.get(key).cloned()
+    }
+    fn set_string(&mut self, key: &str, value: String) {
+        self.0.insert(key.to_string(), value);
+    }
+    fn remove_string(&mut self, key: &str) {
+        self.0.remove(key);
+    }
+    fn flush(&mut self) {}
+}
+
+#[test]
+fn the_last_scene_recent_files_and_view_settings_are_remembered() {
+    use eframe::App;
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("kept.json");
+    write(&path, &small_room().to_json());
+    let mut h = harness(ViewerOptions::new(small_room()));
+    settle(&mut h);
+    drop_file(&mut h, path.clone());
+    h.step();
+    h.get_by_role_and_label(Role::Slider, "Resolution scale")
+        .set_value_accesskit(0.5);
+    h.step();
+    h.key_press(egui::Key::Space);
+    h.step();
+
+    // Saved through eframe's storage (off unless asked: `--no-persist`
+    // and tests leave nothing behind).
+    let mut storage = MemStorage::default();
+    h.state_mut().save(&mut storage);
+    assert!(storage.0.is_empty(), "persist is off by default");
+    h.state_mut().persist = true;
+    h.state_mut().save(&mut storage);
+    let stored: penumbra::app::Persisted =
+        eframe::get_value(&storage, penumbra::app::Persisted::KEY).expect("stored");
+    let abs = std::path::absolute(&path).unwrap();
+    assert_eq!(stored.last_scene.as_ref(), Some(&abs));
+    assert_eq!(stored.recent, vec![abs.clone()]);
+    assert_eq!(stored.last_dir.as_deref(), abs.parent());
+
+    // The next run takes it back.
+    let mut next = Viewer::new(ViewerOptions::new(small_room()));
+    next.restore_persisted(stored);
+    assert_eq!(next.view_settings().resolution_scale, 0.5);
+    assert!(!next.panel_visible());
+    assert_eq!(next.recent(), &[abs]);
+    assert!(!next.can_undo(), "restoring is not an edit");
+}
+
+#[test]
+fn the_file_dialog_starts_in_the_scenes_folder_keeps_its_size_and_asks_before_replacing() {
+    let dir = tempfile::tempdir().unwrap();
+    let sub = dir.path().join("sub");
+    std::fs::create_dir(&sub).unwrap();
+    for k in 0..30 {
+        std::fs::write(sub.join(format!("s{k:02}.json")), "{}").unwrap();
+    }
+    let path = dir.path().join("room.json");
+    write(&path, &small_room().to_json());
+    let mut options = ViewerOptions::new(small_room());
+    options.scene_path = Some(path.clone());
+    let mut h = harness(options);
+    settle(&mut h);
+
+    // Save scene… starts in the scene's folder with its name: the file
+    // exists, so Save asks first and "Keep it" writes nothing.
+    h.key_press_modifiers(
+        egui::Modifiers::COMMAND | egui::Modifiers::SHIFT,
+        egui::Key::S,
+    );
+    h.step();
+    h.step();
+    let d = h.state_mut().dialog_mut().expect("the save dialog");
+    assert_eq!(d.dir(), std::path::absolute(dir.path()).unwrap());
+    assert_eq!(d.path, "room.json");
+    let window = h.get_by_label("Save scene").rect();
+    h.state_mut().edit(|d, _| d.render.terms.ambient = 0.25);
+    h.get_by_role_and_label(Role::Button, "Save").click();
+    h.step();
+    assert!(
+        h.state_mut()
+            .dialog_mut()
+            .unwrap()
+            .overwrite_pending()
+            .is_some()
+    );
+    h.step();
+    h.get_by_label_contains("exists.");
+    assert_eq!(
+        h.get_by_label("Save scene").rect(),
+        window,
+        "the question moved it"
+    );
+    h.get_by_role_and_label(Role::Button, "Keep it").click();
+    h.step();
+    assert!(h.state_mut().dialog_mut().is_some());
+    assert_eq!(SceneDesc::load(&path).unwrap(), small_room());
+
+    // Into a folder with many files: the dialog neither grows nor moves.
+    h.get_by_label("sub/").click();
+    h.step();
+    h.step();
+    assert_eq!(h.get_by_label("Save scene").rect(), window);
+
+    // Back up, Save, Replace: written.
+    h.get_by_label("../").click();
+    h.step();
+    h.state_mut().dialog_mut().unwrap().path = "room.json".into();
+    h.step();
+    h.get_by_role_and_label(Role::Button, "Save").click();
+    h.step();
+    h.step();
+    h.get_by_role_and_label(Role::Button, "Replace").click();
+    h.step();
+    h.state_mut().wait_for_saves(WAIT);
+    assert!(h.state_mut().dialog_mut().is_none());
+    assert_eq!(SceneDesc::load(&path).unwrap().render.terms.ambient, 0.25);
+
+    // The next dialog starts where the last one was.
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::O);
+    h.step();
+    let d = h.state_mut().dialog_mut().expect("the open dialog");
+    assert_eq!(d.dir(), std::path::absolute(dir.path()).unwrap());
+}
+
+#[test]
+fn at_500_points_wide_the_status_bar_wraps_instead_of_being_cut_off() {
+    let mut h = Harness::builder()
+        .with_size([500.0, 700.0])
+        .with_step_dt(1.0 / 60.0)
+        .build_ui_state(
+            |ui, v: &mut Viewer| v.show(ui, None),
+            Viewer::new(ViewerOptions::new(small_room())),
+        );
+    h.step();
+    settle(&mut h);
+    h.step();
+    for label in ["pass 2 of 2", "16 samples/hit"] {
+        let r = h.get_by_label(label).rect();
+        assert!(r.right() <= 500.0 && r.left() >= 0.0, "{label} at {r:?}");
+    }
+    let r = h.get_by_label_contains("Mray/s").rect();
+    assert!(r.right() <= 500.0, "Mray/s at {r:?}");
 }
 
 #[test]

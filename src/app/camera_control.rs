@@ -96,3 +96,46 @@ pub fn zoom(cam: &mut CameraDesc, factor: f64) {
     let new_len = (len * factor).clamp(1e-3 * len.max(1e-6), 1e3 * len.max(1e-6));
     cam.position = (target + offset * (new_len / len)).to_array();
 }
+
+/// Makes `pivot` the point orbited about, without moving the camera: the
+/// camera turns to look at it.
+pub fn set_pivot(cam: &mut CameraDesc, pivot: DVec3) {
+    if (pivot - v(cam.position)).length() > 1e-9 {
+        cam.look_at = pivot.to_array();
+    }
+}
+
+/// Keeps the view direction and moves the camera so that the box
+/// `min`–`max` fills the view: the pivot goes to the box's centre, the
+/// camera back until the box's bounding sphere fits the narrower field of
+/// view.
+pub fn frame_all(cam: &mut CameraDesc, min: DVec3, max: DVec3) {
+    let centre = 0.5 * (min + max);
+    let radius = (0.5 * (max - min).length()).max(1e-6);
+    let dir = (v(cam.position) - v(cam.look_at)).normalize_or(DVec3::Z);
+    let half_y = (cam.fov_y_deg.to_radians() * 0.5).clamp(1e-3, 1.55);
+    let aspect = cam.width as f64 / cam.height.max(1) as f64;
+    let half_x = (half_y.tan() * aspect).atan();
+    let dist = radius / half_y.min(half_x).sin();
+    cam.look_at = centre.to_array();
+    cam.position = (centre + dir * dist * 1.05).to_array();
+}
+
+/// Where a world point lands in an image of the camera, in pixels (x right,
+/// y down), or `None` behind the camera.
+pub fn project(cam: &CameraDesc, point: DVec3) -> Option<(f64, f64)> {
+    let pos = v(cam.position);
+    let forward = (v(cam.look_at) - pos).normalize();
+    let right = forward.cross(v(cam.up)).normalize();
+    let up = right.cross(forward);
+    let d = point - pos;
+    let z = d.dot(forward);
+    if z <= 0.0 {
+        return None;
+    }
+    let half = (cam.fov_y_deg.to_radians() * 0.5).tan();
+    let (w, h) = (cam.width as f64, cam.height as f64);
+    let ndc_x = d.dot(right) / z / (half * w / h);
+    let ndc_y = d.dot(up) / z / half;
+    Some(((ndc_x + 1.0) * 0.5 * w, (1.0 - ndc_y) * 0.5 * h))
+}

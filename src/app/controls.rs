@@ -27,6 +27,7 @@ pub enum Action {
     SavePng,
     SaveScene,
     ResetView,
+    FrameAll,
 }
 
 /// What the panel did this frame.
@@ -56,7 +57,7 @@ pub fn controls_ui(
     ui.horizontal_wrapped(|ui| {
         if ui
             .button("Open…")
-            .on_hover_text("Open a scene file (or drop one on the window)")
+            .on_hover_text("Ctrl+O: open a scene file (or drop one on the window)")
             .clicked()
         {
             out.action = Some(Action::OpenScene);
@@ -70,12 +71,23 @@ pub fn controls_ui(
         }
         if ui
             .button("Save scene…")
-            .on_hover_text("Write these settings as a scene file")
+            .on_hover_text("Ctrl+Shift+S: write these settings as a scene file")
             .clicked()
         {
             out.action = Some(Action::SaveScene);
         }
-        if ui.button("Reset view").clicked() {
+        if ui
+            .button("Frame all")
+            .on_hover_text("F: the whole scene in view, same direction")
+            .clicked()
+        {
+            out.action = Some(Action::FrameAll);
+        }
+        if ui
+            .button("Reset view")
+            .on_hover_text("Home: the scene's own camera")
+            .clicked()
+        {
             out.action = Some(Action::ResetView);
         }
     });
@@ -161,6 +173,13 @@ pub fn controls_ui(
                     }
                 });
             changed |= ui.checkbox(&mut view.reflections, "Reflections").changed();
+            changed |= ui
+                .checkbox(&mut r.cutaway, "Cut-away")
+                .on_hover_text(
+                    "C: camera rays pass through walls seen from behind \
+                     (shadows and reflections unchanged)",
+                )
+                .changed();
             ui.add_enabled_ui(view.reflections, |ui| {
                 changed |= ui
                     .add(slider(&mut r.max_depth, 1..=MAX_DEPTH).text("Max depth"))

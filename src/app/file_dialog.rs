@@ -53,6 +53,8 @@ pub struct PathDialog {
     listed: Option<PathBuf>,
     /// The path field has been given the keyboard once.
     focused: bool,
+    /// A save onto this existing file waits for "Replace".
+    overwrite: Option<PathBuf>,
 }
 
 pub enum DialogResult {
@@ -62,7 +64,8 @@ pub enum DialogResult {
 }
 
 impl PathDialog {
-    /// A dialog starting in the folder of `suggested` (or the current one).
+    /// A dialog starting in the folder of `suggested` (or the current
+    /// one), with its file name filled in.
     pub fn new(purpose: Purpose, suggested: &Path) -> PathDialog {
         let cwd = std::env::current_dir().unwrap_or_else(|_| PathBuf::from("."));
         let full = cwd.join(suggested);
@@ -84,11 +87,31 @@ impl PathDialog {
             entries: Vec::new(),
             listed: None,
             focused: false,
+            overwrite: None,
         }
     }
 
+    /// The folder listed.
+    pub fn dir(&self) -> &Path {
+        &self.dir
+    }
+
+    /// A save waits for confirmation to replace this file.
+    pub fn overwrite_pending(&self) -> Option<&Path> {
+        self.overwrite.as_deref()
+    }
+
     fn full_path(&self) -> PathBuf {
-        self.dir.join(self.path.trim())
+        self.with_extension(self.dir.join(self.path.trim()))
+    }
+
+    /// A saved file without an extension gets the purpose's (as the save
+    /// itself would add it), so that the overwrite check sees that name.
+    fn with_extension(&self, mut p: PathBuf) -> PathBuf {
+        if !self.purpose.opens() && p.extension().is_none() && !p.is_dir() {
+            p.set_extension(self.purpose.extensions()[0]);
+        }
+        p
     }
 
     fn refresh(&mut self) {
@@ -121,19 +144,22 @@ impl PathDialog {
         self.refresh();
         let mut result = DialogResult::Open;
         let mut open = true;
+        // One size whatever the folder holds, so that nothing moves under
+        // the mouse when the folder changes.
         egui::Window::new(self.purpose.title())
             .open(&mut open)
             .collapsible(false)
-            .resizable(true)
-            .default_width(460.0)
+            .resizable(false)
+            .fixed_size([480.0, 330.0])
             .anchor(egui::Align2::CENTER_CENTER, egui::Vec2::ZERO)
             .show(ctx, |ui| {
-                ui.label(format!("Folder: {}", self.dir.display()));
+                ui.add(egui::Label::new(format!("Folder: {}", self.dir.display())).truncate());
                 let mut go_up = false;
                 let mut enter: Option<String> = None;
                 egui::ScrollArea::vertical()
+                    .min_scrolled_height(240.0)
                     .max_height(240.0)
-                    .auto_shrink([false, true])
+                    .auto_shrink([false, false])
                     .show(ui, |ui| {
                         if ui.selectable_label(false, "../").clicked() {
                             go_up = true;
@@ -159,9 +185,11 @@ impl PathDialog {
                     });
                 if go_up && let Some(p) = self.dir.parent() {
                     self.dir = p.to_path_buf();
+                    self.overwrite = None;
                 }
                 if let Some(name) = enter {
                     self.dir = self.dir.join(name);
+                    self.overwrite = None;
                 }
                 ui.separator();
                 let mut confirm = false;
@@ -185,8 +213,32 @@ impl PathDialog {
                     }
                     confirm |= edit.lost_focus() && ui.input(|i| i.key_pressed(egui::Key::Enter));
                 });
+                // The overwrite question has its row always (empty when
+                // not asked), so that the buttons never move.
+                if self
+                    .overwrite
+                    .as_ref()
+                    .is_some_and(|e| *e != self.full_path())
+                {
+                    self.overwrite = None;
+                }
                 ui.horizontal(|ui| {
-                    let ok = !self.path.trim().is_empty();
+                    ui.set_min_height(ui.spacing().interact_size.y);
+                    if let Some(existing) = self.overwrite.clone() {
+                        ui.colored_label(
+                            ui.visuals().warn_fg_color,
+                            format!("{} exists.", existing.display()),
+                        );
+                        if ui.button("Replace").clicked() {
+                            result = DialogResult::Chosen(self.purpose, existing);
+                        }
+                        if ui.button("Keep it").clicked() {
+                            self.overwrite = None;
+                        }
+                    }
+                });
+                ui.horizontal(|ui| {
+                    let ok = !self.path.trim().is_empty() && self.overwrite.is_none();
                     confirm |= ui
                         .add_enabled(ok, egui::Button::new(self.purpose.button()))
                         .clicked();
@@ -194,11 +246,14 @@ impl PathDialog {
                         result = DialogResult::Cancelled;
                     }
                 });
-                if confirm && !self.path.trim().is_empty() {
-                    let full = self.full_path();
+                if confirm && !self.path.trim().is_empty() && self.overwrite.is_none() {
+                    let full = self.with_extension(self.full_path());
                     if full.is_dir() {
                         self.dir = full;
                         self.path.clear();
+                    } else if !self.purpose.opens() && full.exists() {
+                        // Ask before replacing a file.
+                        self.overwrite = Some(full);
                     } else {
                         result = DialogResult::Chosen(self.purpose, full);
                     }

@@ -16,9 +16,11 @@ pub mod controls;
 pub mod error_view;
 pub mod export;
 pub mod file_dialog;
+pub mod history;
 pub mod reference;
 pub mod render_job;
 pub mod settings;
+pub mod shortcuts;
 pub mod status;
 pub mod timings;
 pub mod viewer;
@@ -27,7 +29,7 @@ pub mod worker;
 
 use std::time::Duration;
 
-pub use viewer::{PickInfo, Viewer, ViewerOptions};
+pub use viewer::{Persisted, PickInfo, Viewer, ViewerOptions};
 
 use crate::cli::ViewArgs;
 use crate::render::SceneDesc;
@@ -35,10 +37,17 @@ use crate::render::scene::SEED_ROOM_JSON;
 
 impl ViewerOptions {
     /// Reads the scene named on the command line (the seed room if none).
+    /// A file that is missing or broken is no reason to give up: the
+    /// viewer starts on the seed room with the error in its banner and
+    /// loads the file once it is valid.
     pub fn from_args(args: &ViewArgs) -> Result<ViewerOptions, String> {
-        let desc = match &args.scene {
-            Some(p) => SceneDesc::load(p).map_err(|e| e.to_string())?,
-            None => SceneDesc::from_json(SEED_ROOM_JSON).map_err(|e| e.to_string())?,
+        let seed = || SceneDesc::from_json(SEED_ROOM_JSON).map_err(|e| e.to_string());
+        let (desc, startup_error) = match &args.scene {
+            Some(p) => match SceneDesc::load(p) {
+                Ok(d) => (d, None),
+                Err(e) => (seed()?, Some(e.to_string())),
+            },
+            None => (seed()?, None),
         };
         Ok(ViewerOptions {
             desc,
@@ -46,6 +55,7 @@ impl ViewerOptions {
             log_timings: args.log_timings,
             wiggle: args.wiggle.map(Duration::from_secs_f64),
             refine_spp: args.refine_spp.unwrap_or(DEFAULT_REFINE_SPP),
+            startup_error,
         })
     }
 }
@@ -55,21 +65,53 @@ impl ViewerOptions {
 /// a few seconds on the seed room.
 pub const DEFAULT_REFINE_SPP: u32 = 16;
 
-/// Opens the viewer window and runs it until it is closed.
+/// Opens the viewer window and runs it until it is closed. Unless
+/// `--no-persist`, the window's geometry, the side panel's sections, the
+/// last scene (opened again when none is named), the recent files and the
+/// view settings are remembered in eframe's storage.
 pub fn run(args: &ViewArgs) -> Result<(), String> {
     let options = ViewerOptions::from_args(args)?;
+    let persist = !args.no_persist;
+    let named = args.scene.is_some();
     let native = eframe::NativeOptions {
         viewport: egui::ViewportBuilder::default()
             .with_title("penumbra")
             .with_inner_size([1500.0, 860.0])
-            .with_min_inner_size([640.0, 400.0])
+            .with_min_inner_size([480.0, 320.0])
             .with_drag_and_drop(true),
+        persist_window: persist,
         ..Default::default()
     };
+    let log_timings = args.log_timings;
     eframe::run_native(
         "penumbra",
         native,
-        Box::new(move |_cc| Ok(Box::new(Viewer::new(options)))),
+        Box::new(move |cc| {
+            let stored: Option<Persisted> = cc
+                .storage
+                .filter(|_| persist)
+                .and_then(|s| eframe::get_value(s, Persisted::KEY));
+            let mut options = options;
+            // A bare `penumbra` goes on with the last scene, if it still
+            // loads (else the seed room, quietly).
+            if !named
+                && let Some(p) = stored.as_ref().and_then(|s| s.last_scene.clone())
+                && let Ok(desc) = SceneDesc::load(&p)
+            {
+                options = ViewerOptions {
+                    scene_path: Some(p),
+                    log_timings,
+                    wiggle: options.wiggle,
+                    ..ViewerOptions::new(desc)
+                };
+            }
+            let mut viewer = Viewer::new(options);
+            viewer.persist = persist;
+            if let Some(s) = stored {
+                viewer.restore_persisted(s);
+            }
+            Ok(Box::new(viewer))
+        }),
     )
     .map_err(|e| format!("cannot open the viewer window: {e}"))
 }

@@ -87,7 +87,9 @@ pub fn status_ui(
     exporting: Option<&str>,
     reference: Option<&Readout>,
 ) {
-    ui.horizontal(|ui| {
+    // Wrapped: at a narrow window the figures go on a second line instead
+    // of being cut off.
+    ui.horizontal_wrapped(|ui| {
         match state {
             JobState::Failed(_) => {
                 ui.colored_label(ui.visuals().error_fg_color, "render failed");
@@ -151,7 +153,7 @@ pub fn status_ui(
         };
         ui.add(
             egui::ProgressBar::new(fraction)
-                .desired_width(ui.available_width().min(320.0))
+                .desired_width(ui.available_width().clamp(120.0, 320.0))
                 .show_percentage(),
         );
     });

@@ -13,6 +13,8 @@ pub struct Timings {
     uploaded: Option<(u64, Instant, Duration)>,
     frame_start: Option<Instant>,
     last_frame_start: Option<Instant>,
+    /// The previous frame was drawn while a render ran.
+    last_rendering: bool,
     window: FrameWindow,
 }
 
@@ -96,10 +98,15 @@ impl Timings {
             w.cpu_sum += c;
             w.cpu_max = w.cpu_max.max(c);
         }
-        // Idle gaps (nothing to repaint) are not frame times.
-        if rendering && let (Some(a), Some(b)) = (self.last_frame_start, self.frame_start) {
+        // Idle gaps (nothing to repaint) are not frame times: an interval
+        // counts only if the frames at both of its ends were rendering.
+        if rendering
+            && self.last_rendering
+            && let (Some(a), Some(b)) = (self.last_frame_start, self.frame_start)
+        {
             w.interval_max = w.interval_max.max(ms(b - a));
         }
+        self.last_rendering = rendering;
         let span = now.duration_since(start);
         if span >= Duration::from_secs(1) {
             let n = w.frames as f64;

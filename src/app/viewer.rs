@@ -13,23 +13,23 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use egui::{
-    Color32, ColorImage, ImageData, Key, Modifiers, Sense, TextureHandle, TextureOptions, Ui,
-};
+use egui::{Color32, ColorImage, ImageData, Sense, TextureHandle, TextureOptions, Ui};
 
-use super::camera_control::camera_input;
+use super::camera_control::{camera_input, frame_all, set_pivot};
 use super::controls::{Action, ControlsState, controls_ui};
 use super::error_view::{
     ErrorJob, ErrorRequest, ErrorShown, ImageSource, Readout, legend_ui, readout_text,
 };
 use super::export::IoTasks;
 use super::file_dialog::{DialogResult, PathDialog, Purpose};
+use super::history::{History, Snapshot};
 use super::reference::{
     Match, Origin, RefAction, RefPanel, Reference, ReferenceTask, TaskKind, TaskOutcome, ViewMode,
     converged, reference_ui, same_limit,
 };
 use super::render_job::{JobState, RenderJob};
 use super::settings::ViewSettings;
+use super::shortcuts::{self, Command, help_ui};
 use super::status::{Progress, status_ui};
 use super::timings::Timings;
 use super::watch::SceneWatcher;
@@ -53,6 +53,10 @@ pub struct ViewerOptions {
     /// Refine a finished image with camera samples up to this many per
     /// pixel while nothing changes (1: never, as for `new`).
     pub refine_spp: u32,
+    /// Why the scene file could not be read at launch: the viewer then
+    /// shows it in the banner over the seed room, watches the file and
+    /// loads it once it is valid.
+    pub startup_error: Option<String>,
 }
 
 impl ViewerOptions {
@@ -64,6 +68,7 @@ impl ViewerOptions {
             log_timings: false,
             wiggle: None,
             refine_spp: 1,
+            startup_error: None,
         }
     }
 }
@@ -125,11 +130,67 @@ pub struct Viewer {
     pass_tiles: (u64, usize, usize),
     /// The latest pass complete on screen: (generation, pass, pass count).
     last_pass: Option<(u64, usize, usize)>,
+    history: History,
+    /// The scene as last opened, reloaded or saved (toggles applied): the
+    /// edits are unsaved while the scene differs from it.
+    saved: SceneDesc,
+    /// A question waiting for an answer (unsaved edits).
+    confirm: Option<Confirm>,
+    help_open: bool,
+    about_open: bool,
+    panel_visible: bool,
+    fullscreen: bool,
+    /// The window title last sent.
+    title: String,
+    /// Quitting with unsaved edits was confirmed.
+    quit_confirmed: bool,
+    /// Remember settings between runs (off: `--no-persist`, and in tests).
+    pub persist: bool,
+    /// Where the inspector popup opens (the double-click's position).
+    pick_pos: Option<egui::Pos2>,
+    /// Scene files opened lately, newest first.
+    recent: Vec<PathBuf>,
+    /// The folder the file dialog was last in.
+    last_dir: Option<PathBuf>,
+}
+
+/// What the viewer remembers between runs (eframe's storage; the window's
+/// geometry and the side panel's sections open or closed are eframe's and
+/// egui's own).
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default)]
+pub struct Persisted {
+    /// The scene shown at exit (opened again by a bare `penumbra`).
+    pub last_scene: Option<PathBuf>,
+    pub recent: Vec<PathBuf>,
+    /// The folder the file dialog was last in.
+    pub last_dir: Option<PathBuf>,
+    pub panel_hidden: bool,
+    pub resolution_scale: Option<f64>,
+    pub error_view: bool,
+    pub error_exposure: f32,
+}
+
+impl Persisted {
+    /// The key in eframe's storage.
+    pub const KEY: &'static str = "penumbra-viewer";
+}
+
+/// What waits for "discard unsaved edits?".
+#[derive(Debug, Clone, PartialEq)]
+pub enum Confirm {
+    Quit,
+    Open(PathBuf),
 }
 
 impl Viewer {
     pub fn new(options: ViewerOptions) -> Viewer {
         let desc = options.desc;
+        let history = History::new(Snapshot {
+            desc: desc.clone(),
+            view: ViewSettings::for_scene(&desc),
+        });
+        let broken = options.startup_error.is_some();
         let shown = ColorImage::filled(
             [desc.camera.width as usize, desc.camera.height as usize],
             EMPTY,
@@ -138,7 +199,24 @@ impl Viewer {
             home_camera: desc.camera.clone(),
             view: ViewSettings::for_scene(&desc),
             progress: Progress::new(desc.render.sampling),
-            file_desc: options.scene_path.as_ref().map(|_| desc.clone()),
+            file_desc: options
+                .scene_path
+                .as_ref()
+                .filter(|_| !broken)
+                .map(|_| desc.clone()),
+            saved: desc.clone(),
+            history,
+            confirm: None,
+            help_open: false,
+            about_open: false,
+            panel_visible: true,
+            fullscreen: false,
+            title: String::new(),
+            quit_confirmed: false,
+            pick_pos: None,
+            persist: false,
+            recent: Vec::new(),
+            last_dir: None,
             desc,
             controls: ControlsState::default(),
             scene_path: options.scene_path,
@@ -147,7 +225,7 @@ impl Viewer {
             texture: None,
             shown,
             handled: 0,
-            banner: None,
+            banner: options.startup_error,
             banner_from_render: false,
             notice: None,
             dialog: None,
@@ -167,6 +245,42 @@ impl Viewer {
             error_texture: None,
             pass_tiles: (0, 0, 0),
             last_pass: None,
+        }
+    }
+
+    /// Takes what the last run remembered (not the scene: the caller
+    /// chose which to open).
+    pub fn restore_persisted(&mut self, p: Persisted) {
+        self.recent = p.recent;
+        self.last_dir = p.last_dir;
+        self.panel_visible = !p.panel_hidden;
+        if let Some(s) = p.resolution_scale
+            && ViewSettings::SCALE_RANGE.contains(&s)
+        {
+            self.view.resolution_scale = s;
+            self.history.reset(self.snapshot());
+        }
+        self.view_mode = if p.error_view {
+            ViewMode::Error
+        } else {
+            ViewMode::Image
+        };
+        self.error_exposure = p.error_exposure;
+    }
+
+    /// What to remember for the next run.
+    pub fn persisted(&self) -> Persisted {
+        Persisted {
+            last_scene: self
+                .scene_path
+                .as_ref()
+                .map(|p| std::path::absolute(p).unwrap_or_else(|_| p.clone())),
+            recent: self.recent.clone(),
+            last_dir: self.last_dir.clone(),
+            panel_hidden: !self.panel_visible,
+            resolution_scale: Some(self.view.resolution_scale),
+            error_view: self.view_mode == ViewMode::Error,
+            error_exposure: self.error_exposure,
         }
     }
 
@@ -295,6 +409,207 @@ impl Viewer {
         self.view_mode = mode;
     }
 
+    /// The current state as an undo step sees it.
+    fn snapshot(&self) -> Snapshot {
+        Snapshot {
+            desc: self.desc.clone(),
+            view: self.view.clone(),
+        }
+    }
+
+    /// Goes back one step; false if there is none.
+    pub fn undo(&mut self) -> bool {
+        let current = self.snapshot();
+        match self.history.undo(&current) {
+            Some(s) => self.restore(s, "undo"),
+            None => false,
+        }
+    }
+
+    /// Goes forward one undone step; false if there is none.
+    pub fn redo(&mut self) -> bool {
+        let current = self.snapshot();
+        match self.history.redo(&current) {
+            Some(s) => self.restore(s, "redo"),
+            None => false,
+        }
+    }
+
+    fn restore(&mut self, s: Snapshot, what: &str) -> bool {
+        self.desc = s.desc;
+        self.view = s.view;
+        self.pick = None;
+        self.notice = Some(what.into());
+        self.restart();
+        true
+    }
+
+    pub fn can_undo(&self) -> bool {
+        self.history.can_undo() || self.snapshot() != *self.history_baseline()
+    }
+
+    fn history_baseline(&self) -> &Snapshot {
+        self.history.baseline()
+    }
+
+    /// The scene differs from the file (or the built-in room) as last
+    /// opened, reloaded or saved.
+    pub fn is_dirty(&self) -> bool {
+        self.view.apply(&self.desc, true) != self.saved
+    }
+
+    /// The window title: the scene's name, with " •" while unsaved.
+    pub fn title(&self) -> String {
+        let name = self
+            .scene_path
+            .as_ref()
+            .and_then(|p| p.file_name())
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "seed room".into());
+        let mark = if self.is_dirty() { " •" } else { "" };
+        format!("{name}{mark} — penumbra")
+    }
+
+    /// The question waiting for an answer, if any.
+    pub fn confirm(&self) -> Option<&Confirm> {
+        self.confirm.as_ref()
+    }
+
+    pub fn help_open(&self) -> bool {
+        self.help_open
+    }
+
+    pub fn about_open(&self) -> bool {
+        self.about_open
+    }
+
+    pub fn panel_visible(&self) -> bool {
+        self.panel_visible
+    }
+
+    /// The scene file shown (and watched).
+    pub fn scene_path(&self) -> Option<&Path> {
+        self.scene_path.as_deref()
+    }
+
+    /// Runs a command as its key or menu entry would.
+    pub fn execute(&mut self, ctx: &egui::Context, command: Command) {
+        match command {
+            Command::Open => self.open_dialog(Purpose::OpenScene),
+            Command::SavePng => self.open_dialog(Purpose::SavePng),
+            Command::SaveScene => self.open_dialog(Purpose::SaveScene),
+            Command::Quit => ctx.send_viewport_cmd(egui::ViewportCommand::Close),
+            Command::Undo => {
+                if !self.undo() {
+                    self.notice = Some("nothing to undo".into());
+                }
+            }
+            Command::Redo => {
+                if !self.redo() {
+                    self.notice = Some("nothing to redo".into());
+                }
+            }
+            Command::FrameAll => self.frame_all(),
+            Command::ResetView => self.reset_view(),
+            Command::Cutaway => {
+                self.desc.render.cutaway = !self.desc.render.cutaway;
+                self.restart();
+            }
+            Command::TogglePanel => self.panel_visible = !self.panel_visible,
+            Command::Fullscreen => {
+                self.fullscreen = !self.fullscreen;
+                ctx.send_viewport_cmd(egui::ViewportCommand::Fullscreen(self.fullscreen));
+            }
+            Command::Help => self.help_open = !self.help_open,
+            Command::About => self.about_open = true,
+            Command::Escape => {
+                // The topmost overlay only.
+                if self.confirm.take().is_some() {
+                    return;
+                }
+                if let Some(d) = self.dialog.take() {
+                    self.last_dir = Some(d.dir().to_path_buf());
+                    return;
+                }
+                if self.help_open || self.about_open {
+                    self.help_open = false;
+                    self.about_open = false;
+                } else {
+                    self.pick = None;
+                }
+            }
+        }
+    }
+
+    /// Moves the camera back along its view direction until the scene's
+    /// finite part (bounded objects and the light) fills the view.
+    pub fn frame_all(&mut self) {
+        // The worker's scene, or (while it builds one) a scene of our own.
+        let scene = match self.job.as_ref().and_then(RenderJob::scene) {
+            Some(s) => s,
+            None => match crate::render::Loaded::new(&self.render_desc()) {
+                Ok(l) => l.scene,
+                Err(_) => return,
+            },
+        };
+        let mut b = crate::render::geometry::Aabb::from_points(&scene.light.shape.corners());
+        if let Some(o) = scene.object_bounds {
+            b = b.union(o);
+        }
+        frame_all(&mut self.desc.camera, b.min, b.max);
+        self.restart();
+    }
+
+    /// Sets the orbit pivot to the surface under image pixel (px, py) of
+    /// the image on screen; false if the background is there.
+    pub fn set_pivot_at(&mut self, px: u32, py: u32) -> bool {
+        let Some(scene) = self.job.as_ref().and_then(RenderJob::scene) else {
+            return false;
+        };
+        let ray = scene.camera.pixel_ray(px, py);
+        let Some((_, t)) = scene.camera_hit(&ray, self.desc.render.cutaway) else {
+            return false;
+        };
+        set_pivot(&mut self.desc.camera, ray.at(t));
+        self.restart();
+        true
+    }
+
+    /// Asks for a quit as the window's close button does.
+    pub fn request_quit(&mut self, ctx: &egui::Context) {
+        if self.is_dirty() && !self.quit_confirmed {
+            self.confirm = Some(Confirm::Quit);
+        } else {
+            self.quit_confirmed = true;
+            ctx.send_viewport_cmd(egui::ViewportCommand::Close);
+        }
+    }
+
+    /// Opens a scene, asking first if the edits are unsaved.
+    pub fn request_open(&mut self, ctx: &egui::Context, path: &Path) {
+        if self.is_dirty() {
+            self.confirm = Some(Confirm::Open(path.to_path_buf()));
+        } else {
+            self.open_scene(ctx, path);
+        }
+    }
+
+    /// Answers the waiting question: `discard` the edits and go on, or
+    /// keep them and stay.
+    pub fn answer_confirm(&mut self, ctx: &egui::Context, discard: bool) {
+        let Some(c) = self.confirm.take() else { return };
+        if !discard {
+            return;
+        }
+        match c {
+            Confirm::Quit => {
+                self.quit_confirmed = true;
+                ctx.send_viewport_cmd(egui::ViewportCommand::Close);
+            }
+            Confirm::Open(p) => self.open_scene(ctx, &p),
+        }
+    }
+
     // ----- actions -------------------------------------------------------
 
     /// Cancels the running render and starts one of the current settings.
@@ -313,6 +628,9 @@ impl Viewer {
             self.notice = Some("reference cancelled: the image changed".into());
         }
         self.ref_match = self.reference.as_ref().map(|r| r.check(&desc));
+        if !desc.render.cutaway && behind_a_plane(&desc) {
+            self.notice = Some("the camera is behind a wall: C (cut-away) sees through it".into());
+        }
         self.last_pass = None;
         self.progress = Progress::new(desc.render.sampling);
         let generation = job.restart(desc);
@@ -335,8 +653,15 @@ impl Viewer {
                 self.view = ViewSettings::for_scene(&desc);
                 self.home_camera = desc.camera.clone();
                 self.file_desc = Some(desc.clone());
+                self.saved = desc.clone();
+                self.history.reset(Snapshot {
+                    desc: desc.clone(),
+                    view: self.view.clone(),
+                });
                 self.desc = desc;
                 self.scene_path = Some(path.to_path_buf());
+                self.remember_dir(path);
+                self.add_recent(path);
                 self.watch(ctx);
                 self.banner = None;
                 self.pick = None;
@@ -347,30 +672,69 @@ impl Viewer {
         }
     }
 
-    /// Reads the watched file again: the camera is kept unless the file's
-    /// camera changed; a bad file only shows the banner.
+    /// Reads the watched file again. The rule for unsaved edits: the file
+    /// wins on every field it changed, and each edit of a field it left
+    /// alone (the camera included) stays; the viewer's own toggles are not
+    /// in the file and stay. The state before the reload is one undo step
+    /// away. A bad file only shows the banner.
     fn reload(&mut self) {
         let Some(path) = self.scene_path.clone() else {
             return;
         };
         match SceneDesc::load(&path) {
-            Ok(mut desc) => {
+            Ok(theirs) => {
+                let merged = match &self.file_desc {
+                    Some(base) => merge_reload(base, &self.desc, &theirs),
+                    // Not read before (broken at launch): all of it.
+                    None => {
+                        self.view = ViewSettings::for_scene(&theirs);
+                        theirs.clone()
+                    }
+                };
                 if self
                     .file_desc
                     .as_ref()
-                    .is_some_and(|old| old.camera == desc.camera)
+                    .is_none_or(|b| b.camera != theirs.camera)
                 {
-                    desc.camera = self.desc.camera.clone();
-                } else {
-                    self.home_camera = desc.camera.clone();
+                    self.home_camera = theirs.camera.clone();
                 }
-                self.file_desc = Some(desc.clone());
-                self.desc = desc;
+                self.file_desc = Some(theirs.clone());
+                self.saved = theirs;
+                self.desc = merged;
                 self.banner = None;
-                self.notice = Some(format!("reloaded {}", path.display()));
+                self.notice = Some(format!(
+                    "reloaded {}{}",
+                    path.display(),
+                    if self.is_dirty() {
+                        " (your edits of other fields kept; Ctrl+Z goes back)"
+                    } else {
+                        ""
+                    }
+                ));
                 self.restart();
             }
             Err(e) => self.show_error(e.to_string()),
+        }
+    }
+
+    fn add_recent(&mut self, path: &Path) {
+        let p = std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf());
+        self.recent.retain(|r| *r != p);
+        self.recent.insert(0, p);
+        self.recent.truncate(10);
+    }
+
+    /// Scene files opened lately, newest first.
+    pub fn recent(&self) -> &[PathBuf] {
+        &self.recent
+    }
+
+    fn remember_dir(&mut self, path: &Path) {
+        if let Some(d) = std::path::absolute(path)
+            .ok()
+            .and_then(|p| p.parent().map(Path::to_path_buf))
+        {
+            self.last_dir = Some(d);
         }
     }
 
@@ -404,7 +768,16 @@ impl Viewer {
             path.set_extension("json");
         }
         let full = self.view.apply(&self.desc, true);
-        self.io.save_scene(ctx, &full, path);
+        self.io.save_scene(ctx, &full, path.clone());
+        // Saved as: this is now the scene's file (watched; its contents
+        // are these settings, so the reload it causes changes nothing).
+        self.saved = full.clone();
+        self.file_desc = Some(full);
+        self.remember_dir(&path);
+        if self.scene_path.as_deref() != Some(path.as_path()) {
+            self.scene_path = Some(path);
+            self.watch(ctx);
+        }
     }
 
     // ----- reference and error readout ----------------------------------
@@ -602,20 +975,44 @@ impl Viewer {
         }
     }
 
+    /// Opens the path dialog. It starts in the folder last used in it;
+    /// before that, in the scene's folder (the current one for the seed
+    /// room).
     fn open_dialog(&mut self, purpose: Purpose) {
-        let suggested = match purpose {
-            Purpose::SavePng => PathBuf::from("penumbra.png"),
-            Purpose::SaveScene => self
+        let scene_dir = self
+            .scene_path
+            .as_ref()
+            .and_then(|p| std::path::absolute(p).ok())
+            .and_then(|p| p.parent().map(Path::to_path_buf));
+        let dir = self
+            .last_dir
+            .clone()
+            .filter(|d| d.is_dir())
+            .or(scene_dir)
+            .unwrap_or_else(|| std::env::current_dir().unwrap_or_else(|_| PathBuf::from(".")));
+        let stem = self
+            .scene_path
+            .as_ref()
+            .and_then(|p| p.file_stem())
+            .map(|s| s.to_string_lossy().into_owned());
+        let name = match purpose {
+            Purpose::SavePng => format!("{}.png", stem.as_deref().unwrap_or("penumbra")),
+            Purpose::SaveScene => format!("{}.json", stem.as_deref().unwrap_or("scene")),
+            Purpose::OpenScene => self
                 .scene_path
-                .clone()
-                .unwrap_or_else(|| PathBuf::from("scene.json")),
-            Purpose::OpenScene => self.scene_path.clone().unwrap_or_default(),
+                .as_ref()
+                .and_then(|p| p.file_name())
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_default(),
             Purpose::OpenReference => match self.reference.as_ref().map(|r| &r.origin) {
-                Some(Origin::Loaded(p)) => p.clone(),
-                _ => PathBuf::from("reference.exr"),
+                Some(Origin::Loaded(p)) => p
+                    .file_name()
+                    .map(|n| n.to_string_lossy().into_owned())
+                    .unwrap_or_default(),
+                _ => "reference.exr".into(),
             },
         };
-        self.dialog = Some(PathDialog::new(purpose, &suggested));
+        self.dialog = Some(PathDialog::new(purpose, &dir.join(name)));
     }
 
     /// The open path dialog, if any (tests fill in its path).
@@ -642,7 +1039,12 @@ impl Viewer {
         let mut action = None;
         let mut ref_action = None;
         let mut exposure_changed = false;
+        // A modal question or a dialog has the keyboard: only Escape.
+        let typing =
+            ctx.egui_wants_keyboard_input() || self.confirm.is_some() || self.dialog.is_some();
+        let mut commands = shortcuts::read(&ctx, typing);
 
+        egui::Panel::top("menu").show(ui, |ui| self.menu_bar(ui, &mut commands));
         if let Some(msg) = self.banner.clone() {
             egui::Panel::top("banner")
                 .frame(
@@ -651,7 +1053,7 @@ impl Viewer {
                         .inner_margin(6.0),
                 )
                 .show(ui, |ui| {
-                    ui.horizontal(|ui| {
+                    ui.horizontal_wrapped(|ui| {
                         ui.colored_label(Color32::WHITE, format!("Error: {msg}"));
                         if ui.small_button("Dismiss").clicked() {
                             self.banner = None;
@@ -667,46 +1069,56 @@ impl Viewer {
             let readout = self.readout();
             status_ui(ui, &self.progress, &state, self.io.busy(), readout.as_ref());
             if let Some(n) = &self.notice {
-                ui.label(egui::RichText::new(n).small().weak());
+                ui.add(egui::Label::new(n.as_str()).wrap());
             }
         });
-        egui::Panel::left("controls")
-            .default_size(360.0)
-            .show(ui, |ui| {
-                egui::ScrollArea::vertical().show(ui, |ui| {
-                    if let Some(p) = &self.scene_path {
-                        ui.label(egui::RichText::new(p.display().to_string()).strong());
-                    } else {
-                        ui.label(egui::RichText::new("built-in seed room").strong());
-                    }
-                    let out = controls_ui(ui, &mut self.controls, &mut self.desc, &mut self.view);
-                    changed |= out.changed;
-                    action = out.action;
-                    let panel = RefPanel {
-                        task: self.ref_task.as_ref(),
-                        reference: self.reference.as_ref(),
-                        matched: self.ref_match,
-                        image_size: self.shown.size,
-                    };
-                    let out =
-                        reference_ui(ui, panel, &mut self.view_mode, &mut self.error_exposure);
-                    ref_action = out.action;
-                    exposure_changed = out.exposure_changed;
+        if self.panel_visible {
+            egui::Panel::left("controls")
+                .default_size(360.0)
+                .show(ui, |ui| {
+                    egui::ScrollArea::vertical().show(ui, |ui| {
+                        if let Some(p) = &self.scene_path {
+                            ui.label(egui::RichText::new(p.display().to_string()).strong());
+                        } else {
+                            ui.label(egui::RichText::new("built-in seed room").strong());
+                        }
+                        let out =
+                            controls_ui(ui, &mut self.controls, &mut self.desc, &mut self.view);
+                        changed |= out.changed;
+                        action = out.action;
+                        let panel = RefPanel {
+                            task: self.ref_task.as_ref(),
+                            reference: self.reference.as_ref(),
+                            matched: self.ref_match,
+                            image_size: self.shown.size,
+                        };
+                        let out =
+                            reference_ui(ui, panel, &mut self.view_mode, &mut self.error_exposure);
+                        ref_action = out.action;
+                        exposure_changed = out.exposure_changed;
+                    });
                 });
-            });
+        }
         egui::CentralPanel::no_frame()
             .frame(egui::Frame::new().fill(EMPTY))
             .show(ui, |ui| changed |= self.image_ui(ui));
 
-        if ctx.input_mut(|i| i.consume_key(Modifiers::COMMAND, Key::S)) {
-            action = Some(Action::SavePng);
-        }
         match action {
-            Some(Action::OpenScene) => self.open_dialog(Purpose::OpenScene),
-            Some(Action::SavePng) => self.open_dialog(Purpose::SavePng),
-            Some(Action::SaveScene) => self.open_dialog(Purpose::SaveScene),
-            Some(Action::ResetView) => self.reset_view(),
+            Some(Action::OpenScene) => commands.push(Command::Open),
+            Some(Action::SavePng) => commands.push(Command::SavePng),
+            Some(Action::SaveScene) => commands.push(Command::SaveScene),
+            Some(Action::ResetView) => commands.push(Command::ResetView),
+            Some(Action::FrameAll) => commands.push(Command::FrameAll),
             None => {}
+        }
+        // The render restarts before a command acts on the new state.
+        if changed {
+            self.pick = None;
+            self.restart();
+            changed = false;
+        }
+        for c in commands {
+            self.execute(&ctx, c);
         }
         match ref_action {
             Some(RefAction::Compute) => self.compute_reference(&ctx),
@@ -721,11 +1133,16 @@ impl Viewer {
         if let Some(d) = &mut self.dialog {
             match d.show(&ctx) {
                 DialogResult::Open => {}
-                DialogResult::Cancelled => self.dialog = None,
+                DialogResult::Cancelled => {
+                    // The folder browsed to is where the next dialog starts.
+                    self.last_dir = Some(d.dir().to_path_buf());
+                    self.dialog = None;
+                }
                 DialogResult::Chosen(purpose, path) => {
                     self.dialog = None;
+                    self.remember_dir(&path);
                     match purpose {
-                        Purpose::OpenScene => self.open_scene(&ctx, &path),
+                        Purpose::OpenScene => self.request_open(&ctx, &path),
                         Purpose::SavePng => self.save_png(&ctx, path),
                         Purpose::SaveScene => self.save_scene(&ctx, path),
                         Purpose::OpenReference => self.load_reference(&ctx, path),
@@ -733,16 +1150,152 @@ impl Viewer {
                 }
             }
         }
+        self.overlays(&ctx);
         if changed {
-            self.pick = None;
             self.restart();
         }
+
+        // A drag or a wheel scroll is one undo step, closed when it ends.
+        let gesture =
+            ctx.input(|i| i.pointer.any_down() || i.smooth_scroll_delta != egui::Vec2::ZERO);
+        let snapshot = self.snapshot();
+        self.history.observe(&snapshot, gesture);
+
+        let title = self.title();
+        if title != self.title {
+            ctx.send_viewport_cmd(egui::ViewportCommand::Title(title.clone()));
+            self.title = title;
+        }
+        if ctx.input(|i| i.viewport().close_requested()) && !self.quit_confirmed {
+            if self.is_dirty() {
+                ctx.send_viewport_cmd(egui::ViewportCommand::CancelClose);
+                self.confirm = Some(Confirm::Quit);
+            } else {
+                self.quit_confirmed = true;
+            }
+        }
+
         if self.timings.wants_frame() {
             ctx.request_repaint();
         }
         let rendering = self.progress.finished.is_none() && self.job.is_some();
         self.timings
             .end_frame(frame_start.elapsed(), cpu_usage, rendering);
+    }
+
+    /// The menu bar: File, Edit, View, Render, Help, each entry with its key.
+    fn menu_bar(&mut self, ui: &mut Ui, commands: &mut Vec<Command>) {
+        let ctx = ui.ctx().clone();
+        let item = |ui: &mut Ui, text: &str, c: Command, enabled: bool, out: &mut Vec<Command>| {
+            let b = egui::Button::new(text).shortcut_text(shortcuts::first_key(&ctx, c));
+            if ui.add_enabled(enabled, b).clicked() {
+                out.push(c);
+            }
+        };
+        egui::MenuBar::new().ui(ui, |ui| {
+            ui.menu_button("File", |ui| {
+                item(ui, "Open scene…", Command::Open, true, commands);
+                ui.menu_button("Open recent", |ui| {
+                    if self.recent.is_empty() {
+                        ui.label("(none yet)");
+                    }
+                    for p in self.recent.clone() {
+                        if ui.button(p.display().to_string()).clicked() {
+                            self.request_open(&ctx, &p);
+                        }
+                    }
+                });
+                ui.separator();
+                item(ui, "Save PNG…", Command::SavePng, true, commands);
+                item(ui, "Save scene…", Command::SaveScene, true, commands);
+                ui.separator();
+                item(ui, "Quit", Command::Quit, true, commands);
+            });
+            ui.menu_button("Edit", |ui| {
+                let undo = self.can_undo();
+                item(ui, "Undo", Command::Undo, undo, commands);
+                item(ui, "Redo", Command::Redo, self.history.can_redo(), commands);
+            });
+            ui.menu_button("View", |ui| {
+                item(ui, "Frame all", Command::FrameAll, true, commands);
+                item(ui, "Reset camera", Command::ResetView, true, commands);
+                ui.separator();
+                item(ui, "Side panel", Command::TogglePanel, true, commands);
+                item(ui, "Full screen", Command::Fullscreen, true, commands);
+                ui.separator();
+                ui.radio_value(&mut self.view_mode, ViewMode::Image, "Image");
+                ui.radio_value(&mut self.view_mode, ViewMode::Error, "Error");
+            });
+            ui.menu_button("Render", |ui| {
+                let mark = if self.desc.render.cutaway { "✔ " } else { "" };
+                item(
+                    ui,
+                    &format!("{mark}Cut-away"),
+                    Command::Cutaway,
+                    true,
+                    commands,
+                );
+            });
+            ui.menu_button("Help", |ui| {
+                item(ui, "Keyboard and mouse", Command::Help, true, commands);
+                item(ui, "About penumbra", Command::About, true, commands);
+            });
+        });
+    }
+
+    /// The help, the About box and the unsaved-edits question.
+    fn overlays(&mut self, ctx: &egui::Context) {
+        if self.help_open {
+            let mut open = true;
+            egui::Window::new("Keyboard and mouse")
+                .open(&mut open)
+                .collapsible(false)
+                .resizable(false)
+                .anchor(egui::Align2::CENTER_CENTER, egui::Vec2::ZERO)
+                .show(ctx, help_ui);
+            self.help_open &= open;
+        }
+        if self.about_open {
+            let mut open = true;
+            egui::Window::new("About penumbra")
+                .open(&mut open)
+                .collapsible(false)
+                .resizable(false)
+                .anchor(egui::Align2::CENTER_CENTER, egui::Vec2::ZERO)
+                .show(ctx, |ui| {
+                    for line in about_lines() {
+                        ui.label(line);
+                    }
+                });
+            self.about_open &= open;
+        }
+        let Some(c) = self.confirm.clone() else {
+            return;
+        };
+        let (question, go) = match &c {
+            Confirm::Quit => ("Quit and lose the unsaved edits?".to_string(), "Quit"),
+            Confirm::Open(p) => (
+                format!("Open {} and lose the unsaved edits?", p.display()),
+                "Open",
+            ),
+        };
+        let mut answer = None;
+        egui::Modal::new(egui::Id::unique("penumbra-confirm")).show(ctx, |ui| {
+            ui.heading("Unsaved changes");
+            ui.label(question);
+            ui.label("(Save scene… keeps them in a file.)");
+            ui.horizontal(|ui| {
+                if ui.button(go).clicked() {
+                    answer = Some(true);
+                }
+                if ui.button("Cancel").clicked() {
+                    answer = Some(false);
+                }
+            });
+        });
+        if let Some(discard) = answer {
+            self.answer_confirm(ctx, discard);
+        }
     }
 
     /// First frame: the worker, the texture, the watcher, the first render.
@@ -772,7 +1325,7 @@ impl Viewer {
                 // An image dropped on the window is a reference.
                 self.load_reference(ctx, path.clone());
             } else {
-                self.open_scene(ctx, path);
+                self.request_open(ctx, path);
             }
         }
         if let Some(w) = &self.watcher {
@@ -936,6 +1489,9 @@ impl Viewer {
             let px = (((pos.x - rect.min.x) / fit) as u32).min(w as u32 - 1);
             let py = (((pos.y - rect.min.y) / fit) as u32).min(h as u32 - 1);
             self.pick = self.pick_at(px, py);
+            self.pick_pos = Some(pos);
+            // The surface there becomes the pivot the camera orbits about.
+            self.set_pivot_at(px, py);
         }
         if let Some(p) = &self.pick {
             let text = format!(
@@ -951,8 +1507,14 @@ impl Viewer {
                     .map(|c| format!("({:.4}, {:.4}, {:.4})", c[0], c[1], c[2]))
                     .unwrap_or_else(|| "not rendered yet".into()),
             );
+            // At the cursor, kept inside the image area.
+            let at = self.pick_pos.unwrap_or(rect.left_top()) + egui::vec2(12.0, 12.0);
+            let at = egui::pos2(
+                at.x.min(area.right() - 260.0).max(area.left()),
+                at.y.min(area.bottom() - 90.0).max(area.top()),
+            );
             egui::Area::new(egui::Id::unique("penumbra-pick"))
-                .fixed_pos(rect.left_top() + egui::vec2(8.0, 8.0))
+                .fixed_pos(at)
                 .show(ui.ctx(), |ui| {
                     egui::Frame::popup(ui.style()).show(ui, |ui| {
                         ui.label(text);
@@ -969,7 +1531,7 @@ impl Viewer {
     fn pick_at(&self, px: u32, py: u32) -> Option<PickInfo> {
         let job = self.job.as_ref()?;
         let scene = job.scene()?;
-        let hit = scene.closest_hit(&scene.camera.pixel_ray(px, py));
+        let hit = scene.camera_hit(&scene.camera.pixel_ray(px, py), self.desc.render.cutaway);
         let (what, material) = match hit {
             Some((HitTarget::Object(i), _)) => (
                 format!(
@@ -994,4 +1556,103 @@ impl eframe::App for Viewer {
     fn ui(&mut self, ui: &mut Ui, frame: &mut eframe::Frame) {
         self.show(ui, frame.info().cpu_usage);
     }
+
+    fn save(&mut self, storage: &mut dyn eframe::Storage) {
+        if self.persist {
+            eframe::set_value(storage, Persisted::KEY, &self.persisted());
+        }
+    }
+
+    fn persist_egui_memory(&self) -> bool {
+        self.persist
+    }
+}
+
+/// A hot reload's three-way merge, field by field of the JSON tree: where
+/// the file changed a value (`theirs` differs from `base`, the file as read
+/// before) the file's value is taken, else the edited one (`mine`). Lists
+/// (the objects) count as one value. If the merged scene is invalid, the
+/// file's is taken whole.
+pub fn merge_reload(base: &SceneDesc, mine: &SceneDesc, theirs: &SceneDesc) -> SceneDesc {
+    use serde_json::Value;
+    fn merge(base: Option<&Value>, mine: Option<&Value>, theirs: Option<&Value>) -> Option<Value> {
+        if let (Some(Value::Object(b)), Some(Value::Object(m)), Some(Value::Object(t))) =
+            (base, mine, theirs)
+        {
+            let mut keys: Vec<&String> = b.keys().chain(m.keys()).chain(t.keys()).collect();
+            keys.sort();
+            keys.dedup();
+            let out = keys
+                .into_iter()
+                .filter_map(|k| Some((k.clone(), merge(b.get(k), m.get(k), t.get(k))?)))
+                .collect();
+            return Some(Value::Object(out));
+        }
+        if theirs != base {
+            theirs.cloned()
+        } else {
+            mine.cloned()
+        }
+    }
+    let value = |d: &SceneDesc| serde_json::to_value(d).expect("scene descriptions serialize");
+    let merged = merge(Some(&value(base)), Some(&value(mine)), Some(&value(theirs)));
+    merged
+        .and_then(|m| SceneDesc::from_json(&m.to_string()).ok())
+        .unwrap_or_else(|| theirs.clone())
+}
+
+/// The About box: version, build and the CPU features in use.
+pub fn about_lines() -> Vec<String> {
+    let mut features = Vec::new();
+    #[cfg(target_arch = "x86_64")]
+    for (name, on) in [
+        ("sse2", cfg!(target_feature = "sse2")),
+        ("sse4.1", cfg!(target_feature = "sse4.1")),
+        ("avx", cfg!(target_feature = "avx")),
+        ("avx2", cfg!(target_feature = "avx2")),
+        ("fma", cfg!(target_feature = "fma")),
+    ] {
+        if on {
+            features.push(name);
+        }
+    }
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    vec![
+        format!("penumbra {}", env!("CARGO_PKG_VERSION")),
+        env!("CARGO_PKG_DESCRIPTION").to_string(),
+        format!(
+            "build: {} ({}, {})",
+            if cfg!(debug_assertions) {
+                "debug"
+            } else {
+                "release"
+            },
+            std::env::consts::ARCH,
+            std::env::consts::OS
+        ),
+        format!(
+            "CPU features compiled in: {}",
+            if features.is_empty() {
+                "baseline".to_string()
+            } else {
+                features.join(", ")
+            }
+        ),
+        format!("render threads: {threads}"),
+        format!("license: {}", env!("CARGO_PKG_LICENSE")),
+    ]
+}
+
+/// Whether the camera stands behind one of the scene's planes (on the side
+/// its normal points away from), where the plane hides everything else.
+pub fn behind_a_plane(desc: &SceneDesc) -> bool {
+    use crate::render::scene_file::ObjectDesc;
+    let cam = glam::DVec3::from(desc.camera.position);
+    desc.objects.iter().any(|o| match o {
+        ObjectDesc::Plane(p) => {
+            let n = glam::DVec3::from(p.normal);
+            n.dot(cam - glam::DVec3::from(p.point)) < 0.0
+        }
+        _ => false,
+    })
 }

@@ -23,9 +23,14 @@ use crate::render::{AreaLightModel, FilterKind, Sampling};
     version,
     about = "Phong ray tracer with a rectangular area light: viewer and CLI"
 )]
+#[command(args_conflicts_with_subcommands = true)]
 pub struct Cli {
     #[command(subcommand)]
     pub command: Option<Command>,
+    /// Without a command: the viewer's options (`penumbra --log-timings`,
+    /// `penumbra scene.json`), as for `penumbra view`.
+    #[command(flatten)]
+    pub view: ViewArgs,
 }
 
 #[derive(Debug, Subcommand)]
@@ -48,6 +53,10 @@ pub struct ViewArgs {
     /// Log UI frame times and render latencies to stderr.
     #[arg(long)]
     pub log_timings: bool,
+    /// Neither read nor write the remembered window, last scene, recent
+    /// files and view settings (for tests and scripts).
+    #[arg(long)]
+    pub no_persist: bool,
     /// Change the ambient slider by itself every SECS seconds (six times),
     /// to measure `--log-timings` without a person at the mouse.
     #[arg(long, value_name = "SECS", hide = true)]
@@ -90,6 +99,10 @@ pub struct SceneOverrides {
     /// (faster, biased).
     #[arg(long)]
     pub adaptive: bool,
+    /// Cut-away: camera rays pass through planes seen from behind (as the
+    /// viewer's "Cut-away" does; shadows and reflections unchanged).
+    #[arg(long)]
+    pub cutaway: bool,
     /// Multiply every coordinate and length of the scene (camera included)
     /// by this factor: the image stays the same.
     #[arg(long, value_parser = parse_scale)]

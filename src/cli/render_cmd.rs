@@ -93,6 +93,9 @@ pub fn load_desc(path: Option<&Path>, overrides: &SceneOverrides) -> Result<Scen
     if let Some(n) = o.spp {
         r.samples_per_pixel = n;
     }
+    if o.cutaway {
+        r.cutaway = true;
+    }
     if let Some(f) = o.scale {
         desc = desc.scaled(f);
     }

@@ -192,6 +192,40 @@ impl Scene {
         best
     }
 
+    /// [`Scene::closest_hit`] for a camera ray: with `cutaway`, planes
+    /// seen from behind (the ray runs along their normal) are passed
+    /// through, so a camera outside a room sees into it. Only camera rays
+    /// ever use this; shadow and reflected rays meet every plane.
+    pub fn camera_hit(&self, ray: &Ray, cutaway: bool) -> Option<(HitTarget, f64)> {
+        if !cutaway {
+            return self.closest_hit(ray);
+        }
+        let mut best: Option<(HitTarget, f64)> = None;
+        let mut t_max = f64::INFINITY;
+        if let Some(t) = self.light.shape.intersect(ray, t_max) {
+            best = Some((HitTarget::Light, t));
+            t_max = t;
+        }
+        for &i in self.unbounded.iter().chain(self.bounded.iter()) {
+            let shape = &self.objects[i as usize].shape;
+            if let Shape::Plane(p) = shape
+                && p.normal.dot(ray.dir) > 0.0
+            {
+                continue;
+            }
+            if let Some(t) = shape.intersect(ray, t_max) {
+                best = Some((HitTarget::Object(i), t));
+                t_max = t;
+            }
+        }
+        if let Some((i, t)) = self.bvh.closest(ray, t_max, |i, t_max| {
+            self.objects[i as usize].shape.intersect(ray, t_max)
+        }) {
+            best = Some((HitTarget::Object(i), t));
+        }
+        best
+    }
+
     /// Name of an object's material.
     pub fn material_name(&self, object: u32) -> &str {
         &self.material_names[self.objects[object as usize].material as usize]

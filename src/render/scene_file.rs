@@ -255,6 +255,11 @@ pub struct RenderDesc {
     /// only where they disagree (faster, biased). Omitted when false.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub adaptive: bool,
+    /// Extension: camera rays pass through planes seen from behind (a
+    /// cut-away view into a room from outside; shadow and reflected rays
+    /// still meet every plane). Omitted when false.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub cutaway: bool,
     /// Extension: one shininess for every material (the viewer's global
     /// override). Omitted when unset.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -284,6 +289,7 @@ impl Default for RenderDesc {
             background: [0.0; 3],
             shadows: true,
             adaptive: false,
+            cutaway: false,
             shininess_override: None,
             samples_per_pixel: 1,
         }

@@ -24,6 +24,8 @@ pub struct RenderSettings {
     /// Trace a few shadow rays first and the rest only where they disagree
     /// (faster, biased).
     pub adaptive: bool,
+    /// Camera rays (only they) pass through planes seen from behind.
+    pub cutaway: bool,
     /// Skip work whose result is known (exact; see `shadow/`). Only
     /// switched off to measure what the skipping saves.
     pub skip: bool,
@@ -50,6 +52,7 @@ impl RenderSettings {
             background: DVec3::from(r.background).as_vec3(),
             shadows: r.shadows,
             adaptive: r.adaptive,
+            cutaway: r.cutaway,
             skip: true,
             samples_per_pixel: r.samples_per_pixel,
             filter: FilterKind::DEFAULT,

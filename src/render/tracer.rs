@@ -170,7 +170,13 @@ impl<'a> Tracer<'a> {
         let mut colour = Vec3::ZERO;
         let mut weight = 1.0f32;
         for depth in 1..=s.max_depth {
-            let Some((target, t)) = scene.closest_hit(&ray) else {
+            // Only the camera ray (depth 1) may cut away planes.
+            let hit = if depth == 1 {
+                scene.camera_hit(&ray, s.cutaway)
+            } else {
+                scene.closest_hit(&ray)
+            };
+            let Some((target, t)) = hit else {
                 colour += s.background * weight;
                 sink.end(PathEnd::Background);
                 break;

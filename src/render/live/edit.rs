@@ -21,8 +21,9 @@ pub enum EditClass {
     /// paths a reflectivity edit lengthens are traced.
     Reshade,
     /// The camera, the light's position or size, shadow rays, sampling,
-    /// model, depth, seed, shadows, adaptive, samples per pixel: the
-    /// objects and their BVH
+    /// The camera, the light's position or size, shadow rays, sampling,
+    /// model, depth, seed, shadows, adaptive, cut-away, samples per pixel:
+    /// the objects and their BVH
     /// stand, every pixel is traced.
     Retrace,
     /// Objects, the set of materials: the scene is built again and every
@@ -109,6 +110,7 @@ pub fn classify(old: &SceneDesc, new: &SceneDesc) -> EditClass {
         background,
         shadows,
         adaptive,
+        cutaway,
         shininess_override,
         samples_per_pixel,
     } = render;
@@ -121,6 +123,7 @@ pub fn classify(old: &SceneDesc, new: &SceneDesc) -> EditClass {
         area_light_model,
         shadows,
         adaptive,
+        cutaway,
     ) != (
         &r.shadow_rays,
         &r.sampling,
@@ -129,6 +132,7 @@ pub fn classify(old: &SceneDesc, new: &SceneDesc) -> EditClass {
         &r.area_light_model,
         &r.shadows,
         &r.adaptive,
+        &r.cutaway,
     ) || *samples_per_pixel != r.samples_per_pixel
     {
         return EditClass::Retrace;

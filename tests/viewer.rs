@@ -958,6 +958,7 @@ fn launch_with_a_broken_file_shows_the_seed_room_and_loads_it_once_fixed() {
     std::fs::write(&path, "{ \"format\": 1, ").unwrap();
     let args = penumbra::cli::ViewArgs {
         scene: Some(path.clone()),
+        refine_spp: Some(1),
         ..Default::default()
     };
     let options = ViewerOptions::from_args(&args).expect("the viewer starts");
@@ -985,6 +986,7 @@ fn launch_with_a_broken_file_shows_the_seed_room_and_loads_it_once_fixed() {
     let missing = dir.path().join("later.json");
     let args = penumbra::cli::ViewArgs {
         scene: Some(missing.clone()),
+        refine_spp: Some(1),
         ..Default::default()
     };
     let mut h = harness(ViewerOptions::from_args(&args).unwrap());
@@ -1221,4 +1223,47 @@ fn a_finished_image_is_refined_to_more_samples_exactly() {
         Some(JobState::Finished(f)) => assert!(f.samples <= 4),
         other => panic!("{other:?}"),
     }
+}
+
+#[test]
+fn w_a_s_d_walk_the_camera_and_its_pivot_and_a_walk_is_one_undo_step() {
+    let mut h = harness(ViewerOptions::new(small_room()));
+    settle(&mut h);
+    let before = h.state().desc().camera.clone();
+    let centre = egui::pos2(800.0, 450.0);
+    h.hover_at(centre);
+    h.step();
+    // Hold W for a few frames: forward, along the view.
+    h.event(egui::Event::Key {
+        key: egui::Key::W,
+        physical_key: None,
+        pressed: true,
+        repeat: false,
+        modifiers: egui::Modifiers::NONE,
+    });
+    for _ in 0..5 {
+        h.step();
+    }
+    h.event(egui::Event::Key {
+        key: egui::Key::W,
+        physical_key: None,
+        pressed: false,
+        repeat: false,
+        modifiers: egui::Modifiers::NONE,
+    });
+    h.step();
+    let after = h.state().desc().camera.clone();
+    let d = |a: [f64; 3], b: [f64; 3]| glam::DVec3::from(a) - glam::DVec3::from(b);
+    let moved = d(after.position, before.position);
+    let view = d(before.look_at, before.position).normalize();
+    assert!(moved.length() > 1e-3, "W moved the camera: {moved}");
+    assert!(moved.normalize().dot(view) > 0.999, "along the view: {moved}");
+    assert!(
+        (d(after.look_at, before.look_at) - moved).length() < 1e-9,
+        "the pivot moves with the camera"
+    );
+    // The whole walk is one step.
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
+    h.step();
+    assert_eq!(h.state().desc().camera, before);
 }

@@ -1,6 +1,8 @@
-//! Mouse camera control on the scene's own camera description: orbit about
-//! `look_at` by dragging, pan with the middle button or shift-drag, zoom
-//! with the wheel. Editing `CameraDesc` keeps "save scene" exact.
+//! Mouse and keyboard camera control on the scene's own camera
+//! description: orbit about `look_at` by dragging, pan with the middle
+//! button or shift-drag, zoom with the wheel; walk with W/A/S/D (Q/E down
+//! and up, Shift faster) and look around with a right-drag, to move inside
+//! a room. Editing `CameraDesc` keeps "save scene" exact.
 
 use egui::{PointerButton, Response, Vec2};
 use glam::DVec3;
@@ -11,6 +13,19 @@ use crate::render::scene_file::CameraDesc;
 const ORBIT_SPEED: f64 = 0.004;
 /// Zoom factor per point of wheel scroll.
 const ZOOM_SPEED: f64 = 0.002;
+/// Walking speed: the distance to the pivot per second (so it suits any
+/// scene's scale); Shift walks four times as fast.
+const WALK_SPEED: f64 = 0.6;
+
+/// The walking keys: forward, back, left, right, down, up.
+pub const WALK_KEYS: [egui::Key; 6] = [
+    egui::Key::W,
+    egui::Key::S,
+    egui::Key::A,
+    egui::Key::D,
+    egui::Key::Q,
+    egui::Key::E,
+];
 
 /// Applies this frame's drags and scrolls over the image; true if the
 /// camera moved. `image_height` is the displayed height in points (pan
@@ -35,6 +50,10 @@ pub fn camera_input(
             moved = true;
         }
     }
+    if delta != Vec2::ZERO && response.dragged_by(PointerButton::Secondary) {
+        look(cam, delta);
+        moved = true;
+    }
     if response.hovered() {
         let scroll = ui.input(|i| i.smooth_scroll_delta.y);
         if scroll != 0.0 {
@@ -42,7 +61,69 @@ pub fn camera_input(
             moved = true;
         }
     }
+    // Walking: while the image is hovered and no text field takes the keys
+    // (Ctrl+S and the like stay shortcuts).
+    if response.hovered() && !ui.ctx().egui_wants_keyboard_input() {
+        let (keys, dt, command, fast) = ui.input(|i| {
+            (
+                WALK_KEYS.map(|k| i.key_down(k)),
+                i.stable_dt.min(0.1) as f64,
+                i.modifiers.command || i.modifiers.alt,
+                i.modifiers.shift,
+            )
+        });
+        if !command && keys.contains(&true) {
+            let axis = |plus: bool, minus: bool| plus as i32 as f64 - minus as i32 as f64;
+            let step = WALK_SPEED * dt * if fast { 4.0 } else { 1.0 };
+            walk(
+                cam,
+                axis(keys[0], keys[1]) * step,
+                axis(keys[3], keys[2]) * step,
+                axis(keys[5], keys[4]) * step,
+            );
+            // Keep walking while the key is held, without input events.
+            ui.ctx().request_repaint();
+            moved = true;
+        }
+    }
     moved
+}
+
+/// Moves camera and pivot together: `forward` along the view, `right` along
+/// the image's right axis, `up` along the camera's up, each in units of the
+/// distance to the pivot.
+pub fn walk(cam: &mut CameraDesc, forward: f64, right: f64, up: f64) {
+    let pos = v(cam.position);
+    let target = v(cam.look_at);
+    let view = target - pos;
+    let dist = view.length();
+    let f = view / dist;
+    let r = f.cross(v(cam.up)).normalize_or_zero();
+    let u = v(cam.up).normalize();
+    let shift = (f * forward + r * right + u * up) * dist;
+    cam.position = (pos + shift).to_array();
+    cam.look_at = (target + shift).to_array();
+}
+
+/// Turns the view about the camera's own position (first-person look):
+/// the pivot moves, the camera stands.
+pub fn look(cam: &mut CameraDesc, delta: Vec2) {
+    let pos = v(cam.position);
+    let up = v(cam.up).normalize();
+    let offset = v(cam.look_at) - pos;
+    let yaw = glam::DQuat::from_axis_angle(up, -(delta.x as f64) * ORBIT_SPEED);
+    let offset = yaw * offset;
+    let right = offset.cross(up).normalize_or_zero();
+    let angle = offset.angle_between(up);
+    let limit = 0.05;
+    let pitch = (-(delta.y as f64) * ORBIT_SPEED)
+        .clamp(limit - (std::f64::consts::PI - angle), angle - limit);
+    let offset = if right == DVec3::ZERO {
+        offset
+    } else {
+        glam::DQuat::from_axis_angle(right, pitch) * offset
+    };
+    cam.look_at = (pos + offset).to_array();
 }
 
 fn v(a: [f64; 3]) -> DVec3 {

@@ -1155,9 +1155,15 @@ impl Viewer {
             self.restart();
         }
 
-        // A drag or a wheel scroll is one undo step, closed when it ends.
-        let gesture =
-            ctx.input(|i| i.pointer.any_down() || i.smooth_scroll_delta != egui::Vec2::ZERO);
+        // A drag, a wheel scroll or a walk (W/A/S/D held) is one undo step,
+        // closed when it ends.
+        let gesture = ctx.input(|i| {
+            i.pointer.any_down()
+                || i.smooth_scroll_delta != egui::Vec2::ZERO
+                || super::camera_control::WALK_KEYS
+                    .iter()
+                    .any(|&k| i.key_down(k))
+        });
         let snapshot = self.snapshot();
         self.history.observe(&snapshot, gesture);
 

@@ -219,23 +219,33 @@ pub fn write_atomic(
     builder.prefix(".penumbra-").suffix(".part");
     // The new file keeps an existing file's permissions, or gets the usual
     // rw-r--r-- (tempfile's own default is owner-only).
-    #[cfg(unix)]
-    builder.permissions(
-        std::fs::metadata(path)
-            .map(|m| m.permissions())
-            .unwrap_or_else(|_| {
-                use std::os::unix::fs::PermissionsExt;
-                std::fs::Permissions::from_mode(0o644)
-            }),
-    );
-    let tmp = builder.tempfile_in(dir).map_err(|e| {
-        fail(format!(
-            "cannot create a file in {}: {}",
-            dir.display(),
-            os_message(&e)
-        ))
-    })?;
-    let registered = Registered::new(tmp.path());
+    let permissions = std::fs::metadata(path)
+        .map(|m| m.permissions())
+        .unwrap_or_else(|_| {
+            use std::os::unix::fs::PermissionsExt;
+            std::fs::Permissions::from_mode(0o644)
+        });
+    // The name is registered for the signal handlers before the file
+    // exists: a signal between the two would otherwise leave the file.
+    let mut registered = None;
+    let tmp = builder
+        .make_in(dir, |p| {
+            registered = Some(Registered::new(p));
+            let file = std::fs::OpenOptions::new()
+                .read(true)
+                .write(true)
+                .create_new(true)
+                .open(p)?;
+            file.set_permissions(permissions.clone())?;
+            Ok(file)
+        })
+        .map_err(|e| {
+            fail(format!(
+                "cannot create a file in {}: {}",
+                dir.display(),
+                os_message(&e)
+            ))
+        })?;
     let file = tmp.reopen().map_err(|e| fail(os_message(&e)))?;
     let mut out = BufWriter::new(AtomicFile {
         file,

@@ -1257,7 +1257,10 @@ fn w_a_s_d_walk_the_camera_and_its_pivot_and_a_walk_is_one_undo_step() {
     let moved = d(after.position, before.position);
     let view = d(before.look_at, before.position).normalize();
     assert!(moved.length() > 1e-3, "W moved the camera: {moved}");
-    assert!(moved.normalize().dot(view) > 0.999, "along the view: {moved}");
+    assert!(
+        moved.normalize().dot(view) > 0.999,
+        "along the view: {moved}"
+    );
     assert!(
         (d(after.look_at, before.look_at) - moved).length() < 1e-9,
         "the pivot moves with the camera"

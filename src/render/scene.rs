@@ -166,12 +166,18 @@ impl Scene {
         let camera = Camera::new(&desc.camera);
         let object_bounds = with_bounds.iter().map(|o| o.1).reduce(|a, b| a.union(b));
         let scale = scale_of(object_bounds, &light, &camera);
-        let (bounded, bvh) = if with_bounds.len() > BVH_THRESHOLD {
-            (Vec::new(), Bvh::build(&with_bounds))
-        } else {
-            (with_bounds.iter().map(|o| o.0).collect(), Bvh::default())
-        };
-        let shadow_bvh = shadow_bvh(&objects, &light);
+        // The two trees are independent: built side by side (a mesh's
+        // load time is mostly theirs).
+        let ((bounded, bvh), shadow_bvh) = rayon::join(
+            || {
+                if with_bounds.len() > BVH_THRESHOLD {
+                    (Vec::new(), Bvh::build(&with_bounds))
+                } else {
+                    (with_bounds.iter().map(|o| o.0).collect(), Bvh::default())
+                }
+            },
+            || shadow_bvh(&objects, &light),
+        );
         Ok(Scene {
             camera,
             light,

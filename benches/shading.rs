@@ -23,13 +23,16 @@ fn hit(loaded: &Loaded, x: u32, y: u32) -> Option<ShadingPoint<'_>> {
     let obj = &scene.objects[object as usize];
     let surface = obj.shape.surface(&ray, t);
     let inside = surface.normal.dot(ray.dir) > 0.0;
+    let normal = if inside {
+        -surface.normal
+    } else {
+        surface.normal
+    };
     Some(ShadingPoint {
         point: surface.point,
-        normal: if inside {
-            -surface.normal
-        } else {
-            surface.normal
-        },
+        normal,
+        geometric: normal,
+        shadow_point: surface.point,
         view: -ray.dir,
         object,
         inside,

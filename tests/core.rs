@@ -92,6 +92,8 @@ fn occluder_hiding_half_the_light_gives_half_visibility() {
     let point = ShadingPoint {
         point: DVec3::ZERO,
         normal: DVec3::Y,
+        geometric: DVec3::Y,
+        shadow_point: DVec3::ZERO,
         view: DVec3::Y,
         object: 0,
         inside: false,

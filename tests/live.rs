@@ -391,3 +391,22 @@ proptest! {
         }
     }
 }
+
+#[test]
+fn a_smooth_mesh_recombines_and_reshades_exactly() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/bunny.json");
+    let mut d = SceneDesc::load(&path).expect("the bunny scene loads");
+    d.camera.width = 64;
+    d.camera.height = 36;
+    d.render.shadow_rays = 16;
+    let mut live = LiveRender::default();
+    step(&mut live, &d, "bunny");
+    d.render.shininess_override = Some(5.0);
+    let r = step(&mut live, &d, "bunny, shininess");
+    assert_eq!(r.stats.traced(), 0);
+    for m in d.materials.values_mut() {
+        m.diffuse = [0.4, 0.5, 0.6];
+        m.reflectivity = 0.2;
+    }
+    step(&mut live, &d, "bunny, colours and reflectivity");
+}

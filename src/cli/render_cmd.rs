@@ -44,6 +44,14 @@ pub fn load_scene(path: Option<&Path>, overrides: &SceneOverrides) -> Result<Loa
         }
         l
     });
+    if let Ok(l) = &loaded
+        && (l.scene.triangles > 0 || l.scene.degenerate_triangles > 0)
+    {
+        eprintln!(
+            "triangles: {} ({} degenerate skipped)",
+            l.scene.triangles, l.scene.degenerate_triangles
+        );
+    }
     match path {
         Some(p) => loaded.map_err(|e| CliError::input(e.in_file(p))),
         None => loaded.map_err(CliError::input),

@@ -12,6 +12,8 @@ pub mod compare;
 pub mod film;
 pub mod generate;
 pub mod geometry;
+pub mod mesh;
+mod mesh_ply;
 pub mod output;
 pub mod scene_file;
 

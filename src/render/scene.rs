@@ -7,11 +7,17 @@
 use std::path::Path;
 use std::sync::Arc;
 
+use glam::DVec3;
+
 use super::camera::Camera;
 use super::error::SceneError;
 use super::film::Film;
-use super::geometry::{Aabb, Bvh, Cuboid, Parallelogram, Plane, Ray, Shape, Sphere};
+use super::geometry::{
+    Aabb, Bvh, Cuboid, Parallelogram, Plane, Ray, Shape, Sphere, SurfacePoint, Triangle,
+    spawn_origin,
+};
 use super::light::AreaLight;
+use super::mesh;
 use super::progressive::{self, CancelToken, Cancelled, RenderOptions, RenderReport, TileUpdate};
 use super::scene_file::{ObjectDesc, SceneDesc};
 use super::settings::RenderSettings;
@@ -68,48 +74,85 @@ pub struct Scene {
     /// Size of the scene's finite part (bounded objects, light, camera):
     /// the floor of ray offsets near the origin.
     pub scale: f64,
+    /// Triangles in the scene (`triangle` objects and mesh faces), and the
+    /// zero-area ones left out.
+    pub triangles: usize,
+    pub degenerate_triangles: usize,
 }
 
 impl Scene {
     /// Builds the runtime scene of a description that
     /// [`SceneDesc::validate`] accepted (see [`Loaded`] for both steps).
-    pub fn build(desc: &SceneDesc) -> Scene {
+    pub fn build(desc: &SceneDesc) -> Result<Scene, SceneError> {
         let material_names: Vec<String> = desc.materials.keys().cloned().collect();
-        let objects: Vec<Object> = desc
-            .objects
-            .iter()
-            .map(|o| {
-                let shape = match o {
-                    ObjectDesc::Plane(p) => {
-                        Shape::Plane(Plane::new(p.point.into(), p.normal.into()))
-                    }
-                    ObjectDesc::Rect(r) => Shape::Parallelogram(Parallelogram::new(
-                        r.corner.into(),
-                        r.edge_u.into(),
-                        r.edge_v.into(),
-                    )),
-                    ObjectDesc::Box(b) => Shape::Cuboid(Cuboid::new(
-                        b.min.into(),
-                        b.max.into(),
-                        b.rotate_y_deg,
-                        b.translate.into(),
-                    )),
-                    ObjectDesc::Sphere(s) => Shape::Sphere(Sphere {
-                        centre: s.center.into(),
-                        radius: s.radius,
-                    }),
-                };
-                let material = material_names
-                    .binary_search_by(|n| n.as_str().cmp(o.material()))
-                    .expect("validated material name") as u32;
+        let mut objects: Vec<Object> = Vec::with_capacity(desc.objects.len());
+        let mut triangles = 0usize;
+        let mut degenerate = 0usize;
+        for (index, o) in desc.objects.iter().enumerate() {
+            let material = material_names
+                .binary_search_by(|n| n.as_str().cmp(o.material()))
+                .expect("validated material name") as u32;
+            let mut push = |shape: Shape| {
                 let bounds = shape.bounds();
-                Object {
+                objects.push(Object {
                     shape,
                     material,
                     bounds,
+                });
+            };
+            let shape = match o {
+                ObjectDesc::Plane(p) => Shape::Plane(Plane::new(p.point.into(), p.normal.into())),
+                ObjectDesc::Rect(r) => Shape::Parallelogram(Parallelogram::new(
+                    r.corner.into(),
+                    r.edge_u.into(),
+                    r.edge_v.into(),
+                )),
+                ObjectDesc::Box(b) => Shape::Cuboid(Cuboid::new(
+                    b.min.into(),
+                    b.max.into(),
+                    b.rotate_y_deg,
+                    b.translate.into(),
+                )),
+                ObjectDesc::Sphere(s) => Shape::Sphere(Sphere {
+                    centre: s.center.into(),
+                    radius: s.radius,
+                }),
+                ObjectDesc::Triangle(t) => {
+                    let [a, b, c] = t.vertices.map(DVec3::from);
+                    match Triangle::new(a, b, c) {
+                        Some(t) => {
+                            triangles += 1;
+                            Shape::Triangle(t)
+                        }
+                        None => {
+                            degenerate += 1;
+                            continue;
+                        }
+                    }
                 }
-            })
-            .collect();
+                ObjectDesc::Mesh(m) => {
+                    let budget = mesh::limits::MAX_TRIANGLES.saturating_sub(triangles);
+                    let loaded = mesh::load(m, desc.base_dir.as_deref(), budget)
+                        .map_err(|e| SceneError::new(format!("objects[{index}].file"), e))?;
+                    if let Err(e) = check_mesh_range(&loaded.triangles) {
+                        return Err(SceneError::new(
+                            format!("objects[{index}]"),
+                            format!("{}: {e}", m.file),
+                        ));
+                    }
+                    triangles += loaded.triangles.len();
+                    degenerate += loaded.degenerate;
+                    for t in loaded.triangles {
+                        push(Shape::Triangle(t));
+                    }
+                    continue;
+                }
+            };
+            push(shape);
+        }
+        if objects.len() > u32::MAX as usize / 2 {
+            return Err(SceneError::new("objects", "too many objects"));
+        }
 
         let mut unbounded = Vec::new();
         let mut with_bounds = Vec::new();
@@ -123,13 +166,19 @@ impl Scene {
         let camera = Camera::new(&desc.camera);
         let object_bounds = with_bounds.iter().map(|o| o.1).reduce(|a, b| a.union(b));
         let scale = scale_of(object_bounds, &light, &camera);
-        let (bounded, bvh) = if with_bounds.len() > BVH_THRESHOLD {
-            (Vec::new(), Bvh::build(&with_bounds))
-        } else {
-            (with_bounds.iter().map(|o| o.0).collect(), Bvh::default())
-        };
-        let shadow_bvh = shadow_bvh(&objects, &light);
-        Scene {
+        // The two trees are independent: built side by side (a mesh's
+        // load time is mostly theirs).
+        let ((bounded, bvh), shadow_bvh) = rayon::join(
+            || {
+                if with_bounds.len() > BVH_THRESHOLD {
+                    (Vec::new(), Bvh::build(&with_bounds))
+                } else {
+                    (with_bounds.iter().map(|o| o.0).collect(), Bvh::default())
+                }
+            },
+            || shadow_bvh(&objects, &light),
+        );
+        Ok(Scene {
             camera,
             light,
             material_names,
@@ -140,7 +189,9 @@ impl Scene {
             shadow_bvh,
             object_bounds,
             scale,
-        }
+            triangles,
+            degenerate_triangles: degenerate,
+        })
     }
 
     /// The same objects seen by `desc`'s camera under `desc`'s light: the
@@ -167,13 +218,20 @@ impl Scene {
             bounded: self.bounded.clone(),
             bvh: self.bvh.clone(),
             object_bounds: self.object_bounds,
+            triangles: self.triangles,
+            degenerate_triangles: self.degenerate_triangles,
         }
     }
 
     /// Nearest object or light along the ray, with its distance.
     pub fn closest_hit(&self, ray: &Ray) -> Option<(HitTarget, f64)> {
+        self.closest_hit_before(ray, f64::INFINITY)
+    }
+
+    /// Nearest object or light along the ray with t < `t_max`.
+    pub fn closest_hit_before(&self, ray: &Ray, t_max: f64) -> Option<(HitTarget, f64)> {
         let mut best: Option<(HitTarget, f64)> = None;
-        let mut t_max = f64::INFINITY;
+        let mut t_max = t_max;
         if let Some(t) = self.light.shape.intersect(ray, t_max) {
             best = Some((HitTarget::Light, t));
             t_max = t;
@@ -226,6 +284,26 @@ impl Scene {
         best
     }
 
+    /// Where the shadow rays of a smooth triangle's hit start: the point
+    /// lifted by its shadow offset, unless something (another surface, the
+    /// light) lies between the two, in which case the point itself, so
+    /// that a ray never starts beyond a surface it should meet. `normal`:
+    /// the geometric normal facing the ray.
+    pub fn lifted_shadow_point(&self, surface: &SurfacePoint, normal: DVec3) -> DVec3 {
+        let lifted = surface.point + surface.shadow_offset;
+        let origin = spawn_origin(surface.point, normal, self.scale);
+        let d = lifted - origin;
+        let len = d.length();
+        if len.is_nan() || len <= 0.0 || d.dot(normal) <= 0.0 {
+            return surface.point;
+        }
+        let ray = Ray::new(origin, d / len);
+        match self.closest_hit_before(&ray, len) {
+            None => lifted,
+            Some(_) => surface.point,
+        }
+    }
+
     /// Name of an object's material.
     pub fn material_name(&self, object: u32) -> &str {
         &self.material_names[self.objects[object as usize].material as usize]
@@ -269,7 +347,7 @@ impl Loaded {
     /// Validates a description and builds its scene.
     pub fn new(desc: &SceneDesc) -> Result<Loaded, SceneError> {
         desc.validate()?;
-        let scene = Scene::build(desc);
+        let scene = Scene::build(desc)?;
         Ok(Loaded {
             settings: RenderSettings::from_desc(desc),
             shading: ShadingParams::from_desc(desc),
@@ -313,4 +391,19 @@ impl Loaded {
     pub fn render_image(&self) -> Film {
         progressive::render_image(&self.scene, &self.settings, &self.shading)
     }
+}
+
+/// A mesh's vertices within the coordinates the renderer supports.
+fn check_mesh_range(triangles: &[Triangle]) -> Result<(), String> {
+    use super::scene_file::limits::MAX_COORD;
+    for (i, t) in triangles.iter().enumerate() {
+        for v in t.vertices() {
+            if v.abs().max_element() > MAX_COORD {
+                return Err(format!(
+                    "triangle {i} has the vertex {v} after the transform, expected coordinates within ±{MAX_COORD:e}"
+                ));
+            }
+        }
+    }
+    Ok(())
 }

@@ -9,7 +9,7 @@
 //! is rendered.
 
 use std::collections::BTreeMap;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
@@ -92,7 +92,7 @@ pub fn read_bounded(path: &Path, limit: u64) -> Result<Vec<u8>, String> {
 pub type Vec3Desc = [f64; 3];
 
 /// A whole scene file.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, Serialize)]
 pub struct SceneDesc {
     pub format: u32,
     pub camera: CameraDesc,
@@ -100,6 +100,36 @@ pub struct SceneDesc {
     pub light: LightDesc,
     pub materials: BTreeMap<String, MaterialDesc>,
     pub objects: Vec<ObjectDesc>,
+    /// The folder that relative `mesh.file` paths are resolved against: the
+    /// scene file's, set by [`SceneDesc::load`]; `None` for scenes from
+    /// text (their meshes need absolute paths). Not part of the file.
+    #[serde(skip)]
+    pub base_dir: Option<PathBuf>,
+}
+
+/// Equal content: `base_dir` is where the file was read from, not part of
+/// what it says, and is left out (`live::classify` compares it on its own).
+impl PartialEq for SceneDesc {
+    fn eq(&self, o: &SceneDesc) -> bool {
+        let SceneDesc {
+            format,
+            camera,
+            render,
+            light,
+            materials,
+            objects,
+            base_dir: _,
+        } = self;
+        (format, camera, render, light, materials, objects)
+            == (
+                &o.format,
+                &o.camera,
+                &o.render,
+                &o.light,
+                &o.materials,
+                &o.objects,
+            )
+    }
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -325,6 +355,8 @@ pub enum ObjectDesc {
     Rect(RectDesc),
     Box(BoxDesc),
     Sphere(SphereDesc),
+    Triangle(TriangleDesc),
+    Mesh(MeshDesc),
 }
 
 impl ObjectDesc {
@@ -334,6 +366,8 @@ impl ObjectDesc {
             ObjectDesc::Rect(o) => &o.material,
             ObjectDesc::Box(o) => &o.material,
             ObjectDesc::Sphere(o) => &o.material,
+            ObjectDesc::Triangle(o) => &o.material,
+            ObjectDesc::Mesh(o) => &o.material,
         }
     }
 
@@ -343,6 +377,8 @@ impl ObjectDesc {
             ObjectDesc::Rect(_) => "rect",
             ObjectDesc::Box(_) => "box",
             ObjectDesc::Sphere(_) => "sphere",
+            ObjectDesc::Triangle(_) => "triangle",
+            ObjectDesc::Mesh(_) => "mesh",
         }
     }
 }
@@ -389,6 +425,78 @@ pub struct SphereDesc {
     pub center: Vec3Desc,
     pub radius: f64,
     pub material: String,
+}
+
+/// Extension: one flat, two-sided triangle.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TriangleDesc {
+    pub vertices: [Vec3Desc; 3],
+    pub material: String,
+}
+
+/// Extension: a triangle mesh from a file (`.obj`, `.ply`), transformed
+/// by `translate + R_y(rotate_y_deg) · (scale ∘ v)`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MeshDesc {
+    /// Relative to the scene file's folder, or absolute.
+    pub file: String,
+    pub material: String,
+    #[serde(default, skip_serializing_if = "MeshScale::is_one")]
+    pub scale: MeshScale,
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub rotate_y_deg: f64,
+    #[serde(default, skip_serializing_if = "is_origin")]
+    pub translate: Vec3Desc,
+    #[serde(default, skip_serializing_if = "MeshShading::is_auto")]
+    pub shading: MeshShading,
+}
+
+/// A mesh's scale: one factor or one per axis.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(untagged, expecting = "a number or an array of three numbers")]
+pub enum MeshScale {
+    Uniform(f64),
+    PerAxis(Vec3Desc),
+}
+
+impl Default for MeshScale {
+    fn default() -> Self {
+        MeshScale::Uniform(1.0)
+    }
+}
+
+impl MeshScale {
+    fn is_one(&self) -> bool {
+        *self == MeshScale::Uniform(1.0)
+    }
+
+    pub fn per_axis(self) -> Vec3Desc {
+        match self {
+            MeshScale::Uniform(s) => [s; 3],
+            MeshScale::PerAxis(v) => v,
+        }
+    }
+}
+
+/// How a mesh is shaded.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum MeshShading {
+    /// The file's vertex normals where it has them, else flat.
+    #[default]
+    Auto,
+    /// Face normals.
+    Flat,
+    /// Area-weighted vertex normals.
+    Smooth,
+}
+
+impl MeshShading {
+    fn is_auto(&self) -> bool {
+        *self == MeshShading::Auto
+    }
 }
 
 /// The top level as parsed; objects stay JSON values until their `type`
@@ -482,7 +590,7 @@ fn parse_object(index: usize, value: Value) -> Result<ObjectDesc, SceneError> {
         None => {
             return Err(SceneError::new(
                 path,
-                "missing field `type` (one of plane, rect, box, sphere)",
+                "missing field `type` (one of plane, rect, box, sphere, triangle, mesh)",
             ));
         }
     };
@@ -495,10 +603,14 @@ fn parse_object(index: usize, value: Value) -> Result<ObjectDesc, SceneError> {
         "rect" => ObjectDesc::Rect(variant(&path, body)?),
         "box" => ObjectDesc::Box(variant(&path, body)?),
         "sphere" => ObjectDesc::Sphere(variant(&path, body)?),
+        "triangle" => ObjectDesc::Triangle(variant(&path, body)?),
+        "mesh" => ObjectDesc::Mesh(variant(&path, body)?),
         other => {
             return Err(SceneError::new(
                 format!("{path}.type"),
-                format!("unknown object type {other:?}, expected one of plane, rect, box, sphere"),
+                format!(
+                    "unknown object type {other:?}, expected one of plane, rect, box, sphere, triangle, mesh"
+                ),
             ));
         }
     })
@@ -546,6 +658,7 @@ impl SceneDesc {
             light: raw.light,
             materials: raw.materials,
             objects,
+            base_dir: None,
         };
         desc.validate()?;
         Ok(desc)
@@ -556,7 +669,12 @@ impl SceneDesc {
         let fail = |msg: String| SceneError::new("", msg).in_file(path);
         let bytes = read_bounded(path, limits::MAX_FILE_BYTES).map_err(fail)?;
         let text = String::from_utf8(bytes).map_err(|_| fail("not UTF-8 text".into()))?;
-        SceneDesc::from_json(&text).map_err(|e| e.in_file(path))
+        let mut desc = SceneDesc::from_json(&text).map_err(|e| e.in_file(path))?;
+        desc.base_dir = Some(match path.parent() {
+            Some(dir) if !dir.as_os_str().is_empty() => dir.to_path_buf(),
+            _ => PathBuf::from("."),
+        });
+        Ok(desc)
     }
 
     /// Pretty JSON that [`SceneDesc::from_json`] reads back to an equal scene.
@@ -745,6 +863,29 @@ impl SceneDesc {
                     point(&format!("{p}.center"), s.center)?;
                     positive(&format!("{p}.radius"), s.radius, MAX_COORD)?;
                 }
+                ObjectDesc::Triangle(t) => {
+                    for (k, v) in t.vertices.iter().enumerate() {
+                        point(&format!("{p}.vertices[{k}]"), *v)?;
+                    }
+                }
+                ObjectDesc::Mesh(m) => {
+                    if m.file.trim().is_empty() {
+                        return Err(SceneError::new(
+                            format!("{p}.file"),
+                            "is empty, expected the path of a .obj or .ply file",
+                        ));
+                    }
+                    match m.scale {
+                        MeshScale::Uniform(s) => positive(&format!("{p}.scale"), s, MAX_COORD)?,
+                        MeshScale::PerAxis(v) => {
+                            for (k, s) in v.iter().enumerate() {
+                                positive(&format!("{p}.scale[{k}]"), *s, MAX_COORD)?;
+                            }
+                        }
+                    }
+                    scalar(&format!("{p}.rotate_y_deg"), m.rotate_y_deg, -1e6, 1e6)?;
+                    point(&format!("{p}.translate"), m.translate)?;
+                }
             }
         }
         self.check_numeric_range()
@@ -798,6 +939,14 @@ impl SceneDesc {
                     grow(centre, r);
                 }
                 ObjectDesc::Sphere(s) => grow(s.center, [s.radius; 3]),
+                ObjectDesc::Triangle(t) => {
+                    for v in t.vertices {
+                        grow(v, [0.0; 3]);
+                    }
+                }
+                // Its vertices are only known once the file is read; the
+                // mesh's own checks bound them (`mesh.rs`).
+                ObjectDesc::Mesh(m) => offset = offset.max(max_abs(m.translate)),
             }
         }
         let size = (0..3).map(|i| hi[i] - lo[i]).fold(0.0, f64::max);
@@ -866,7 +1015,10 @@ impl SceneDesc {
             match o {
                 ObjectDesc::Rect(r) => flat(&format!("objects[{i}]"), r.edge_u, r.edge_v)?,
                 ObjectDesc::Sphere(s) => small(format!("objects[{i}].radius"), "radius", s.radius)?,
-                ObjectDesc::Plane(_) | ObjectDesc::Box(_) => {}
+                ObjectDesc::Plane(_)
+                | ObjectDesc::Box(_)
+                | ObjectDesc::Triangle(_)
+                | ObjectDesc::Mesh(_) => {}
             }
         }
         Ok(())
@@ -896,6 +1048,12 @@ impl SceneDesc {
                     consider(format!("{p}.translate"), b.translate);
                 }
                 ObjectDesc::Sphere(s) => consider(format!("{p}.center"), s.center),
+                ObjectDesc::Triangle(t) => {
+                    for (k, v) in t.vertices.iter().enumerate() {
+                        consider(format!("{p}.vertices[{k}]"), *v);
+                    }
+                }
+                ObjectDesc::Mesh(m) => consider(format!("{p}.translate"), m.translate),
             }
         }
         best

@@ -2,7 +2,7 @@
 //! scene description: the image must not change, which the stress tests
 //! check at scales from 1e-3 to 1e5 and far from the origin.
 
-use super::scene_file::{ObjectDesc, SceneDesc, Vec3Desc};
+use super::scene_file::{MeshScale, ObjectDesc, SceneDesc, Vec3Desc};
 
 fn map(v: Vec3Desc, f: impl Fn(f64) -> f64) -> Vec3Desc {
     [f(v[0]), f(v[1]), f(v[2])]
@@ -34,6 +34,16 @@ impl SceneDesc {
                     sp.center = s(sp.center);
                     sp.radius *= factor;
                 }
+                ObjectDesc::Triangle(t) => t.vertices = t.vertices.map(s),
+                // The scale applies first, about the model's origin: scaling
+                // the world scales both.
+                ObjectDesc::Mesh(m) => {
+                    m.scale = match m.scale {
+                        MeshScale::Uniform(k) => MeshScale::Uniform(k * factor),
+                        MeshScale::PerAxis(v) => MeshScale::PerAxis(s(v)),
+                    };
+                    m.translate = s(m.translate);
+                }
             }
         }
         self
@@ -53,6 +63,8 @@ impl SceneDesc {
                 // moving its translation.
                 ObjectDesc::Box(b) => b.translate = t(b.translate),
                 ObjectDesc::Sphere(sp) => sp.center = t(sp.center),
+                ObjectDesc::Triangle(tr) => tr.vertices = tr.vertices.map(t),
+                ObjectDesc::Mesh(m) => m.translate = t(m.translate),
             }
         }
         self

@@ -17,8 +17,14 @@ use super::stats::RayStats;
 /// A surface point being shaded.
 pub struct ShadingPoint<'a> {
     pub point: DVec3,
-    /// Unit normal, flipped to face the incoming ray.
+    /// Unit shading normal, flipped to face the incoming ray.
     pub normal: DVec3,
+    /// Unit geometric normal, flipped the same way: what decides which
+    /// light points lie behind the surface.
+    pub geometric: DVec3,
+    /// Where the shadow rays start: `point`, or for smooth triangles the
+    /// point lifted off the flat face (see `geometry/triangle.rs`).
+    pub shadow_point: DVec3,
     /// Unit direction towards the viewer (against the incoming ray).
     pub view: DVec3,
     pub object: u32,
@@ -118,8 +124,8 @@ pub fn light_terms(
         buf.filled = pattern.is_fixed().then_some(key);
     }
     let query = ShadowQuery {
-        point: sp.point,
-        normal: sp.normal,
+        point: sp.shadow_point,
+        normal: sp.geometric,
         object: sp.object,
         inside: sp.inside,
     };

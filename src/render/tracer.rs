@@ -192,15 +192,22 @@ impl<'a> Tracer<'a> {
             let obj = &scene.objects[object as usize];
             let surface = obj.shape.surface(&ray, t);
             let inside = surface.normal.dot(ray.dir) > 0.0;
-            let normal = if inside {
-                -surface.normal
+            let (normal, shading_normal) = if inside {
+                (-surface.normal, -surface.shading)
             } else {
-                surface.normal
+                (surface.normal, surface.shading)
+            };
+            let shadow_point = if surface.shadow_offset == DVec3::ZERO {
+                surface.point
+            } else {
+                scene.lifted_shadow_point(&surface, normal)
             };
             let material = &shading.materials[obj.material as usize];
             let sp = ShadingPoint {
                 point: surface.point,
-                normal,
+                normal: shading_normal,
+                geometric: normal,
+                shadow_point,
                 view: -ray.dir,
                 object,
                 inside,
@@ -227,14 +234,16 @@ impl<'a> Tracer<'a> {
                     super::scene_file::AreaLightModel::NearestPoint => {
                         nearest_point_specular_direction(scene, &sp)
                     }
-                    _ => (scene.light.shape.corner - sp.point).as_vec3(),
+                    // The directions the shadow rays took: from the
+                    // shadow point (lifted on smooth triangles).
+                    _ => (scene.light.shape.corner - sp.shadow_point).as_vec3(),
                 };
                 sink.hit(
                     HitRecord {
                         material: obj.material,
                         factors,
                         to_light,
-                        normal: normal.as_vec3(),
+                        normal: shading_normal.as_vec3(),
                         view: sp.view.as_vec3(),
                     },
                     buf,
@@ -269,10 +278,13 @@ impl<'a> Tracer<'a> {
                 sink.end(PathEnd::Faint);
                 break;
             }
-            ray = Ray::new(
-                spawn_origin(surface.point, normal, scene.scale),
-                reflect(ray.dir, normal),
-            );
+            // About the shading normal, unless that would send the ray
+            // into the surface.
+            let mut mirrored = reflect(ray.dir, shading_normal);
+            if mirrored.dot(normal) <= 0.0 {
+                mirrored = reflect(ray.dir, normal);
+            }
+            ray = Ray::new(spawn_origin(surface.point, normal, scene.scale), mirrored);
             scratch.stats.reflected += 1;
         }
         colour

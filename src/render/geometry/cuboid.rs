@@ -16,6 +16,10 @@ pub struct Cuboid {
 }
 
 impl Cuboid {
+    /// See [`super::Shape::flat`] and [`super::Shape::convex`]: convex.
+    pub const FLAT: bool = false;
+    pub const CONVEX: bool = true;
+
     pub fn new(min: DVec3, max: DVec3, rotate_y_deg: f64, translate: DVec3) -> Self {
         let (sin, cos) = rotate_y_deg.to_radians().sin_cos();
         Cuboid {
@@ -82,10 +86,7 @@ impl Cuboid {
         local[axis] = sign * self.half[axis];
         let mut n = DVec3::ZERO;
         n[axis] = sign;
-        SurfacePoint {
-            point: self.centre + self.to_world(local),
-            normal: self.to_world(n),
-        }
+        SurfacePoint::flat(self.centre + self.to_world(local), self.to_world(n))
     }
 
     pub fn bounds(&self) -> Aabb {

@@ -12,6 +12,7 @@ mod parallelogram;
 mod plane;
 mod ray;
 mod sphere;
+mod triangle;
 
 pub use aabb::Aabb;
 pub use bvh::{Bvh, NodeContent};
@@ -22,16 +23,22 @@ pub use parallelogram::Parallelogram;
 pub use plane::Plane;
 pub use ray::Ray;
 pub use sphere::Sphere;
+pub use triangle::{Triangle, TriangleOccluder, VertexNormals};
 
 use glam::DVec3;
 
-/// One primitive of the scene.
+/// One primitive of the scene: the registry of primitives. Each lives in
+/// its own file with everything it needs (intersection, surface, bounds,
+/// its `FLAT` and `CONVEX` properties); the shadow rays' f32 form
+/// (`shadow/occluder.rs`) and light-frame bounds (`shadow/light_frame.rs`)
+/// match on this enum, so a new variant fails to compile until it has them.
 #[derive(Debug, Clone)]
 pub enum Shape {
     Plane(Plane),
     Parallelogram(Parallelogram),
     Cuboid(Cuboid),
     Sphere(Sphere),
+    Triangle(Triangle),
 }
 
 /// Where a ray meets a surface.
@@ -41,6 +48,25 @@ pub struct SurfacePoint {
     pub point: DVec3,
     /// Unit outward (geometric) normal; not yet flipped towards the ray.
     pub normal: DVec3,
+    /// Unit shading normal, on the same side as `normal` (equal to it but
+    /// for smooth triangles).
+    pub shading: DVec3,
+    /// Where shadow rays start, relative to `point` (zero but for smooth
+    /// triangles, see `triangle.rs`), on the side the ray came from.
+    pub shadow_offset: DVec3,
+}
+
+impl SurfacePoint {
+    /// A point shaded with its geometric normal.
+    #[inline]
+    pub fn flat(point: DVec3, normal: DVec3) -> SurfacePoint {
+        SurfacePoint {
+            point,
+            normal,
+            shading: normal,
+            shadow_offset: DVec3::ZERO,
+        }
+    }
 }
 
 impl Shape {
@@ -52,6 +78,7 @@ impl Shape {
             Shape::Parallelogram(s) => s.intersect(ray, t_max),
             Shape::Cuboid(s) => s.intersect(ray, t_max),
             Shape::Sphere(s) => s.intersect(ray, t_max),
+            Shape::Triangle(s) => s.intersect(ray, t_max),
         }
     }
 
@@ -62,6 +89,7 @@ impl Shape {
             Shape::Parallelogram(s) => s.surface(ray, t),
             Shape::Cuboid(s) => s.surface(ray, t),
             Shape::Sphere(s) => s.surface(ray, t),
+            Shape::Triangle(s) => s.surface(ray, t),
         }
     }
 
@@ -72,7 +100,47 @@ impl Shape {
             Shape::Parallelogram(s) => Some(s.bounds()),
             Shape::Cuboid(s) => Some(s.bounds()),
             Shape::Sphere(s) => Some(s.bounds()),
+            Shape::Triangle(s) => Some(s.bounds()),
         }
+    }
+
+    /// Flat: no ray leaving the surface at a point of it meets it again, on
+    /// either side, so a hit's own object can be left out of its shadow
+    /// test whichever side was hit.
+    #[inline]
+    pub fn flat(&self) -> bool {
+        match self {
+            Shape::Plane(_) => Plane::FLAT,
+            Shape::Parallelogram(_) => Parallelogram::FLAT,
+            Shape::Cuboid(_) => Cuboid::FLAT,
+            Shape::Sphere(_) => Sphere::FLAT,
+            Shape::Triangle(_) => Triangle::FLAT,
+        }
+    }
+
+    /// Convex: the shadow rays from a point that the shape blocks form a
+    /// convex cone, so blocking the four light corners blocks the whole
+    /// light (the umbra shortcut), and a ray leaving it on the outer side
+    /// never meets it again (its own object is left out of the shadow test
+    /// of an outside hit). A shape that is neither flat nor convex (none is
+    /// yet) stays in its own shadow test and out of the umbra shortcut.
+    #[inline]
+    pub fn convex(&self) -> bool {
+        match self {
+            Shape::Plane(_) => Plane::CONVEX,
+            Shape::Parallelogram(_) => Parallelogram::CONVEX,
+            Shape::Cuboid(_) => Cuboid::CONVEX,
+            Shape::Sphere(_) => Sphere::CONVEX,
+            Shape::Triangle(_) => Triangle::CONVEX,
+        }
+    }
+
+    /// Whether a hit on this shape (from outside, or `inside`) may leave
+    /// the shape itself out of its shadow test: exact for flat shapes on
+    /// both sides and for convex ones hit from outside.
+    #[inline]
+    pub fn skips_itself(&self, inside: bool) -> bool {
+        self.flat() || (self.convex() && !inside)
     }
 }
 

@@ -18,6 +18,10 @@ pub struct Parallelogram {
 }
 
 impl Parallelogram {
+    /// See [`super::Shape::flat`] and [`super::Shape::convex`]: flat and convex.
+    pub const FLAT: bool = true;
+    pub const CONVEX: bool = true;
+
     pub fn new(corner: DVec3, edge_u: DVec3, edge_v: DVec3) -> Self {
         // Work with unit-scaled edges so that neither tiny nor huge lights
         // under/overflow in the Gram determinant.
@@ -91,10 +95,7 @@ impl Parallelogram {
 
     pub fn surface(&self, ray: &Ray, t: f64) -> SurfacePoint {
         let p = ray.at(t);
-        SurfacePoint {
-            point: p - self.normal * self.signed_distance(p),
-            normal: self.normal,
-        }
+        SurfacePoint::flat(p - self.normal * self.signed_distance(p), self.normal)
     }
 
     pub fn bounds(&self) -> Aabb {

@@ -11,6 +11,10 @@ pub struct Plane {
 }
 
 impl Plane {
+    /// See [`super::Shape::flat`] and [`super::Shape::convex`]: a half-space boundary: flat, and the light points it hides (those on its far side) are a convex set.
+    pub const FLAT: bool = true;
+    pub const CONVEX: bool = true;
+
     pub fn new(point: DVec3, normal: DVec3) -> Self {
         let normal = super::super::math::normalize_robust(normal);
         Plane {
@@ -35,9 +39,6 @@ impl Plane {
 
     pub fn surface(&self, ray: &Ray, t: f64) -> SurfacePoint {
         let p = ray.at(t);
-        SurfacePoint {
-            point: p - self.normal * self.signed_distance(p),
-            normal: self.normal,
-        }
+        SurfacePoint::flat(p - self.normal * self.signed_distance(p), self.normal)
     }
 }

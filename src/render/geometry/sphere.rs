@@ -9,6 +9,10 @@ pub struct Sphere {
 }
 
 impl Sphere {
+    /// See [`super::Shape::flat`] and [`super::Shape::convex`]: convex.
+    pub const FLAT: bool = false;
+    pub const CONVEX: bool = true;
+
     /// Nearest t in (0, t_max). Uses the discriminant form of Haines et al.
     /// ("Precision Improvements for Ray/Sphere Intersection", Ray Tracing
     /// Gems ch. 7), which stays accurate for spheres far from the origin or
@@ -32,10 +36,7 @@ impl Sphere {
 
     pub fn surface(&self, ray: &Ray, t: f64) -> SurfacePoint {
         let normal = (ray.at(t) - self.centre).normalize();
-        SurfacePoint {
-            point: self.centre + normal * self.radius,
-            normal,
-        }
+        SurfacePoint::flat(self.centre + normal * self.radius, normal)
     }
 
     pub fn bounds(&self) -> Aabb {

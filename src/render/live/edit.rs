@@ -62,6 +62,7 @@ pub fn classify(old: &SceneDesc, new: &SceneDesc) -> EditClass {
         light,
         materials,
         objects,
+        base_dir,
     } = new;
     let CameraDesc {
         position,
@@ -92,7 +93,8 @@ pub fn classify(old: &SceneDesc, new: &SceneDesc) -> EditClass {
     let l = &old.light;
     let objects_same = *format == old.format
         && materials.keys().eq(old.materials.keys())
-        && *objects == old.objects;
+        && *objects == old.objects
+        && *base_dir == old.base_dir;
     if !objects_same {
         return EditClass::Rebuild;
     }

@@ -82,6 +82,7 @@ impl LightFrame {
                 });
                 Aabb::from_points(&corners)
             }
+            Shape::Triangle(t) => t.bounds_in(|v| self.local(v)),
         };
         // Rounding of the frame change is ~1e-16 relative; pad by far more.
         let pad = (b.max.abs().max(b.min.abs()).max_element() + b.extent().max_element()) * 1e-9;

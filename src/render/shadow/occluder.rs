@@ -3,7 +3,7 @@
 use glam::{DVec3, Vec3};
 
 use super::RAY_END;
-use crate::render::geometry::Shape;
+use crate::render::geometry::{Shape, TriangleOccluder};
 use crate::render::math::avx2_dispatch;
 
 /// An object as seen from one hit point, in f32 relative to it.
@@ -29,6 +29,8 @@ pub(super) enum Occluder {
     },
     /// `dist`: signed distance of p from the plane.
     Plane { normal: Vec3, dist: f32 },
+    /// See `geometry/triangle.rs`.
+    Triangle(TriangleOccluder),
 }
 
 impl Occluder {
@@ -59,6 +61,7 @@ impl Occluder {
                 normal: pl.normal.as_vec3(),
                 dist: pl.signed_distance(p) as f32,
             },
+            Shape::Triangle(t) => Occluder::Triangle(t.occluder(p)),
         }
     }
 
@@ -123,6 +126,12 @@ impl Occluder {
                     let end =
                         dist + (normal.x * dx[j] + normal.y * dy[j] + normal.z * dz[j]) * RAY_END;
                     vis[j] = if dist * end < 0.0 { 0.0 } else { vis[j] };
+                }
+            }
+            Occluder::Triangle(t) => {
+                for j in 0..n {
+                    let blocked = t.blocks(dx[j], dy[j], dz[j], RAY_END);
+                    vis[j] = if blocked { 0.0 } else { vis[j] };
                 }
             }
         }

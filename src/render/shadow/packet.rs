@@ -61,12 +61,13 @@ fn packet_generic(
     // of 8); returns the rays still live. Every answer is the exact f32
     // test, so the order of the tests changes nothing but the time.
     let mut test = |i: u32, m: u64, live: u64| -> u64 {
+        let shape = &scene.objects[i as usize].shape;
         let inside = i == pk.q.object && pk.q.inside;
-        if i == pk.q.object && !inside {
+        if i == pk.q.object && shape.skips_itself(pk.q.inside) {
             return live;
         }
         tested |= m;
-        let occ = Occluder::new(&scene.objects[i as usize].shape, pk.q.point, inside);
+        let occ = Occluder::new(shape, pk.q.point, inside);
         if let Occluder::Sphere { oc, r2, inside } = occ
             && m.count_ones() <= 4
         {

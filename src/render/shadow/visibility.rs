@@ -68,11 +68,11 @@ pub fn visibility(
     // An object as a possible occluder of this hit point, unless it can
     // certainly block nothing.
     let candidate = |i: u32| -> Option<Candidate> {
+        let object = &scene.objects[i as usize];
         let inside = i == q.object && q.inside;
-        if i == q.object && !inside {
+        if i == q.object && object.shape.skips_itself(q.inside) {
             return None;
         }
-        let object = &scene.objects[i as usize];
         if skip {
             match &object.shape {
                 // A plane blocks only if some light point lies on its other
@@ -97,6 +97,7 @@ pub fn visibility(
             }
         }
         let umbra_test = !inside
+            && object.shape.convex()
             && match object.bounds {
                 // Planes block a light point iff it lies on their other side:
                 // all four corners there means the whole light.

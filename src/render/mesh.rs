@@ -1,0 +1,319 @@
+//! Mesh files (`mesh` objects): read, checked, transformed and turned into
+//! triangles. Errors are one line naming the line or element of the file
+//! (the caller adds the file and the object's JSON path).
+
+use std::path::{Path, PathBuf};
+
+use glam::DVec3;
+
+use super::geometry::Triangle;
+pub use super::mesh_ply::read_ply;
+use super::scene_file::{MeshDesc, MeshShading, read_bounded};
+
+/// Limits of mesh input (documented in the README).
+pub mod limits {
+    /// Largest mesh file read, in bytes.
+    pub const MAX_MESH_FILE_BYTES: u64 = 2 << 30;
+    /// Most triangles in one scene, over all meshes and `triangle` objects.
+    pub const MAX_TRIANGLES: usize = 20_000_000;
+}
+
+/// A mesh as read from its file, in the file's own coordinates.
+#[derive(Debug, Default, Clone)]
+pub struct RawMesh {
+    pub positions: Vec<DVec3>,
+    /// Vertex indices of each triangle (checked to be in range).
+    pub faces: Vec<[u32; 3]>,
+    /// Normals from the file, and each face's indices into them (in range),
+    /// if every face has them.
+    pub normals: Vec<DVec3>,
+    pub face_normals: Option<Vec<[u32; 3]>>,
+}
+
+/// A loaded mesh object: its triangles in world space.
+#[derive(Debug, Clone)]
+pub struct LoadedMesh {
+    pub triangles: Vec<Triangle>,
+    /// Zero-area faces left out.
+    pub degenerate: usize,
+}
+
+/// The file of a mesh object: relative paths are resolved against the
+/// scene file's folder.
+pub fn resolve(file: &str, base_dir: Option<&Path>) -> Result<PathBuf, String> {
+    let path = Path::new(file);
+    if path.is_absolute() {
+        return Ok(path.to_path_buf());
+    }
+    match base_dir {
+        Some(dir) => Ok(dir.join(path)),
+        None => Err(format!(
+            "{file:?} is a relative path, but the scene has no folder (it was not read from a file): give an absolute path"
+        )),
+    }
+}
+
+/// Reads, checks and transforms a mesh object's file. `budget`: the most
+/// triangles it may add to the scene.
+pub fn load(desc: &MeshDesc, base_dir: Option<&Path>, budget: usize) -> Result<LoadedMesh, String> {
+    let path = resolve(&desc.file, base_dir)?;
+    let name = desc.file.as_str();
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase)
+        .unwrap_or_default();
+    let read = |what: &str| -> Result<Vec<u8>, String> {
+        read_bounded(&path, limits::MAX_MESH_FILE_BYTES).map_err(|e| format!("{name}: {e}{what}"))
+    };
+    let raw = match ext.as_str() {
+        "obj" => read_obj(&read("")?),
+        "ply" => read_ply(&read("")?),
+        other => Err(format!(
+            "unsupported mesh format {:?}, expected a file ending in .obj or .ply",
+            if other.is_empty() { "(none)" } else { other }
+        )),
+    }
+    .map_err(|e| format!("{name}: {e}"))?;
+    if raw.faces.len() > budget {
+        return Err(format!(
+            "{name}: {} triangles, more than the {} the scene has room for (at most {} triangles in a scene)",
+            raw.faces.len(),
+            budget,
+            limits::MAX_TRIANGLES
+        ));
+    }
+    Ok(build(&raw, desc))
+}
+
+/// The transform of the format: `translate + R_y · (scale ∘ v)`.
+#[derive(Debug, Clone, Copy)]
+pub struct Transform {
+    scale: DVec3,
+    cos: f64,
+    sin: f64,
+    translate: DVec3,
+}
+
+impl Transform {
+    pub fn of(desc: &MeshDesc) -> Transform {
+        let (sin, cos) = desc.rotate_y_deg.to_radians().sin_cos();
+        Transform {
+            scale: desc.scale.per_axis().into(),
+            cos,
+            sin,
+            translate: desc.translate.into(),
+        }
+    }
+
+    /// Rotation about y, as the `box` object's (x towards −z for positive
+    /// angles).
+    fn rotate(&self, v: DVec3) -> DVec3 {
+        DVec3::new(
+            v.x * self.cos + v.z * self.sin,
+            v.y,
+            -v.x * self.sin + v.z * self.cos,
+        )
+    }
+
+    pub fn point(&self, v: DVec3) -> DVec3 {
+        self.translate + self.rotate(self.scale * v)
+    }
+
+    /// Normals go through the inverse transpose: R · (n / scale).
+    pub fn normal(&self, n: DVec3) -> DVec3 {
+        self.rotate(n / self.scale)
+    }
+}
+
+/// The triangles of a checked raw mesh under the object's transform and
+/// shading.
+pub fn build(raw: &RawMesh, desc: &MeshDesc) -> LoadedMesh {
+    let tf = Transform::of(desc);
+    let pos: Vec<DVec3> = raw.positions.iter().map(|&v| tf.point(v)).collect();
+    let smooth: Option<Vec<DVec3>> = match desc.shading {
+        MeshShading::Flat => None,
+        MeshShading::Auto => None,
+        MeshShading::Smooth => {
+            // Area-weighted: the unnormalized face normal is twice the area
+            // times the unit normal.
+            let mut acc = vec![DVec3::ZERO; pos.len()];
+            for f in &raw.faces {
+                let [a, b, c] = f.map(|i| pos[i as usize]);
+                let n = (b - a).cross(c - a);
+                if n.is_finite() {
+                    for &i in f {
+                        acc[i as usize] += n;
+                    }
+                }
+            }
+            Some(acc)
+        }
+    };
+    let file_normals = match (desc.shading, &raw.face_normals) {
+        (MeshShading::Auto, Some(fnorm)) => {
+            let n: Vec<DVec3> = raw.normals.iter().map(|&n| tf.normal(n)).collect();
+            Some((n, fnorm))
+        }
+        _ => None,
+    };
+    let mut triangles = Vec::with_capacity(raw.faces.len());
+    let mut degenerate = 0;
+    for (k, f) in raw.faces.iter().enumerate() {
+        let [a, b, c] = f.map(|i| pos[i as usize]);
+        let Some(t) = Triangle::new(a, b, c) else {
+            degenerate += 1;
+            continue;
+        };
+        let t = if let Some(acc) = &smooth {
+            t.with_normals(f.map(|i| acc[i as usize]))
+        } else if let Some((n, fnorm)) = &file_normals {
+            t.with_normals(fnorm[k].map(|i| n[i as usize]))
+        } else {
+            t
+        };
+        triangles.push(t);
+    }
+    LoadedMesh {
+        triangles,
+        degenerate,
+    }
+}
+
+/// Wavefront OBJ through `tobj` (polygons as fans, points and lines
+/// ignored, `mtllib` not read). When `tobj` refuses the file or a vertex is
+/// not finite, a scan of the text finds the line to name.
+pub fn read_obj(bytes: &[u8]) -> Result<RawMesh, String> {
+    let options = tobj::LoadOptions {
+        single_index: false,
+        triangulate: true,
+        ignore_points: true,
+        ignore_lines: true,
+    };
+    let loaded = tobj::load_obj_buf(&mut &bytes[..], &options, |_| {
+        Err(tobj::LoadError::OpenFileFailed)
+    });
+    let models = match loaded {
+        Ok((models, _materials)) => models,
+        Err(e) => {
+            return Err(obj_diagnosis(bytes).unwrap_or_else(|| format!("{e}")));
+        }
+    };
+    let mut raw = RawMesh::default();
+    let mut all_normals = true;
+    let mut face_normals = Vec::new();
+    for m in &models {
+        let mesh = &m.mesh;
+        let base = raw.positions.len() as u32;
+        let nbase = raw.normals.len() as u32;
+        raw.positions.extend(
+            mesh.positions
+                .chunks_exact(3)
+                .map(|p| DVec3::new(p[0], p[1], p[2])),
+        );
+        raw.normals.extend(
+            mesh.normals
+                .chunks_exact(3)
+                .map(|p| DVec3::new(p[0], p[1], p[2])),
+        );
+        let count = mesh.positions.len() / 3;
+        for f in mesh.indices.chunks_exact(3) {
+            if f.iter().any(|&i| i as usize >= count) {
+                return Err(obj_diagnosis(bytes)
+                    .unwrap_or_else(|| "a face's vertex index is out of range".into()));
+            }
+            raw.faces.push([f[0] + base, f[1] + base, f[2] + base]);
+        }
+        let ncount = mesh.normals.len() / 3;
+        if mesh.normal_indices.len() == mesh.indices.len() && ncount > 0 {
+            for f in mesh.normal_indices.chunks_exact(3) {
+                if f.iter().any(|&i| i as usize >= ncount) {
+                    all_normals = false;
+                    break;
+                }
+                face_normals.push([f[0] + nbase, f[1] + nbase, f[2] + nbase]);
+            }
+        } else if !mesh.indices.is_empty() {
+            all_normals = false;
+        }
+    }
+    if raw.positions.iter().any(|p| !p.is_finite()) {
+        return Err(obj_diagnosis(bytes).unwrap_or_else(|| "a vertex is not finite".into()));
+    }
+    if all_normals && face_normals.len() == raw.faces.len() && !raw.faces.is_empty() {
+        raw.face_normals = Some(face_normals);
+    }
+    Ok(raw)
+}
+
+/// The first line of an OBJ text that is wrong, as a message: a `v` line
+/// without three finite numbers, a face with a malformed or out-of-range
+/// vertex index.
+fn obj_diagnosis(bytes: &[u8]) -> Option<String> {
+    let text = String::from_utf8_lossy(bytes);
+    let mut vertices: i64 = 0;
+    let mut normals: i64 = 0;
+    for (n, line) in text.lines().enumerate() {
+        let line_no = n + 1;
+        let mut words = line.split_whitespace();
+        let Some(key) = words.next() else { continue };
+        let shown = super::error::cut(line.trim());
+        match key {
+            "v" | "vn" => {
+                let nums: Vec<Option<f64>> = words.take(3).map(|w| w.parse().ok()).collect();
+                if nums.len() < 3 || nums.iter().any(Option::is_none) {
+                    return Some(format!(
+                        "line {line_no}: malformed {key} line {shown:?}, expected three numbers"
+                    ));
+                }
+                if key == "v" && nums.iter().any(|x| !x.is_some_and(f64::is_finite)) {
+                    return Some(format!(
+                        "line {line_no}: vertex {} is not finite ({shown:?}), expected numbers",
+                        vertices + 1
+                    ));
+                }
+                if key == "v" {
+                    vertices += 1;
+                } else {
+                    normals += 1;
+                }
+            }
+            "f" => {
+                let mut count = 0;
+                for w in words {
+                    count += 1;
+                    let mut parts = w.split('/');
+                    let v = parts.next().unwrap_or("");
+                    let check = |s: &str, total: i64, what: &str| -> Option<String> {
+                        let Ok(i) = s.parse::<i64>() else {
+                            return Some(format!(
+                                "line {line_no}: malformed face {shown:?}: {what} index {s:?} is not a number"
+                            ));
+                        };
+                        let ok = (i > 0 && i <= total) || (i < 0 && -i <= total);
+                        (!ok).then(|| {
+                            format!(
+                                "line {line_no}: face {shown:?}: {what} index {i} is out of range, the file has {total} {what}s before this line"
+                            )
+                        })
+                    };
+                    if let Some(e) = check(v, vertices, "vertex") {
+                        return Some(e);
+                    }
+                    if let Some(n) = parts.nth(1).filter(|s| !s.is_empty())
+                        && let Some(e) = check(n, normals, "normal")
+                    {
+                        return Some(e);
+                    }
+                }
+                if count < 3 {
+                    return Some(format!(
+                        "line {line_no}: malformed face {shown:?}, expected at least three vertices"
+                    ));
+                }
+            }
+            _ => {}
+        }
+    }
+    None
+}

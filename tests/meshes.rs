@@ -1,0 +1,487 @@
+//! Triangles and meshes: the primitive against the shapes it can stand in
+//! for, the readers, the transform, exactness of the shadow shortcuts on a
+//! non-convex mesh, and bad mesh files.
+
+mod common;
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use common::{penumbra, seed_room};
+use penumbra::render::compare::compare;
+use penumbra::render::scene_file::{
+    MeshDesc, MeshScale, MeshShading, ObjectDesc, RectDesc, TriangleDesc,
+};
+use penumbra::render::{Film, Loaded, SceneDesc};
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("penumbra-mesh-{name}-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn small_room() -> SceneDesc {
+    let mut d = seed_room(160, 90);
+    d.render.shadow_rays = 16;
+    d
+}
+
+fn render(desc: &SceneDesc, skip: bool) -> Film {
+    let mut l = Loaded::new(desc).unwrap_or_else(|e| panic!("{e}"));
+    l.settings.skip = skip;
+    l.render_image()
+}
+
+fn rmse(a: &Film, b: &Film) -> (f64, f32) {
+    let c = compare(a, b).unwrap();
+    (c.rmse, c.max_diff)
+}
+
+fn mesh(file: &Path, material: &str) -> MeshDesc {
+    MeshDesc {
+        file: file.to_str().unwrap().into(),
+        material: material.into(),
+        scale: MeshScale::Uniform(1.0),
+        rotate_y_deg: 0.0,
+        translate: [0.0; 3],
+        shading: MeshShading::Auto,
+    }
+}
+
+/// The 8 corners ±h and the 12 triangles of a box as OBJ text.
+fn box_obj(h: [f64; 3]) -> String {
+    let mut s = String::from("# a box\n");
+    for i in 0..8 {
+        let c = |bit: usize, k: usize| if i & bit == 0 { -h[k] } else { h[k] };
+        writeln!(s, "v {} {} {}", c(1, 0), c(2, 1), c(4, 2)).unwrap();
+    }
+    // Faces as quads of corner indices (1-based), split in two.
+    let quads = [
+        [1, 3, 7, 5],
+        [2, 6, 8, 4],
+        [1, 5, 6, 2],
+        [3, 4, 8, 7],
+        [1, 2, 4, 3],
+        [5, 7, 8, 6],
+    ];
+    for q in quads {
+        writeln!(s, "f {} {} {}", q[0], q[1], q[2]).unwrap();
+        writeln!(s, "f {} {} {}", q[0], q[2], q[3]).unwrap();
+    }
+    s
+}
+
+#[test]
+fn a_triangle_pair_renders_as_the_rect() {
+    let mut rect = small_room();
+    // A panel standing in the room, lit and shadowing the floor.
+    let (c, u, v) = ([-3.5, 0.5, -2.0], [2.5, 0.0, 0.5], [0.3, 3.0, 0.2]);
+    rect.objects.push(ObjectDesc::Rect(RectDesc {
+        corner: c,
+        edge_u: u,
+        edge_v: v,
+        material: "red".into(),
+    }));
+    let add = |a: [f64; 3], b: [f64; 3]| [a[0] + b[0], a[1] + b[1], a[2] + b[2]];
+    let mut tris = small_room();
+    for vertices in [
+        [c, add(c, u), add(add(c, u), v)],
+        [c, add(add(c, u), v), add(c, v)],
+    ] {
+        tris.objects.push(ObjectDesc::Triangle(TriangleDesc {
+            vertices,
+            material: "red".into(),
+        }));
+    }
+    for skip in [true, false] {
+        let (e, _) = rmse(&render(&rect, skip), &render(&tris, skip));
+        assert!(e <= 1e-6, "skip {skip}: rmse {e}");
+    }
+}
+
+#[test]
+fn a_twelve_triangle_box_renders_as_the_box() {
+    let dir = scratch("box");
+    let prims = small_room();
+    let mut meshes = small_room();
+    // Both boxes of the seed room, as meshes about their centres.
+    let boxes: Vec<(usize, ObjectDesc)> = prims
+        .objects
+        .iter()
+        .enumerate()
+        .filter(|(_, o)| matches!(o, ObjectDesc::Box(_)))
+        .map(|(i, o)| (i, o.clone()))
+        .collect();
+    assert_eq!(boxes.len(), 2);
+    for (i, o) in boxes {
+        let ObjectDesc::Box(b) = o else {
+            unreachable!()
+        };
+        let half = [0, 1, 2].map(|k| (b.max[k] - b.min[k]) * 0.5);
+        let centre = [0, 1, 2].map(|k| (b.max[k] + b.min[k]) * 0.5 + b.translate[k]);
+        let file = dir.join(format!("box{i}.obj"));
+        std::fs::write(&file, box_obj(half)).unwrap();
+        let mut m = mesh(&file, &b.material);
+        m.rotate_y_deg = b.rotate_y_deg;
+        m.translate = centre;
+        meshes.objects[i] = ObjectDesc::Mesh(m);
+    }
+    let loaded = Loaded::new(&meshes).unwrap();
+    assert_eq!(loaded.scene.triangles, 24);
+    let reference = render(&prims, true);
+    for skip in [true, false] {
+        let (e, max) = rmse(&reference, &render(&meshes, skip));
+        assert!(e <= 1e-6, "skip {skip}: rmse {e}, max {max}");
+    }
+}
+
+/// A wavy, non-convex height field under the light: it shadows itself.
+fn wavy_obj(n: usize) -> String {
+    let mut s = String::new();
+    for i in 0..=n {
+        for j in 0..=n {
+            let (x, z) = (
+                i as f64 / n as f64 * 4.0 - 2.0,
+                j as f64 / n as f64 * 4.0 - 2.0,
+            );
+            let y = 0.6 * (2.5 * x).sin() * (2.0 * z).cos() + 0.8;
+            writeln!(s, "v {x} {y} {z}").unwrap();
+        }
+    }
+    for i in 0..n {
+        for j in 0..n {
+            let a = i * (n + 1) + j + 1;
+            let (b, c, d) = (a + 1, a + n + 1, a + n + 2);
+            writeln!(s, "f {a} {c} {d}\nf {a} {d} {b}").unwrap();
+        }
+    }
+    s
+}
+
+#[test]
+fn a_self_shadowing_mesh_is_the_same_with_and_without_skipping() {
+    let dir = scratch("wavy");
+    let file = dir.join("wavy.obj");
+    // 2 × 24² = 1152 triangles: the light-frame packets are used.
+    std::fs::write(&file, wavy_obj(24)).unwrap();
+    for shading in [MeshShading::Flat, MeshShading::Smooth] {
+        let mut d = small_room();
+        let mut m = mesh(&file, "sand");
+        m.shading = shading;
+        m.rotate_y_deg = 30.0;
+        m.translate = [0.0, 0.0, -1.0];
+        d.objects.push(ObjectDesc::Mesh(m));
+        let (on, off) = (render(&d, true), render(&d, false));
+        let (e, max) = rmse(&on, &off);
+        assert_eq!((e, max), (0.0, 0.0), "{shading:?}");
+        // It does shadow itself: some mesh pixels are darker than others
+        // beyond what the shading alone gives (checked loosely: the image
+        // is not uniform).
+        assert!(on.get(80, 60) != on.get(70, 55));
+    }
+}
+
+#[test]
+fn smooth_shading_has_no_faceted_terminator() {
+    // A coarse sphere (an octahedron subdivided twice), lit from above:
+    // smooth shading lets neighbouring faces blend, so the mean brightness
+    // jump across triangle edges is lower than with flat faces.
+    let dir = scratch("terminator");
+    let file = dir.join("ball.obj");
+    std::fs::write(&file, ball_obj(2)).unwrap();
+    let mut images = Vec::new();
+    for shading in [MeshShading::Flat, MeshShading::Smooth] {
+        let mut d = small_room();
+        let mut m = mesh(&file, "white");
+        m.shading = shading;
+        m.translate = [0.0, 2.0, -2.0];
+        m.scale = MeshScale::Uniform(1.5);
+        d.objects.push(ObjectDesc::Mesh(m));
+        images.push(render(&d, true));
+    }
+    let roughness = |f: &Film| {
+        let mut s = 0.0;
+        for y in 30..70 {
+            for x in 60..100 {
+                s += (f.get(x + 1, y) - f.get(x, y)).abs().element_sum() as f64;
+            }
+        }
+        s
+    };
+    assert!(
+        roughness(&images[1]) < roughness(&images[0]),
+        "{} {}",
+        roughness(&images[1]),
+        roughness(&images[0])
+    );
+}
+
+fn ball_obj(levels: u32) -> String {
+    let mut v: Vec<[f64; 3]> = vec![
+        [1.0, 0.0, 0.0],
+        [-1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [0.0, -1.0, 0.0],
+        [0.0, 0.0, 1.0],
+        [0.0, 0.0, -1.0],
+    ];
+    let mut f: Vec<[usize; 3]> = vec![
+        [0, 2, 4],
+        [2, 1, 4],
+        [1, 3, 4],
+        [3, 0, 4],
+        [2, 0, 5],
+        [1, 2, 5],
+        [3, 1, 5],
+        [0, 3, 5],
+    ];
+    for _ in 0..levels {
+        let mut next = Vec::new();
+        let mut mid = std::collections::HashMap::new();
+        let mut m = |a: usize, b: usize, v: &mut Vec<[f64; 3]>| {
+            *mid.entry((a.min(b), a.max(b))).or_insert_with(|| {
+                let p = [0, 1, 2].map(|k| (v[a][k] + v[b][k]) * 0.5);
+                let l = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
+                v.push(p.map(|c| c / l));
+                v.len() - 1
+            })
+        };
+        for [a, b, c] in f {
+            let (ab, bc, ca) = (m(a, b, &mut v), m(b, c, &mut v), m(c, a, &mut v));
+            next.extend([[a, ab, ca], [ab, b, bc], [ca, bc, c], [ab, bc, ca]]);
+        }
+        f = next;
+    }
+    let mut s = String::new();
+    for p in &v {
+        writeln!(s, "v {} {} {}", p[0], p[1], p[2]).unwrap();
+    }
+    for t in &f {
+        writeln!(s, "f {} {} {}", t[0] + 1, t[1] + 1, t[2] + 1).unwrap();
+    }
+    s
+}
+
+/// The OBJ box as PLY: ASCII or binary of either byte order.
+fn box_ply(h: [f64; 3], format: &str) -> Vec<u8> {
+    let obj = box_obj(h);
+    let verts: Vec<[f64; 3]> = obj
+        .lines()
+        .filter(|l| l.starts_with("v "))
+        .map(|l| {
+            let w: Vec<f64> = l[2..]
+                .split_whitespace()
+                .map(|x| x.parse().unwrap())
+                .collect();
+            [w[0], w[1], w[2]]
+        })
+        .collect();
+    let faces: Vec<[i32; 3]> = obj
+        .lines()
+        .filter(|l| l.starts_with("f "))
+        .map(|l| {
+            let w: Vec<i32> = l[2..]
+                .split_whitespace()
+                .map(|x| x.parse().unwrap())
+                .collect();
+            [w[0] - 1, w[1] - 1, w[2] - 1]
+        })
+        .collect();
+    let mut out = format!(
+        "ply\nformat {format} 1.0\ncomment a box\nelement vertex {}\nproperty double x\nproperty double y\nproperty double z\nelement face {}\nproperty list uchar int vertex_indices\nend_header\n",
+        verts.len(),
+        faces.len()
+    )
+    .into_bytes();
+    let le = format == "binary_little_endian";
+    for v in &verts {
+        if format == "ascii" {
+            out.extend(format!("{} {} {}\n", v[0], v[1], v[2]).bytes());
+        } else {
+            for c in v {
+                out.extend(if le { c.to_le_bytes() } else { c.to_be_bytes() });
+            }
+        }
+    }
+    for f in &faces {
+        if format == "ascii" {
+            out.extend(format!("3 {} {} {}\n", f[0], f[1], f[2]).bytes());
+        } else {
+            out.push(3);
+            for i in f {
+                out.extend(if le { i.to_le_bytes() } else { i.to_be_bytes() });
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn obj_and_ply_readers_give_the_same_image() {
+    let dir = scratch("readers");
+    let h = [1.0, 1.25, 0.75];
+    std::fs::write(dir.join("b.obj"), box_obj(h)).unwrap();
+    let mut images = Vec::new();
+    for (name, bytes) in [
+        ("b.obj", box_obj(h).into_bytes()),
+        ("a.ply", box_ply(h, "ascii")),
+        ("le.ply", box_ply(h, "binary_little_endian")),
+        ("be.ply", box_ply(h, "binary_big_endian")),
+    ] {
+        std::fs::write(dir.join(name), bytes).unwrap();
+        let mut d = small_room();
+        let mut m = mesh(Path::new(name), "green");
+        m.translate = [0.5, 1.25, -2.0];
+        m.rotate_y_deg = 35.0;
+        d.objects.push(ObjectDesc::Mesh(m));
+        // A relative path resolves against the scene file's folder.
+        let scene = dir.join(format!("{name}.json"));
+        std::fs::write(&scene, d.to_json()).unwrap();
+        let loaded = Loaded::load(&scene).unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(loaded.scene.triangles, 12, "{name}");
+        images.push(loaded.render_image());
+    }
+    for img in &images[1..] {
+        assert_eq!(rmse(&images[0], img), (0.0, 0.0));
+    }
+}
+
+#[test]
+fn relative_mesh_paths_need_a_scene_folder() {
+    let mut d = small_room();
+    d.objects
+        .push(ObjectDesc::Mesh(mesh(Path::new("models/x.obj"), "white")));
+    let e = Loaded::new(&d).unwrap_err();
+    assert_eq!(e.path, "objects[8].file");
+    assert!(e.message.contains("relative path"), "{e}");
+}
+
+#[test]
+fn the_transform_scales_then_rotates_then_translates() {
+    let dir = scratch("transform");
+    let file = dir.join("t.obj");
+    std::fs::write(&file, "v 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\n").unwrap();
+    let mut m = mesh(&file, "white");
+    m.scale = MeshScale::PerAxis([2.0, 3.0, 4.0]);
+    m.rotate_y_deg = 90.0;
+    m.translate = [10.0, 20.0, 30.0];
+    let mut d = small_room();
+    d.objects.push(ObjectDesc::Mesh(m));
+    let loaded = Loaded::new(&d).unwrap();
+    let obj = loaded.scene.objects.last().unwrap();
+    let penumbra::render::geometry::Shape::Triangle(t) = &obj.shape else {
+        panic!("a triangle")
+    };
+    // R_y(90°) maps x to −z and z to x (as the box's rotation does).
+    let want = [[10.0, 20.0, 28.0], [10.0, 23.0, 30.0], [14.0, 20.0, 30.0]];
+    for (v, w) in t.vertices().iter().zip(want) {
+        assert!((*v - glam::DVec3::from(w)).length() < 1e-12, "{v} {w:?}");
+    }
+}
+
+#[test]
+fn degenerate_triangles_are_skipped_and_counted() {
+    let dir = scratch("degenerate");
+    let file = dir.join("d.obj");
+    std::fs::write(
+        &file,
+        "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 2 0 0\nf 1 2 3\nf 1 2 4\nf 1 1 3\n",
+    )
+    .unwrap();
+    let mut d = small_room();
+    d.objects.push(ObjectDesc::Mesh(mesh(&file, "white")));
+    d.objects.push(ObjectDesc::Triangle(TriangleDesc {
+        vertices: [[0.0; 3], [1.0, 1.0, 1.0], [2.0, 2.0, 2.0]],
+        material: "white".into(),
+    }));
+    let l = Loaded::new(&d).unwrap();
+    assert_eq!((l.scene.triangles, l.scene.degenerate_triangles), (1, 3));
+}
+
+#[test]
+fn the_triangle_budget_is_one_clear_error() {
+    let dir = scratch("budget");
+    let file = dir.join("b.obj");
+    std::fs::write(&file, box_obj([1.0; 3])).unwrap();
+    let e = penumbra::render::mesh::load(&mesh(&file, "white"), None, 11).unwrap_err();
+    assert!(e.contains("12 triangles") && e.contains("20000000"), "{e}");
+}
+
+/// A scene with one mesh file of the given content, rendered by the CLI.
+fn cli_with_mesh(name: &str, file: &str, content: &[u8]) -> (i32, String, bool) {
+    let dir = scratch(name);
+    std::fs::write(dir.join(file), content).unwrap();
+    let mut d = small_room();
+    d.objects
+        .push(ObjectDesc::Mesh(mesh(Path::new(file), "white")));
+    let scene = dir.join("scene.json");
+    std::fs::write(&scene, d.to_json()).unwrap();
+    let out = dir.join("out.png");
+    let o = penumbra(&[
+        "render",
+        scene.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    (
+        o.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&o.stderr).into_owned(),
+        out.exists(),
+    )
+}
+
+#[test]
+fn bad_mesh_files_exit_2_naming_the_file_and_line() {
+    let cases: [(&str, &str, &[u8], &[&str]); 7] = [
+        ("malformed", "m.obj", b"v 0 0 0\nv 1 0 0\nv 0 x 0\nf 1 2 3\n", &["m.obj", "line 3", "objects[8].file"]),
+        ("range", "r.obj", b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n", &["r.obj", "line 4", "out of range"]),
+        ("nan", "n.obj", b"v 0 0 0\nv nan 0 0\nv 0 1 0\nf 1 2 3\n", &["n.obj", "line 2", "not finite"]),
+        ("ply-nan", "n.ply", b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 nan 0\n0 1 0\n3 0 1 2\n", &["n.ply", "vertex 1", "not finite"]),
+        ("ply-range", "r.ply", b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n", &["r.ply", "face 0", "out of range"]),
+        ("ply-claim", "c.ply", b"ply\nformat binary_little_endian 1.0\nelement vertex 4000000000\nproperty float x\nproperty float y\nproperty float z\nend_header\n\0\0\0\0", &["c.ply", "claims 4000000000"]),
+        ("missing", "gone.obj", b"", &["gone.obj"]),
+    ];
+    for (name, file, content, want) in cases {
+        let (code, err, written) = if name == "missing" {
+            let (dir, f) = (scratch(name), file);
+            let mut d = small_room();
+            d.objects
+                .push(ObjectDesc::Mesh(mesh(Path::new(f), "white")));
+            let scene = dir.join("scene.json");
+            std::fs::write(&scene, d.to_json()).unwrap();
+            let out = dir.join("out.png");
+            let o = penumbra(&[
+                "render",
+                scene.to_str().unwrap(),
+                "-o",
+                out.to_str().unwrap(),
+            ]);
+            (
+                o.status.code().unwrap_or(-1),
+                String::from_utf8_lossy(&o.stderr).into_owned(),
+                out.exists(),
+            )
+        } else {
+            cli_with_mesh(name, file, content)
+        };
+        assert_eq!(code, 2, "{name}: {err}");
+        assert!(!written, "{name}: nothing written");
+        for w in want {
+            assert!(err.contains(w), "{name}: {w:?} in {err}");
+        }
+        assert!(err.contains("scene.json"), "{name}: {err}");
+        assert_eq!(err.trim().lines().count(), 1, "{name}: one line: {err}");
+    }
+}
+
+#[test]
+fn degenerate_triangles_are_reported_by_the_cli() {
+    let (code, err, written) = cli_with_mesh(
+        "cli-degenerate",
+        "d.obj",
+        b"v 0 0 0\nv 1 0 0\nv 0 1 0\nv 2 0 0\nf 1 2 3\nf 1 2 4\n",
+    );
+    assert_eq!(code, 0, "{err}");
+    assert!(written);
+    assert!(err.contains("triangles: 1 (1 degenerate skipped)"), "{err}");
+}

@@ -485,3 +485,66 @@ fn degenerate_triangles_are_reported_by_the_cli() {
     assert!(written);
     assert!(err.contains("triangles: 1 (1 degenerate skipped)"), "{err}");
 }
+
+/// A cheap stand-in for fuzzing, run with every test: valid files with
+/// bytes flipped, dropped and cut off are read or refused, never a panic,
+/// and whatever is read has its indices in range.
+#[test]
+fn mutated_mesh_files_are_read_or_refused_without_panics() {
+    use penumbra::render::mesh::{RawMesh, read_obj, read_ply};
+    let check = |r: Result<RawMesh, String>| {
+        if let Ok(raw) = r {
+            let n = raw.positions.len() as u32;
+            assert!(raw.faces.iter().flatten().all(|&i| i < n));
+            if let Some(f) = &raw.face_normals {
+                let m = raw.normals.len() as u32;
+                assert!(f.iter().flatten().all(|&i| i < m));
+            }
+        } else if let Err(e) = r {
+            assert!(!e.is_empty() && e.len() < 1000, "{e}");
+        }
+    };
+    let h = [1.0, 2.0, 0.5];
+    let obj = format!(
+        "{}vn 0 1 0\nf 1//1 2//1 3//1 4//1\nf -1 -2 -3\n",
+        box_obj(h)
+    );
+    let seeds: Vec<Vec<u8>> = vec![
+        obj.into_bytes(),
+        box_ply(h, "ascii"),
+        box_ply(h, "binary_little_endian"),
+        box_ply(h, "binary_big_endian"),
+    ];
+    let mut state = 0x9e37_79b9_7f4a_7c15u64;
+    let mut next = move || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        state
+    };
+    let alphabet = b" \n0123456789-./eEnaifvxyzlp\xff\x00";
+    for (k, seed) in seeds.iter().enumerate() {
+        for _ in 0..3000 {
+            let mut b = seed.clone();
+            for _ in 0..1 + next() % 4 {
+                let at = (next() as usize) % b.len().max(1);
+                match next() % 4 {
+                    0 if !b.is_empty() => b[at] = alphabet[(next() as usize) % alphabet.len()],
+                    1 if !b.is_empty() => {
+                        b.remove(at);
+                    }
+                    2 => b.insert(
+                        at.min(b.len()),
+                        alphabet[(next() as usize) % alphabet.len()],
+                    ),
+                    _ => b.truncate(at),
+                }
+            }
+            if k == 0 {
+                check(read_obj(&b));
+            } else {
+                check(read_ply(&b));
+            }
+        }
+    }
+}

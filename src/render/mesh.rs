@@ -284,7 +284,7 @@ fn obj_diagnosis(bytes: &[u8]) -> Option<String> {
                     count += 1;
                     let mut parts = w.split('/');
                     let v = parts.next().unwrap_or("");
-                    let check = |s: &str, total: i64, what: &str| -> Option<String> {
+                    let check = |s: &str, total: i64, what: &str, plural: &str| -> Option<String> {
                         let Ok(i) = s.parse::<i64>() else {
                             return Some(format!(
                                 "line {line_no}: malformed face {shown:?}: {what} index {s:?} is not a number"
@@ -293,15 +293,15 @@ fn obj_diagnosis(bytes: &[u8]) -> Option<String> {
                         let ok = (i > 0 && i <= total) || (i < 0 && -i <= total);
                         (!ok).then(|| {
                             format!(
-                                "line {line_no}: face {shown:?}: {what} index {i} is out of range, the file has {total} {what}s before this line"
+                                "line {line_no}: face {shown:?}: {what} index {i} is out of range, the file has {total} {plural} before this line"
                             )
                         })
                     };
-                    if let Some(e) = check(v, vertices, "vertex") {
+                    if let Some(e) = check(v, vertices, "vertex", "vertices") {
                         return Some(e);
                     }
                     if let Some(n) = parts.nth(1).filter(|s| !s.is_empty())
-                        && let Some(e) = check(n, normals, "normal")
+                        && let Some(e) = check(n, normals, "normal", "normals")
                     {
                         return Some(e);
                     }

@@ -485,3 +485,152 @@ fn degenerate_triangles_are_reported_by_the_cli() {
     assert!(written);
     assert!(err.contains("triangles: 1 (1 degenerate skipped)"), "{err}");
 }
+
+/// A cheap stand-in for fuzzing, run with every test: valid files with
+/// bytes flipped, dropped and cut off are read or refused, never a panic,
+/// and whatever is read has its indices in range.
+#[test]
+fn mutated_mesh_files_are_read_or_refused_without_panics() {
+    use penumbra::render::mesh::{RawMesh, read_gltf, read_obj, read_ply};
+    let check = |r: Result<RawMesh, String>| {
+        if let Ok(raw) = r {
+            let n = raw.positions.len() as u32;
+            assert!(raw.faces.iter().flatten().all(|&i| i < n));
+            if let Some(f) = &raw.face_normals {
+                let m = raw.normals.len() as u32;
+                assert!(f.iter().flatten().all(|&i| i < m));
+            }
+        } else if let Err(e) = r {
+            assert!(!e.is_empty() && e.len() < 1000, "{e}");
+        }
+    };
+    let h = [1.0, 2.0, 0.5];
+    let obj = format!(
+        "{}vn 0 1 0\nf 1//1 2//1 3//1 4//1\nf -1 -2 -3\n",
+        box_obj(h)
+    );
+    let seeds: Vec<Vec<u8>> = vec![
+        obj.into_bytes(),
+        box_ply(h, "ascii"),
+        box_ply(h, "binary_little_endian"),
+        box_ply(h, "binary_big_endian"),
+        box_glb(h, 0.25),
+    ];
+    let mut state = 0x9e37_79b9_7f4a_7c15u64;
+    let mut next = move || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        state
+    };
+    let alphabet = b" \n0123456789-./eEnaifvxyzlp\xff\x00";
+    for (k, seed) in seeds.iter().enumerate() {
+        for _ in 0..3000 {
+            let mut b = seed.clone();
+            for _ in 0..1 + next() % 4 {
+                let at = (next() as usize) % b.len().max(1);
+                match next() % 4 {
+                    0 if !b.is_empty() => b[at] = alphabet[(next() as usize) % alphabet.len()],
+                    1 if !b.is_empty() => {
+                        b.remove(at);
+                    }
+                    2 => b.insert(
+                        at.min(b.len()),
+                        alphabet[(next() as usize) % alphabet.len()],
+                    ),
+                    _ => b.truncate(at),
+                }
+            }
+            match k {
+                0 => check(read_obj(&b)),
+                4 => check(read_gltf(&b, None)),
+                _ => check(read_ply(&b)),
+            }
+        }
+    }
+}
+
+/// The OBJ box as a GLB (f32 positions, u32 indices) under a node that
+/// moves it by `shift` along x.
+fn box_glb(h: [f64; 3], shift: f64) -> Vec<u8> {
+    let obj = box_obj(h);
+    let mut bin = Vec::new();
+    let mut count = 0;
+    for l in obj.lines().filter(|l| l.starts_with("v ")) {
+        for x in l[2..].split_whitespace() {
+            bin.extend((x.parse::<f64>().unwrap() as f32).to_le_bytes());
+        }
+        count += 1;
+    }
+    let pos_len = bin.len();
+    let mut n_idx = 0;
+    for l in obj.lines().filter(|l| l.starts_with("f ")) {
+        for x in l[2..].split_whitespace() {
+            bin.extend((x.parse::<u32>().unwrap() - 1).to_le_bytes());
+            n_idx += 1;
+        }
+    }
+    let json = format!(
+        r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":[0]}}],
+        "nodes":[{{"translation":[{shift},0,0],"children":[1]}},{{"mesh":0}}],
+        "meshes":[{{"primitives":[{{"attributes":{{"POSITION":0}},"indices":1}}]}}],
+        "buffers":[{{"byteLength":{}}}],
+        "bufferViews":[{{"buffer":0,"byteOffset":0,"byteLength":{pos_len}}},{{"buffer":0,"byteOffset":{pos_len},"byteLength":{}}}],
+        "accessors":[{{"bufferView":0,"componentType":5126,"count":{count},"type":"VEC3","min":[{},{},{}],"max":[{},{},{}]}},
+                     {{"bufferView":1,"componentType":5125,"count":{n_idx},"type":"SCALAR"}}]}}"#,
+        bin.len(),
+        bin.len() - pos_len,
+        -h[0],
+        -h[1],
+        -h[2],
+        h[0],
+        h[1],
+        h[2]
+    );
+    let mut j = json.into_bytes();
+    while j.len() % 4 != 0 {
+        j.push(b' ');
+    }
+    let total = 12 + 8 + j.len() + 8 + bin.len();
+    let mut out = Vec::new();
+    out.extend(b"glTF");
+    out.extend(2u32.to_le_bytes());
+    out.extend((total as u32).to_le_bytes());
+    out.extend((j.len() as u32).to_le_bytes());
+    out.extend(b"JSON");
+    out.extend(j);
+    out.extend((bin.len() as u32).to_le_bytes());
+    out.extend(b"BIN\0");
+    out.extend(bin);
+    out
+}
+
+#[test]
+fn a_glb_box_with_a_node_transform_renders_as_the_obj_box() {
+    let dir = scratch("glb");
+    let h = [1.0, 1.25, 0.75];
+    let images: Vec<Film> = [("b.obj", 0.5), ("b.glb", 0.0)]
+        .into_iter()
+        .map(|(name, extra)| {
+            let file = dir.join(name);
+            if name.ends_with("obj") {
+                std::fs::write(&file, box_obj(h)).unwrap();
+            } else {
+                std::fs::write(&file, box_glb(h, 0.5)).unwrap();
+            }
+            let mut d = small_room();
+            let mut m = mesh(&file, "green");
+            // The node's shift applies before the object's transform.
+            m.translate = [extra, 1.25, -2.0];
+            d.objects.push(ObjectDesc::Mesh(m));
+            let l = Loaded::new(&d).unwrap_or_else(|e| panic!("{name}: {e}"));
+            assert_eq!(l.scene.triangles, 12);
+            l.render_image()
+        })
+        .collect();
+    assert_eq!(rmse(&images[0], &images[1]), (0.0, 0.0));
+    // A GLB cut short is one clear error.
+    let glb = box_glb(h, 0.5);
+    let e = penumbra::render::mesh::read_gltf(&glb[..glb.len() - 40], None).unwrap_err();
+    assert!(!e.is_empty() && e.len() < 300, "{e}");
+}

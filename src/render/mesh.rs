@@ -69,8 +69,9 @@ pub fn load(desc: &MeshDesc, base_dir: Option<&Path>, budget: usize) -> Result<L
     let raw = match ext.as_str() {
         "obj" => read_obj(&read("")?),
         "ply" => read_ply(&read("")?),
+        "gltf" | "glb" => read_gltf(&read("")?, path.parent()),
         other => Err(format!(
-            "unsupported mesh format {:?}, expected a file ending in .obj or .ply",
+            "unsupported mesh format {:?}, expected a file ending in .obj, .ply, .gltf or .glb",
             if other.is_empty() { "(none)" } else { other }
         )),
     }
@@ -284,7 +285,7 @@ fn obj_diagnosis(bytes: &[u8]) -> Option<String> {
                     count += 1;
                     let mut parts = w.split('/');
                     let v = parts.next().unwrap_or("");
-                    let check = |s: &str, total: i64, what: &str| -> Option<String> {
+                    let check = |s: &str, total: i64, what: &str, plural: &str| -> Option<String> {
                         let Ok(i) = s.parse::<i64>() else {
                             return Some(format!(
                                 "line {line_no}: malformed face {shown:?}: {what} index {s:?} is not a number"
@@ -293,15 +294,15 @@ fn obj_diagnosis(bytes: &[u8]) -> Option<String> {
                         let ok = (i > 0 && i <= total) || (i < 0 && -i <= total);
                         (!ok).then(|| {
                             format!(
-                                "line {line_no}: face {shown:?}: {what} index {i} is out of range, the file has {total} {what}s before this line"
+                                "line {line_no}: face {shown:?}: {what} index {i} is out of range, the file has {total} {plural} before this line"
                             )
                         })
                     };
-                    if let Some(e) = check(v, vertices, "vertex") {
+                    if let Some(e) = check(v, vertices, "vertex", "vertices") {
                         return Some(e);
                     }
                     if let Some(n) = parts.nth(1).filter(|s| !s.is_empty())
-                        && let Some(e) = check(n, normals, "normal")
+                        && let Some(e) = check(n, normals, "normal", "normals")
                     {
                         return Some(e);
                     }
@@ -316,4 +317,120 @@ fn obj_diagnosis(bytes: &[u8]) -> Option<String> {
         }
     }
     None
+}
+
+/// glTF 2.0 (`.gltf` with external `.bin` buffers, or `.glb`): every
+/// triangle primitive of the default scene (or the first), with its node
+/// transforms applied. Buffers are read here, through the bounded read;
+/// `data:` URIs are not supported.
+pub fn read_gltf(bytes: &[u8], dir: Option<&Path>) -> Result<RawMesh, String> {
+    use glam::{DMat3, DMat4};
+    // gltf-json's validation can panic on some malformed documents (found
+    // by the mutation test): caught and reported as a refusal.
+    let g = std::panic::catch_unwind(|| gltf::Gltf::from_slice(bytes))
+        .map_err(|_| "not a valid glTF file (its validation failed)".to_string())?
+        .map_err(|e| format!("not a valid glTF file: {e}"))?;
+    let mut buffers: Vec<Vec<u8>> = Vec::new();
+    for b in g.buffers() {
+        let data = match b.source() {
+            gltf::buffer::Source::Bin => g.blob.clone().ok_or_else(|| {
+                format!(
+                    "buffer {} is the GLB binary chunk, which is missing",
+                    b.index()
+                )
+            })?,
+            gltf::buffer::Source::Uri(uri) if uri.starts_with("data:") => {
+                return Err(format!(
+                    "buffer {}: embedded data: URIs are not supported, expected a .glb or an external .bin",
+                    b.index()
+                ));
+            }
+            gltf::buffer::Source::Uri(uri) => {
+                let path = dir.map_or_else(|| PathBuf::from(uri), |d| d.join(uri));
+                read_bounded(&path, limits::MAX_MESH_FILE_BYTES)
+                    .map_err(|e| format!("buffer {} ({uri}): {e}", b.index()))?
+            }
+        };
+        if data.len() < b.length() {
+            return Err(format!(
+                "buffer {}: {} bytes, the file claims {}",
+                b.index(),
+                data.len(),
+                b.length()
+            ));
+        }
+        buffers.push(data);
+    }
+    let scene = g
+        .default_scene()
+        .or_else(|| g.scenes().next())
+        .ok_or("the file has no scene")?;
+    let mut raw = RawMesh::default();
+    let mut all_normals = true;
+    let mut stack: Vec<(gltf::Node, DMat4, usize)> =
+        scene.nodes().map(|n| (n, DMat4::IDENTITY, 0)).collect();
+    let mut visited = 0usize;
+    while let Some((node, parent, depth)) = stack.pop() {
+        visited += 1;
+        if depth > 256 || visited > 1_000_000 {
+            return Err("the node hierarchy is too deep or cyclic".into());
+        }
+        let local = DMat4::from_cols_array_2d(&node.transform().matrix().map(|c| c.map(f64::from)));
+        let m = parent * local;
+        let normal_m = DMat3::from_mat4(m).inverse().transpose();
+        if let Some(mesh) = node.mesh() {
+            for prim in mesh.primitives() {
+                let what = format!("mesh {} primitive {}", mesh.index(), prim.index());
+                if prim.mode() != gltf::mesh::Mode::Triangles {
+                    continue;
+                }
+                let read = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                    let reader = prim.reader(|b| buffers.get(b.index()).map(|v| &v[..]));
+                    let pos: Option<Vec<[f32; 3]>> = reader.read_positions().map(|p| p.collect());
+                    let nor: Option<Vec<[f32; 3]>> = reader.read_normals().map(|p| p.collect());
+                    let idx: Option<Vec<u32>> =
+                        reader.read_indices().map(|i| i.into_u32().collect());
+                    (pos, nor, idx)
+                }))
+                .map_err(|_| format!("{what}: an accessor reaches beyond its buffer"))?;
+                let (Some(pos), nor, idx) = read else {
+                    return Err(format!("{what}: no POSITION attribute"));
+                };
+                let base = raw.positions.len();
+                let n = pos.len();
+                for (k, p) in pos.iter().enumerate() {
+                    let v = m.transform_point3(DVec3::from(p.map(f64::from)));
+                    if !v.is_finite() {
+                        return Err(format!("{what}: vertex {k} is not finite"));
+                    }
+                    raw.positions.push(v);
+                }
+                match &nor {
+                    Some(nor) if nor.len() == n => raw
+                        .normals
+                        .extend(nor.iter().map(|q| normal_m * DVec3::from(q.map(f64::from)))),
+                    _ => all_normals = false,
+                }
+                let idx = idx.unwrap_or_else(|| (0..n as u32).collect());
+                if let Some(bad) = idx.iter().find(|&&i| i as usize >= n) {
+                    return Err(format!(
+                        "{what}: vertex index {bad} is out of range, the primitive has {n} vertices"
+                    ));
+                }
+                for f in idx.chunks_exact(3) {
+                    let b = base as u32;
+                    raw.faces.push([f[0] + b, f[1] + b, f[2] + b]);
+                }
+            }
+        }
+        for child in node.children() {
+            stack.push((child, m, depth + 1));
+        }
+    }
+    if all_normals && !raw.faces.is_empty() && raw.normals.len() == raw.positions.len() {
+        raw.face_normals = Some(raw.faces.clone());
+    } else {
+        raw.normals.clear();
+    }
+    Ok(raw)
 }

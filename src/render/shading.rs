@@ -117,12 +117,7 @@ pub fn light_terms(
         return LightTerms::default();
     }
 
-    // A fixed pattern (the grid) is the same at every hit point: fill once.
-    let key = (pattern.sampling, pattern.shadow_rays);
-    if !(pattern.is_fixed() && buf.filled == Some(key)) {
-        pattern.fill(rng, &mut buf.a, &mut buf.b);
-        buf.filled = pattern.is_fixed().then_some(key);
-    }
+    fill_light_points(pattern, rng, buf);
     let query = ShadowQuery {
         point: sp.shadow_point,
         normal: sp.geometric,
@@ -176,6 +171,17 @@ pub fn light_terms(
     LightTerms { diffuse, specular }
 }
 
+/// Draws a hit point's light points into `buf.a`/`buf.b`. A fixed pattern
+/// (the grid) is the same at every hit point: it is filled once.
+#[inline]
+fn fill_light_points(pattern: &Pattern, rng: &mut Rng, buf: &mut ShadowBuffers) {
+    let key = (pattern.sampling, pattern.shadow_rays);
+    if !(pattern.is_fixed() && buf.filled == Some(key)) {
+        pattern.fill(rng, &mut buf.a, &mut buf.b);
+        buf.filled = pattern.is_fixed().then_some(key);
+    }
+}
+
 /// Share of the first `count` light points that are visible.
 #[inline]
 pub fn visible_fraction(buf: &ShadowBuffers, count: usize) -> f32 {
@@ -205,11 +211,7 @@ pub fn sampled_specular_again(
         // Every term of the average is 0 × a finite factor.
         return 0.0;
     }
-    let key = (pattern.sampling, pattern.shadow_rays);
-    if !(pattern.is_fixed() && buf.filled == Some(key)) {
-        pattern.fill(rng, &mut buf.a, &mut buf.b);
-        buf.filled = pattern.is_fixed().then_some(key);
-    }
+    fill_light_points(pattern, rng, buf);
     let light = &scene.light.shape;
     shadow::light_directions(
         to_corner,

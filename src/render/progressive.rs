@@ -255,62 +255,34 @@ pub(crate) fn render_passes(
         let tracer = Tracer::new(scene, settings, shading, pass.shadow_rays);
         let record = budget.filter(|_| pass_index + 1 == plan.len());
         let shininess = shininess_of(shading);
-        let next = AtomicUsize::new(0);
-        let done = AtomicUsize::new(0);
-        let stats = Mutex::new(RayStats::default());
-        rayon::broadcast(|_| {
-            let mut scratch = tracer.scratch();
-            let mut pixels = Vec::with_capacity((tile_size * tile_size) as usize);
-            loop {
-                let i = next.fetch_add(1, Ordering::Relaxed);
-                if i >= tiles.len() || cancel.is_cancelled() {
-                    break;
-                }
-                let rect = tiles[i];
-                let traced_before = scratch.stats.traced();
-                if let Some(budget) = record {
-                    let mut rec = TileRecord::new(
-                        rect,
-                        tracer.pattern.count(),
-                        budget.shapes_allowed(),
-                        shininess.clone(),
-                    );
-                    if !render_tile_recorded(
-                        &tracer,
-                        rect,
-                        cancel,
-                        &mut scratch,
-                        &mut pixels,
-                        &mut rec,
-                    ) {
-                        break;
-                    }
-                    rec.shrink();
-                    budget.add(&rec);
-                    lock(&records)[i] = Some(rec);
-                } else if !render_tile(&tracer, rect, pass.block, cancel, &mut scratch, &mut pixels)
-                {
-                    break;
-                }
-                lock(&film).write_block(rect.x, rect.y, rect.w, &pixels);
-                let tiles_done = done.fetch_add(1, Ordering::Relaxed) + 1;
-                on_tile(&TileUpdate {
-                    pass_index,
-                    pass_count: plan.len(),
-                    pass,
-                    rect,
-                    pixels: &pixels,
-                    tiles_done,
-                    tiles_total: tiles.len(),
-                    rays: scratch.stats.traced() - traced_before,
-                });
+        let job = TileJob {
+            tiles: &tiles,
+            film: &film,
+            cancel,
+            on_tile,
+            pass,
+            pass_index,
+            pass_count: plan.len(),
+        };
+        let stats = job.run(&tracer, |i, rect, scratch, pixels| {
+            let Some(budget) = record else {
+                return render_tile(&tracer, rect, pass.block, cancel, scratch, pixels);
+            };
+            let mut rec = TileRecord::new(
+                rect,
+                tracer.pattern.count(),
+                budget.shapes_allowed(),
+                shininess.clone(),
+            );
+            if !render_tile_recorded(&tracer, rect, cancel, scratch, pixels, &mut rec) {
+                return false;
             }
-            *lock(&stats) += scratch.stats;
-        });
-        if cancel.is_cancelled() {
-            return Err(Cancelled);
-        }
-        last = stats.into_inner().unwrap_or_else(|e| e.into_inner());
+            rec.shrink();
+            budget.add(&rec);
+            lock(&records)[i] = Some(rec);
+            true
+        })?;
+        last = stats;
         total += last;
     }
     let records = records
@@ -328,6 +300,66 @@ pub(crate) fn render_passes(
         },
         records,
     ))
+}
+
+/// One pass of tiles over the image: rayon's threads take tiles from a
+/// shared counter (in the order of `tiles`), each tile's pixels go into the
+/// film and to `on_tile`. The loop of every pass, and of the live re-shade.
+pub(crate) struct TileJob<'a> {
+    pub tiles: &'a [TileRect],
+    pub film: &'a Mutex<Film>,
+    pub cancel: &'a CancelToken,
+    pub on_tile: &'a (dyn Fn(&TileUpdate) + Sync),
+    pub pass: Pass,
+    pub pass_index: usize,
+    pub pass_count: usize,
+}
+
+impl TileJob<'_> {
+    /// Runs `work(index, rect, scratch, pixels)` for every tile on every
+    /// thread of the current pool; `work` fills `pixels` (the tile's rows)
+    /// and returns false if cancelled part-way. Returns the rays traced.
+    pub(crate) fn run(
+        &self,
+        tracer: &Tracer,
+        work: impl Fn(usize, TileRect, &mut TraceScratch, &mut Vec<Vec3>) -> bool + Sync,
+    ) -> Result<RayStats, Cancelled> {
+        let next = AtomicUsize::new(0);
+        let done = AtomicUsize::new(0);
+        let stats = Mutex::new(RayStats::default());
+        rayon::broadcast(|_| {
+            let mut scratch = tracer.scratch();
+            let mut pixels = Vec::new();
+            loop {
+                let i = next.fetch_add(1, Ordering::Relaxed);
+                if i >= self.tiles.len() || self.cancel.is_cancelled() {
+                    break;
+                }
+                let rect = self.tiles[i];
+                let traced_before = scratch.stats.traced();
+                if !work(i, rect, &mut scratch, &mut pixels) {
+                    break;
+                }
+                lock(self.film).write_block(rect.x, rect.y, rect.w, &pixels);
+                let tiles_done = done.fetch_add(1, Ordering::Relaxed) + 1;
+                (self.on_tile)(&TileUpdate {
+                    pass_index: self.pass_index,
+                    pass_count: self.pass_count,
+                    pass: self.pass,
+                    rect,
+                    pixels: &pixels,
+                    tiles_done,
+                    tiles_total: self.tiles.len(),
+                    rays: scratch.stats.traced() - traced_before,
+                });
+            }
+            *lock(&stats) += scratch.stats;
+        });
+        if self.cancel.is_cancelled() {
+            return Err(Cancelled);
+        }
+        Ok(stats.into_inner().unwrap_or_else(|e| e.into_inner()))
+    }
 }
 
 /// Locks a mutex, through a panic of another holder (the data is pixels).

@@ -29,8 +29,8 @@ use record::{Budget, TileRecord, TileRecorder, shininess_of};
 use super::error::SceneError;
 use super::film::Film;
 use super::progressive::{
-    CancelToken, Cancelled, Pass, RenderOptions, TileUpdate, in_pool, lock, pass_plan,
-    render_passes,
+    CancelToken, Cancelled, Pass, RenderOptions, TileJob, TileRect, TileUpdate, in_pool, lock,
+    pass_plan, render_passes,
 };
 use super::rng::Rng;
 use super::scene::{Loaded, Scene};
@@ -281,67 +281,43 @@ impl LiveRender {
         let scene = current.scene.clone();
         let (width, height) = (scene.camera.width, scene.camera.height);
         let film = Mutex::new(Film::new(width, height));
-        let stats = Mutex::new(RayStats::default());
         let retraced = AtomicUsize::new(0);
-        let next = AtomicUsize::new(0);
-        let done = AtomicUsize::new(0);
         let tracer = Tracer::new(&scene, &settings, &shading, settings.shadow_rays);
-        let tiles = &frame.tiles;
-        let pass = Pass {
-            shadow_rays: settings.shadow_rays,
-            block: 1,
+        let records = &frame.tiles;
+        let rects: Vec<TileRect> = records.iter().map(|t| lock(t).rect).collect();
+        let job = TileJob {
+            tiles: &rects,
+            film: &film,
+            cancel,
+            on_tile,
+            pass: Pass {
+                shadow_rays: settings.shadow_rays,
+                block: 1,
+            },
+            pass_index: 0,
+            pass_count: 1,
         };
-        let run = || {
-            rayon::broadcast(|_| {
-                let mut scratch = tracer.scratch();
-                let mut pixels = Vec::new();
-                loop {
-                    let i = next.fetch_add(1, Ordering::Relaxed);
-                    if i >= tiles.len() || cancel.is_cancelled() {
-                        break;
-                    }
-                    let mut record = lock(&tiles[i]);
-                    let traced_before = scratch.stats.traced();
-                    if record.shininess != shininess {
-                        respecular_tile(
-                            &scene,
-                            &tracer,
-                            &shininess,
-                            &mut record,
-                            &mut scratch.shadow,
-                        );
-                    }
-                    let n = replay_tile(&tracer, &mut record, &mut scratch, &mut pixels);
-                    retraced.fetch_add(n, Ordering::Relaxed);
-                    let rect = record.rect;
-                    drop(record);
-                    lock(&film).write_block(rect.x, rect.y, rect.w, &pixels);
-                    let tiles_done = done.fetch_add(1, Ordering::Relaxed) + 1;
-                    on_tile(&TileUpdate {
-                        pass_index: 0,
-                        pass_count: 1,
-                        pass,
-                        rect,
-                        pixels: &pixels,
-                        tiles_done,
-                        tiles_total: tiles.len(),
-                        rays: scratch.stats.traced() - traced_before,
-                    });
+        let result = in_pool(options.threads, || {
+            job.run(&tracer, |i, _, scratch, pixels| {
+                let mut record = lock(&records[i]);
+                if record.shininess != shininess {
+                    respecular_tile(
+                        &scene,
+                        &tracer,
+                        &shininess,
+                        &mut record,
+                        &mut scratch.shadow,
+                    );
                 }
-                *lock(&stats) += scratch.stats;
-            });
-            if cancel.is_cancelled() {
-                Err(Cancelled)
-            } else {
-                Ok(())
-            }
-        };
-        let result = in_pool(options.threads, run);
+                let n = replay_tile(&tracer, &mut record, scratch, pixels);
+                retraced.fetch_add(n, Ordering::Relaxed);
+                true
+            })
+        });
         let film = film.into_inner().unwrap_or_else(|e| e.into_inner());
-        let stats = stats.into_inner().unwrap_or_else(|e| e.into_inner());
         // Cancelled: every tile is consistent on its own (it knows the
         // shininess of its factors), so the records stay.
-        result?;
+        let stats = result?;
         current.desc = desc.clone();
         current.settings = settings;
         current.shading = shading;

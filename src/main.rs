@@ -10,6 +10,7 @@ fn main() {
         Command::View(args) => penumbra::app::run(&args).map_err(CliError::input),
         Command::Render(args) => cli::render(&args),
         Command::Compare(args) => cli::compare(&args),
+        Command::Merge(args) => cli::merge(&args),
         Command::Bench(args) => cli::bench(&args),
     };
     if let Err(e) = result {

@@ -4,6 +4,7 @@
 
 pub mod bench;
 mod compare_cmd;
+mod merge_cmd;
 mod render_cmd;
 pub mod safety;
 
@@ -13,9 +14,10 @@ use clap::{Args, Parser, Subcommand};
 
 pub use bench::{BenchArgs, bench};
 pub use compare_cmd::compare;
+pub use merge_cmd::merge;
 pub use render_cmd::{load_desc, load_scene, render};
 
-use crate::render::{AreaLightModel, FilterKind, Sampling};
+use crate::render::{AreaLightModel, FilterKind, Sampling, TileRect};
 
 #[derive(Debug, Parser)]
 #[command(
@@ -41,6 +43,8 @@ pub enum Command {
     Render(RenderArgs),
     /// Compare two images (PNG or EXR): RMSE, PSNR, largest difference.
     Compare(CompareArgs),
+    /// Stitch the parts of `render --region` into the whole image.
+    Merge(MergeArgs),
     /// Run time against error: sweep sampling patterns, shadow-ray counts
     /// and area-light models against a converged reference.
     Bench(BenchArgs),
@@ -170,6 +174,26 @@ pub struct RenderArgs {
     /// viewer does; the image is the same.
     #[arg(long)]
     pub progressive: bool,
+    /// Render only the crop window X,Y,W,H (pixels from the top-left) into
+    /// an EXR that records its place in the whole image; `penumbra merge`
+    /// stitches such parts into the image a whole render gives.
+    #[arg(long, value_name = "X,Y,W,H", value_parser = parse_region, conflicts_with = "progressive")]
+    pub region: Option<TileRect>,
+}
+
+/// `penumbra merge`'s arguments.
+#[derive(Debug, Args)]
+pub struct MergeArgs {
+    /// Parts written by `penumbra render --region`.
+    #[arg(required = true)]
+    pub parts: Vec<PathBuf>,
+    /// The whole image: .png (sRGB 8-bit) or .exr (linear f32).
+    #[arg(short, long)]
+    pub output: PathBuf,
+}
+
+fn parse_region(s: &str) -> Result<TileRect, String> {
+    crate::render::region::parse_region(s)
 }
 
 #[derive(Debug, Args)]

@@ -6,8 +6,9 @@ use indicatif::{ProgressBar, ProgressStyle};
 
 use super::{CliError, RenderArgs, SceneOverrides};
 use crate::render::output::{FileKind, write_film, writes_interrupted};
+use crate::render::region::{Part, check_region, fingerprint, write_part};
 use crate::render::{
-    CancelToken, Loaded, RenderOptions, RenderReport, Scene, SceneDesc, TileUpdate,
+    CancelToken, Loaded, RenderOptions, RenderReport, Scene, SceneDesc, TileRect, TileUpdate,
 };
 
 /// Loads and builds a scene (the built-in seed room for `None`) with
@@ -120,9 +121,19 @@ pub fn render(args: &RenderArgs) -> Result<(), CliError> {
     if let Some(scene) = &args.scene {
         super::safety::refuse_overwriting_inputs(&args.output, "output", &[("scene", scene)])?;
     }
+    if args.region.is_some() && FileKind::of(&args.output).ok() != Some(FileKind::Exr) {
+        return Err(CliError::input(format!(
+            "{}: --region writes an OpenEXR part (.exr): only it records where the region sits",
+            args.output.display()
+        )));
+    }
     let mut loaded = load_scene(args.scene.as_deref(), &args.overrides)?;
     loaded.settings.skip = !args.no_skip;
     let scene = loaded.scene.clone();
+    if let Some(region) = args.region {
+        check_region(region, scene.camera.width, scene.camera.height)
+            .map_err(|e| CliError::input(format!("--region: {e}")))?;
+    }
     let loading = start.elapsed();
     // Ctrl+C, SIGTERM and SIGHUP stop the render, or the write; no file is
     // written and an existing one is untouched. Installed after loading: a
@@ -136,13 +147,15 @@ pub fn render(args: &RenderArgs) -> Result<(), CliError> {
         progressive: args.progressive,
         ..RenderOptions::default()
     };
+    let whole = TileRect {
+        x: 0,
+        y: 0,
+        w: scene.camera.width,
+        h: scene.camera.height,
+    };
     let bar = std::io::stderr().is_terminal().then(|| {
-        let tiles = crate::render::progressive::tiles(
-            scene.camera.width,
-            scene.camera.height,
-            options.tile_size,
-        )
-        .len();
+        let area = args.region.unwrap_or(whole);
+        let tiles = crate::render::progressive::tiles_of(area, options.tile_size).len();
         let bar = ProgressBar::new(tiles as u64);
         bar.set_style(
             ProgressStyle::with_template("{spinner} {msg} [{bar:40}] {pos}/{len} tiles, {elapsed}")
@@ -160,7 +173,10 @@ pub fn render(args: &RenderArgs) -> Result<(), CliError> {
             bar.inc(1);
         }
     };
-    let report = loaded.render(&options, &cancel, &on_tile);
+    let report = match args.region {
+        Some(region) => loaded.render_region(region, &options, &cancel, &on_tile),
+        None => loaded.render(&options, &cancel, &on_tile),
+    };
     if let Some(bar) = &bar {
         bar.finish_and_clear();
     }
@@ -168,17 +184,32 @@ pub fn render(args: &RenderArgs) -> Result<(), CliError> {
     if cancel.is_cancelled() {
         return Err(CliError::other("interrupted: no image written"));
     }
-    write_film(&report.film, &args.output).map_err(|e| {
+    let written = match args.region {
+        Some(region) => {
+            let desc = load_desc(args.scene.as_deref(), &args.overrides)?;
+            let part = Part {
+                region,
+                full: (whole.w, whole.h),
+                scene: fingerprint(&desc, &loaded.settings),
+                version: env!("CARGO_PKG_VERSION").to_string(),
+                film: report.film.clone(),
+            };
+            write_part(&part, &args.output)
+        }
+        None => write_film(&report.film, &args.output),
+    };
+    written.map_err(|e| {
         if writes_interrupted() {
             CliError::other("interrupted: no image written")
         } else {
             CliError::other(e)
         }
     })?;
-    eprintln!(
-        "{}",
-        summary(&scene, &report, options.threads, loading, start.elapsed())
-    );
+    let line = summary(&scene, &report, options.threads, loading, start.elapsed());
+    match args.region {
+        Some(r) => eprintln!("region {},{},{},{} of {line}", r.x, r.y, r.w, r.h),
+        None => eprintln!("{line}"),
+    }
     Ok(())
 }
 

@@ -15,6 +15,7 @@ pub mod geometry;
 pub mod mesh;
 mod mesh_ply;
 pub mod output;
+pub mod region;
 pub mod scene_file;
 
 // Internals that the benchmarks and white-box tests reach into; not part of
@@ -54,7 +55,7 @@ pub use live::{EditClass, LiveError, LiveRender, LiveReport, classify};
 pub use pixel_filter::FilterKind;
 pub use progressive::{
     CancelToken, Cancelled, Pass, RenderOptions, RenderReport, TileRect, TileUpdate, pass_plan,
-    render, render_image,
+    render, render_image, render_region,
 };
 pub use reference::{REFERENCE_RAYS, REFERENCE_SAMPLING, REFERENCE_SEED, reference_desc};
 pub use scene::{HitTarget, Loaded, PACKET_THRESHOLD, SEED_ROOM_JSON, Scene};

@@ -147,20 +147,22 @@ pub struct RenderReport {
     pub elapsed: Duration,
 }
 
-/// Tiles of the image, nearest the centre first.
-pub fn tiles(width: u32, height: u32, size: u32) -> Vec<TileRect> {
+/// Tiles of a rectangle of the image, nearest its centre first.
+pub fn tiles_of(area: TileRect, size: u32) -> Vec<TileRect> {
     let mut tiles = Vec::new();
-    for y in (0..height).step_by(size as usize) {
-        for x in (0..width).step_by(size as usize) {
+    let (x_end, y_end) = (area.x + area.w, area.y + area.h);
+    for y in (area.y..y_end).step_by(size as usize) {
+        for x in (area.x..x_end).step_by(size as usize) {
             tiles.push(TileRect {
                 x,
                 y,
-                w: size.min(width - x),
-                h: size.min(height - y),
+                w: size.min(x_end - x),
+                h: size.min(y_end - y),
             });
         }
     }
-    let (cx, cy) = (width as f64 / 2.0, height as f64 / 2.0);
+    let cx = area.x as f64 + area.w as f64 / 2.0;
+    let cy = area.y as f64 + area.h as f64 / 2.0;
     tiles.sort_by(|a, b| {
         let d = |t: &TileRect| {
             let dx = t.x as f64 + t.w as f64 / 2.0 - cx;
@@ -204,9 +206,40 @@ pub fn render(
             block: 1,
         }]
     };
+    let whole = TileRect {
+        x: 0,
+        y: 0,
+        w: scene.camera.width,
+        h: scene.camera.height,
+    };
     in_pool(options.threads, || {
         render_passes(
-            scene, settings, shading, &plan, options, cancel, on_tile, None,
+            scene, settings, shading, &plan, whole, options, cancel, on_tile, None,
+        )
+        .map(|(report, _)| report)
+    })
+}
+
+/// Renders one rectangle of the image (a crop window; one pass): the film
+/// is `region`'s size and each of its pixels is the one a render of the
+/// whole image has there, bit for bit, since a pixel's random numbers are
+/// keyed by its position in the whole image.
+pub fn render_region(
+    scene: &Scene,
+    settings: &RenderSettings,
+    shading: &ShadingParams,
+    region: TileRect,
+    options: &RenderOptions,
+    cancel: &CancelToken,
+    on_tile: &(dyn Fn(&TileUpdate) + Sync),
+) -> Result<RenderReport, Cancelled> {
+    let plan = [Pass {
+        shadow_rays: settings.shadow_rays,
+        block: 1,
+    }];
+    in_pool(options.threads, || {
+        render_passes(
+            scene, settings, shading, &plan, region, options, cancel, on_tile, None,
         )
         .map(|(report, _)| report)
     })
@@ -230,24 +263,24 @@ pub(crate) fn in_pool<T: Send>(
     }
 }
 
-/// The passes of `plan`; with `budget`, the final pass also records every
-/// pixel's path (one record per tile, in the order of [`tiles`]).
+/// The passes of `plan` over `area` of the image (the film is `area`'s
+/// size); with `budget`, the final pass also records every pixel's path
+/// (one record per tile, in the order of [`tiles_of`]).
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn render_passes(
     scene: &Scene,
     settings: &RenderSettings,
     shading: &ShadingParams,
     plan: &[Pass],
+    area: TileRect,
     options: &RenderOptions,
     cancel: &CancelToken,
     on_tile: &(dyn Fn(&TileUpdate) + Sync),
     budget: Option<&Budget>,
 ) -> Result<(RenderReport, Vec<TileRecord>), Cancelled> {
     let start = Instant::now();
-    let (width, height) = (scene.camera.width, scene.camera.height);
-    let tile_size = tile_side(options);
-    let tiles = tiles(width, height, tile_size);
-    let film = Mutex::new(Film::new(width, height));
+    let tiles = tiles_of(area, tile_side(options));
+    let film = Mutex::new(Film::new(area.w, area.h));
     let records: Mutex<Vec<Option<TileRecord>>> = Mutex::new(vec![None; tiles.len()]);
     let mut total = RayStats::default();
     let mut last = RayStats::default();
@@ -258,6 +291,7 @@ pub(crate) fn render_passes(
         let job = TileJob {
             tiles: &tiles,
             film: &film,
+            origin: (area.x, area.y),
             cancel,
             on_tile,
             pass,
@@ -308,6 +342,8 @@ pub(crate) fn render_passes(
 pub(crate) struct TileJob<'a> {
     pub tiles: &'a [TileRect],
     pub film: &'a Mutex<Film>,
+    /// Where the film's top-left pixel is in the image.
+    pub origin: (u32, u32),
     pub cancel: &'a CancelToken,
     pub on_tile: &'a (dyn Fn(&TileUpdate) + Sync),
     pub pass: Pass,
@@ -340,7 +376,8 @@ impl TileJob<'_> {
                 if !work(i, rect, &mut scratch, &mut pixels) {
                     break;
                 }
-                lock(self.film).write_block(rect.x, rect.y, rect.w, &pixels);
+                let (x, y) = (rect.x - self.origin.0, rect.y - self.origin.1);
+                lock(self.film).write_block(x, y, rect.w, &pixels);
                 let tiles_done = done.fetch_add(1, Ordering::Relaxed) + 1;
                 (self.on_tile)(&TileUpdate {
                     pass_index: self.pass_index,

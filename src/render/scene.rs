@@ -387,6 +387,26 @@ impl Loaded {
         )
     }
 
+    /// Renders one rectangle of its image (see
+    /// [`progressive::render_region`]).
+    pub fn render_region(
+        &self,
+        region: progressive::TileRect,
+        options: &RenderOptions,
+        cancel: &CancelToken,
+        on_tile: &(dyn Fn(&TileUpdate) + Sync),
+    ) -> Result<RenderReport, Cancelled> {
+        progressive::render_region(
+            &self.scene,
+            &self.settings,
+            &self.shading,
+            region,
+            options,
+            cancel,
+            on_tile,
+        )
+    }
+
     /// Renders it in one pass on all threads.
     pub fn render_image(&self) -> Film {
         progressive::render_image(&self.scene, &self.settings, &self.shading)

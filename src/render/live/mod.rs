@@ -226,6 +226,12 @@ impl LiveRender {
                 &settings,
                 &shading,
                 &plan,
+                TileRect {
+                    x: 0,
+                    y: 0,
+                    w: scene.camera.width,
+                    h: scene.camera.height,
+                },
                 options,
                 cancel,
                 on_tile,
@@ -288,6 +294,7 @@ impl LiveRender {
         let job = TileJob {
             tiles: &rects,
             film: &film,
+            origin: (0, 0),
             cancel,
             on_tile,
             pass: Pass {

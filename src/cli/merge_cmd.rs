@@ -1,0 +1,35 @@
+//! `penumbra merge`: the parts of `render --region` stitched into the whole
+//! image.
+
+use super::{CliError, MergeArgs};
+use crate::render::output::{FileKind, write_film};
+use crate::render::region::{merge as merge_parts, read_part};
+
+/// `penumbra merge`.
+pub fn merge(args: &MergeArgs) -> Result<(), CliError> {
+    super::safety::remove_temp_files_on_signals();
+    FileKind::of(&args.output).map_err(CliError::input)?;
+    let inputs: Vec<(&str, &std::path::Path)> =
+        args.parts.iter().map(|p| ("part", p.as_path())).collect();
+    super::safety::refuse_overwriting_inputs(&args.output, "output", &inputs)?;
+    let mut parts = Vec::with_capacity(args.parts.len());
+    for path in &args.parts {
+        let part = read_part(path).map_err(CliError::input)?;
+        if let Some((count, (x, y))) = part.film.non_finite() {
+            return Err(CliError::input(format!(
+                "{}: {count} pixels are NaN or infinite, the first at ({x}, {y}) of the part",
+                path.display()
+            )));
+        }
+        parts.push((path.clone(), part));
+    }
+    let film = merge_parts(&parts).map_err(CliError::input)?;
+    write_film(&film, &args.output).map_err(CliError::other)?;
+    eprintln!(
+        "{}×{} from {} parts",
+        film.width,
+        film.height,
+        parts.len()
+    );
+    Ok(())
+}

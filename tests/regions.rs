@@ -1,0 +1,208 @@
+//! Crop windows: `render --region` parts merged by `penumbra merge` equal a
+//! one-shot render bit for bit; bad sets of parts are refused.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+use std::process::Output;
+
+use common::penumbra;
+use penumbra::render::output::read_film;
+use penumbra::render::region::{read_part, write_part};
+
+fn scratch_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!(
+        "penumbra-regions-{name}-{}",
+        std::process::id()
+    ));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+const SCENE: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/seed-room.json");
+
+/// The same settings for the whole image and every part: an odd size,
+/// anti-aliasing (its filter reaches across part borders), reflections and
+/// random shadow rays.
+fn render_args<'a>(out: &'a str, extra: &[&'a str]) -> Vec<&'a str> {
+    let mut args = vec![
+        "render",
+        SCENE,
+        "-o",
+        out,
+        "--width",
+        "161",
+        "--height",
+        "97",
+        "--shadow-rays",
+        "9",
+        "--sampling",
+        "random",
+        "--spp",
+        "2",
+        "--depth",
+        "3",
+    ];
+    args.extend_from_slice(extra);
+    args
+}
+
+fn render_part(dir: &Path, name: &str, region: &str, extra: &[&str]) -> PathBuf {
+    let out = dir.join(name);
+    let out_s = out.to_str().unwrap().to_string();
+    let mut extra = extra.to_vec();
+    extra.extend_from_slice(&["--region", region]);
+    let o = penumbra(&render_args(&out_s, &extra));
+    assert!(o.status.success(), "{region}: {}", stderr(&o));
+    assert!(stderr(&o).starts_with(&format!("region {region} of 161×97")));
+    out
+}
+
+fn merge(parts: &[PathBuf], out: &Path) -> Output {
+    let mut args = vec!["merge".to_string()];
+    args.extend(parts.iter().map(|p| p.to_str().unwrap().to_string()));
+    args.extend(["-o".to_string(), out.to_str().unwrap().to_string()]);
+    let refs: Vec<&str> = args.iter().map(String::as_str).collect();
+    penumbra(&refs)
+}
+
+#[test]
+fn seven_uneven_regions_merge_into_the_one_shot_image() {
+    let dir = scratch_dir("seven");
+    let whole = dir.join("whole.exr");
+    let o = penumbra(&render_args(whole.to_str().unwrap(), &[]));
+    assert!(o.status.success(), "{}", stderr(&o));
+    // Uneven, not tile-aligned, one of them overlapping two others (same
+    // pixels, so the overlap agrees), one rendered with skipping off and
+    // one on a single thread.
+    let regions: [(&str, &[&str]); 7] = [
+        ("0,0,161,13", &[]),
+        ("0,13,50,40", &["--threads", "1"]),
+        ("50,13,111,21", &[]),
+        ("50,34,111,19", &["--no-skip"]),
+        ("0,53,7,44", &[]),
+        ("7,53,154,44", &[]),
+        ("40,30,20,30", &[]),
+    ];
+    let parts: Vec<PathBuf> = regions
+        .iter()
+        .enumerate()
+        .map(|(i, (r, extra))| render_part(&dir, &format!("part{i}.exr"), r, extra))
+        .collect();
+    let part = read_part(&parts[1]).unwrap();
+    assert_eq!(part.full, (161, 97));
+    assert_eq!(
+        (part.region.x, part.region.y, part.region.w, part.region.h),
+        (0, 13, 50, 40)
+    );
+    let merged = dir.join("merged.exr");
+    let o = merge(&parts, &merged);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let (a, b) = (read_film(&whole).unwrap(), read_film(&merged).unwrap());
+    assert_eq!((a.width, a.height), (b.width, b.height));
+    let differing = a
+        .pixels
+        .iter()
+        .zip(&b.pixels)
+        .filter(|(p, q)| p.to_array().map(f32::to_bits) != q.to_array().map(f32::to_bits))
+        .count();
+    assert_eq!(differing, 0, "merged pixels equal the one-shot render's");
+    // A part's pixels are the whole image's at its place.
+    assert_eq!(part.film.get(3, 5), a.get(3, 13 + 5));
+
+    // PNG output of the merge equals the PNG of the whole render.
+    let merged_png = dir.join("merged.png");
+    let whole_png = dir.join("whole.png");
+    assert!(merge(&parts, &merged_png).status.success());
+    assert!(
+        penumbra(&render_args(whole_png.to_str().unwrap(), &[]))
+            .status
+            .success()
+    );
+    assert_eq!(
+        image::open(&merged_png).unwrap().to_rgb8().into_raw(),
+        image::open(&whole_png).unwrap().to_rgb8().into_raw()
+    );
+}
+
+#[test]
+fn gaps_foreign_parts_and_disagreeing_overlaps_are_refused() {
+    let dir = scratch_dir("refused");
+    let top = render_part(&dir, "top.exr", "0,0,161,50", &[]);
+    let bottom = render_part(&dir, "bottom.exr", "0,50,161,47", &[]);
+    let out = dir.join("out.exr");
+
+    // A gap: the bottom rows are missing.
+    let o = merge(std::slice::from_ref(&top), &out);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        stderr(&o).contains("a gap: 7567 pixels of the 161×97 image are in no part, the first at (0, 50)"),
+        "{}",
+        stderr(&o)
+    );
+
+    // Another scene (another seed) is refused by name.
+    let foreign = render_part(&dir, "foreign.exr", "0,50,161,47", &["--seed", "7"]);
+    let o = merge(&[top.clone(), foreign.clone()], &out);
+    assert_eq!(o.status.code(), Some(2));
+    let msg = stderr(&o);
+    assert!(
+        msg.contains("foreign.exr is a part of another scene than") && msg.contains("top.exr"),
+        "{msg}"
+    );
+
+    // An overlap whose pixels differ (one value changed in the file).
+    let mut tampered = read_part(&bottom).unwrap();
+    tampered.region.y -= 1;
+    tampered.region.h += 1;
+    let w = tampered.film.width;
+    let mut pixels = vec![glam::Vec3::splat(0.25); w as usize];
+    pixels.extend_from_slice(&tampered.film.pixels);
+    tampered.film.pixels = pixels;
+    tampered.film.height += 1;
+    let tampered_path = dir.join("tampered.exr");
+    write_part(&tampered, &tampered_path).unwrap();
+    let o = merge(&[top.clone(), tampered_path], &out);
+    assert_eq!(o.status.code(), Some(2));
+    let msg = stderr(&o);
+    assert!(
+        msg.contains("overlap and disagree at pixel (0, 49)"),
+        "{msg}"
+    );
+
+    // An image that is not a part, and a part of another size.
+    let plain = dir.join("plain.exr");
+    assert!(
+        penumbra(&render_args(plain.to_str().unwrap(), &[]))
+            .status
+            .success()
+    );
+    let o = merge(&[top.clone(), plain], &out);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("not a region part"), "{}", stderr(&o));
+    assert!(!out.exists(), "nothing written after refusals");
+
+    // A PNG cannot be a part; a region past the image is refused.
+    let png = dir.join("part.png");
+    let o = penumbra(&render_args(png.to_str().unwrap(), &["--region", "0,0,8,8"]));
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("OpenEXR"), "{}", stderr(&o));
+    let o = penumbra(&render_args(
+        dir.join("far.exr").to_str().unwrap(),
+        &["--region", "150,0,12,8"],
+    ));
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        stderr(&o).contains("--region: the region 150,0,12,8 reaches past the 161×97 image"),
+        "{}",
+        stderr(&o)
+    );
+
+    // The good pair still merges.
+    let o = merge(&[top, bottom], &out);
+    assert!(o.status.success(), "{}", stderr(&o));
+}

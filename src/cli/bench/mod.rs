@@ -115,8 +115,9 @@ pub struct BenchArgs {
     /// steadier on a machine shared with other work).
     #[arg(long, value_enum, default_value_t = PlotTime::Wall)]
     pub plot_time: PlotTime,
-    /// Measure the speed targets of issue 4 (1920×1080 and 960×540 at 64
-    /// grid rays, depth 4; skip on against off; peak memory).
+    /// Measure the speed targets (960×540 at 1 shadow ray; 960×540 and
+    /// 1920×1080 at 64 grid rays; depth 4; shadow rays per core with
+    /// skipping off; peak memory), each with its goal and ratio.
     #[arg(long)]
     pub target: bool,
     /// Fit the slope of log RMSE against log shadow rays in penumbra

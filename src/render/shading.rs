@@ -274,15 +274,47 @@ fn sampled_terms_generic(
         term_d[j] = vis[j] * f;
     }
     let inv_count = 1.0 / count as f32;
-    let mut terms = SampledTerms {
-        diffuse: term_d[..count].iter().sum::<f32>() * inv_count,
-        unshadowed_diffuse: term_f[..count].iter().sum::<f32>() * inv_count,
-        specular: 0.0,
-    };
-    if need_s {
-        terms.specular = specular_average_generic(n, v, shininess, count, buf);
+    if !need_s {
+        let [d, f] = sequential_sums([&buf.term_d[..count], &buf.term_f[..count]]);
+        return SampledTerms {
+            diffuse: d * inv_count,
+            unshadowed_diffuse: f * inv_count,
+            specular: 0.0,
+        };
     }
-    terms
+    specular_terms(n, v, shininess, count, buf);
+    let [d, f, s] = sequential_sums([
+        &buf.term_d[..count],
+        &buf.term_f[..count],
+        &buf.term_s[..count],
+    ]);
+    SampledTerms {
+        diffuse: d * inv_count,
+        unshadowed_diffuse: f * inv_count,
+        specular: s * inv_count,
+    }
+}
+
+/// Each slice's sum, left to right from −0 (the order and start of
+/// `Iterator::sum`, so the same bits), all slices (of one length) in one
+/// loop: each sum is a chain of dependent additions, and interleaving the
+/// chains keeps the adder busy where one alone waits on each addition.
+#[inline(always)]
+fn sequential_sums<const K: usize>(slices: [&[f32]; K]) -> [f32; K] {
+    let len = slices[0].len();
+    let mut sums = [-0.0f32; K];
+    for j in 0..len {
+        for k in 0..K {
+            sums[k] += slices[k][j];
+        }
+    }
+    sums
+}
+
+/// A slice's sum, left to right from −0 (as `Iterator::sum`).
+#[inline(always)]
+fn sequential_sum(a: &[f32]) -> f32 {
+    a.iter().fold(-0.0f32, |s, x| s + x)
 }
 
 avx2_dispatch!(
@@ -302,6 +334,14 @@ fn specular_average_generic(
     count: usize,
     buf: &mut ShadowBuffers,
 ) -> f32 {
+    specular_terms(n, v, shininess, count, buf);
+    sequential_sum(&buf.term_s[..count]) * (1.0 / count as f32)
+}
+
+/// Fills `buf.term_s` with each light point's max(0, N·H)^shininess times
+/// its visibility (the padding included).
+#[inline(always)]
+fn specular_terms(n: Vec3, v: Vec3, shininess: f32, count: usize, buf: &mut ShadowBuffers) {
     let padded = count.next_multiple_of(8);
     let (dx, dy, dz, vis) = (
         &buf.dx[..padded],
@@ -320,7 +360,6 @@ fn specular_average_generic(
         let c = if h2 > 0.0 { c } else { 0.0 };
         term_s[j] = vis[j] * pow_approx(c, shininess);
     }
-    term_s[..count].iter().sum::<f32>() * (1.0 / count as f32)
 }
 
 /// Averages over the light points of one hit point.

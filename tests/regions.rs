@@ -11,10 +11,7 @@ use penumbra::render::output::read_film;
 use penumbra::render::region::{read_part, write_part};
 
 fn scratch_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!(
-        "penumbra-regions-{name}-{}",
-        std::process::id()
-    ));
+    let dir = std::env::temp_dir().join(format!("penumbra-regions-{name}-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     dir
 }
@@ -140,7 +137,9 @@ fn gaps_foreign_parts_and_disagreeing_overlaps_are_refused() {
     let o = merge(std::slice::from_ref(&top), &out);
     assert_eq!(o.status.code(), Some(2));
     assert!(
-        stderr(&o).contains("a gap: 7567 pixels of the 161×97 image are in no part, the first at (0, 50)"),
+        stderr(&o).contains(
+            "a gap: 7567 pixels of the 161×97 image are in no part, the first at (0, 50)"
+        ),
         "{}",
         stderr(&o)
     );
@@ -188,7 +187,10 @@ fn gaps_foreign_parts_and_disagreeing_overlaps_are_refused() {
 
     // A PNG cannot be a part; a region past the image is refused.
     let png = dir.join("part.png");
-    let o = penumbra(&render_args(png.to_str().unwrap(), &["--region", "0,0,8,8"]));
+    let o = penumbra(&render_args(
+        png.to_str().unwrap(),
+        &["--region", "0,0,8,8"],
+    ));
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("OpenEXR"), "{}", stderr(&o));
     let o = penumbra(&render_args(

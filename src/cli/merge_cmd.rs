@@ -25,11 +25,6 @@ pub fn merge(args: &MergeArgs) -> Result<(), CliError> {
     }
     let film = merge_parts(&parts).map_err(CliError::input)?;
     write_film(&film, &args.output).map_err(CliError::other)?;
-    eprintln!(
-        "{}×{} from {} parts",
-        film.width,
-        film.height,
-        parts.len()
-    );
+    eprintln!("{}×{} from {} parts", film.width, film.height, parts.len());
     Ok(())
 }

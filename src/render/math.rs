@@ -1,10 +1,11 @@
 //! Small numeric helpers shared by the core.
 
 /// Defines `fn $name(args) -> ret` that runs `$body_fn(args)` compiled for
-/// 8-wide AVX2 vectors when the CPU has them, and the baseline (SSE2) build
-/// otherwise. The hot loops are plain scalar code written for the
-/// vectorizer; only the vector width changes (no FMA contraction), so both
-/// give bit-identical results. `$body_fn` must be `#[inline(always)]`.
+/// 8-wide AVX2 vectors when [`avx2_kernels`] says so, and the baseline
+/// (SSE2) build otherwise. The hot loops are plain scalar code written for
+/// the vectorizer; only the vector width changes (no FMA contraction), so
+/// both give bit-identical results (`tests/simd_paths.rs` renders with
+/// each). `$body_fn` must be `#[inline(always)]`.
 macro_rules! avx2_dispatch {
     ($(#[$meta:meta])* $vis:vis fn $name:ident($($arg:ident: $ty:ty),* $(,)?) -> $ret:ty => $body_fn:ident) => {
         $(#[$meta])*
@@ -15,8 +16,8 @@ macro_rules! avx2_dispatch {
                 fn avx2($($arg: $ty),*) -> $ret {
                     $body_fn($($arg),*)
                 }
-                if std::arch::is_x86_feature_detected!("avx2") {
-                    // SAFETY: the CPU supports AVX2, checked just above.
+                if $crate::render::math::avx2_kernels() {
+                    // SAFETY: the CPU supports AVX2 (`avx2_kernels` checks).
                     return unsafe { avx2($($arg),*) };
                 }
             }
@@ -28,6 +29,45 @@ macro_rules! avx2_dispatch {
     };
 }
 pub(crate) use avx2_dispatch;
+
+use std::sync::atomic::{AtomicU8, Ordering};
+
+/// Which kernels run: 0 not chosen yet, 1 portable, 2 AVX2.
+static KERNELS: AtomicU8 = AtomicU8::new(0);
+
+/// Whether the vector kernels run as AVX2: chosen once per process, from
+/// the CPU and `PENUMBRA_KERNELS=portable` (which forces the baseline
+/// build, to compare the two), then one relaxed load per call.
+#[inline]
+pub fn avx2_kernels() -> bool {
+    match KERNELS.load(Ordering::Relaxed) {
+        0 => {
+            let forced = std::env::var("PENUMBRA_KERNELS").is_ok_and(|v| v == "portable");
+            #[cfg(target_arch = "x86_64")]
+            let avx2 = !forced && std::arch::is_x86_feature_detected!("avx2");
+            #[cfg(not(target_arch = "x86_64"))]
+            let avx2 = {
+                let _ = forced;
+                false
+            };
+            KERNELS.store(if avx2 { 2 } else { 1 }, Ordering::Relaxed);
+            avx2
+        }
+        k => k == 2,
+    }
+}
+
+/// Forces the portable kernels (`true`) or goes back to the CPU's choice,
+/// for tests that compare the two in one process; returns whether AVX2
+/// kernels run now.
+pub fn force_portable_kernels(portable: bool) -> bool {
+    KERNELS.store(0, Ordering::Relaxed);
+    if portable {
+        KERNELS.store(1, Ordering::Relaxed);
+        return false;
+    }
+    avx2_kernels()
+}
 
 use glam::DVec3;
 

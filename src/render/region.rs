@@ -82,7 +82,9 @@ pub fn parse_region(s: &str) -> Result<TileRect, String> {
     }
     let [x, y, w, h] = v;
     if w == 0 || h == 0 {
-        return Err(format!("{s}: the region's width and height must be at least 1"));
+        return Err(format!(
+            "{s}: the region's width and height must be at least 1"
+        ));
     }
     Ok(TileRect { x, y, w, h })
 }
@@ -111,8 +113,7 @@ pub fn write_part(part: &Part, path: &Path) -> Result<(), ImageError> {
         .is_some_and(|e| e.eq_ignore_ascii_case("exr"))
     {
         return Err(fail(
-            "a region is written as OpenEXR (.exr): only it records where the region sits"
-                .into(),
+            "a region is written as OpenEXR (.exr): only it records where the region sits".into(),
         ));
     }
     if let Some((count, (x, y))) = part.film.non_finite() {
@@ -207,7 +208,12 @@ pub fn read_part(path: &Path) -> Result<Part, ImageError> {
     if !inside {
         return Err(fail(format!(
             "data window at ({}, {}) of {}×{} is not inside the {}×{} image",
-            data.position.0, data.position.1, data.size.0, data.size.1, display.size.0, display.size.1
+            data.position.0,
+            data.position.1,
+            data.size.0,
+            data.size.1,
+            display.size.0,
+            display.size.1
         )));
     }
     let image = exr::prelude::read()
@@ -339,7 +345,11 @@ mod tests {
         assert!(parse_region("1,2,0,4").unwrap_err().contains("at least 1"));
         assert!(parse_region("-1,2,3,4").unwrap_err().contains("\"-1\""));
         assert!(check_region(r, 40, 60).is_ok());
-        assert!(check_region(r, 39, 60).unwrap_err().contains("reaches past"));
+        assert!(
+            check_region(r, 39, 60)
+                .unwrap_err()
+                .contains("reaches past")
+        );
         let huge = TileRect {
             x: u32::MAX,
             y: 0,

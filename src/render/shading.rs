@@ -304,8 +304,8 @@ fn sequential_sums<const K: usize>(slices: [&[f32]; K]) -> [f32; K] {
     let len = slices[0].len();
     let mut sums = [-0.0f32; K];
     for j in 0..len {
-        for k in 0..K {
-            sums[k] += slices[k][j];
+        for (sum, slice) in sums.iter_mut().zip(&slices) {
+            *sum += slice[j];
         }
     }
     sums

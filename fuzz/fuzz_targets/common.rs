@@ -11,10 +11,13 @@ pub fn first_non_finite_pixel(mut desc: SceneDesc) -> Option<(usize, [f32; 3])> 
     desc.render.shadow_rays = desc.render.shadow_rays.min(16);
     desc.render.max_depth = desc.render.max_depth.min(4);
     let loaded = Loaded::new(&desc).expect("a validated scene stays valid with smaller caps");
-    let options = RenderOptions {
-        threads: Some(1),
-        ..RenderOptions::default()
-    };
+    // One worker in rayon's global pool, made once: a pool per run (as
+    // `threads: Some(1)` builds) costs more than the render itself.
+    static POOL: std::sync::Once = std::sync::Once::new();
+    POOL.call_once(|| {
+        let _ = rayon::ThreadPoolBuilder::new().num_threads(1).build_global();
+    });
+    let options = RenderOptions::default();
     let report = loaded
         .render(&options, &CancelToken::new(), &|_| {})
         .expect("not cancelled");

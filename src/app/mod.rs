@@ -10,6 +10,8 @@
 //! - [`timings`]: the `--log-timings` figures.
 //! - [`mod@reference`], [`error_view`]: the converged reference and the live
 //!   error readout against it.
+//! - [`image_view`], [`image_toolbar`], [`pinned`]: the image tools (zoom
+//!   and pan, exposure and curve, the pinned image A); display only.
 
 pub mod camera_control;
 pub mod controls;
@@ -17,6 +19,9 @@ pub mod error_view;
 pub mod export;
 pub mod file_dialog;
 pub mod history;
+pub mod image_toolbar;
+pub mod image_view;
+pub mod pinned;
 pub mod reference;
 pub mod render_job;
 pub mod settings;

@@ -15,18 +15,23 @@ use std::time::{Duration, Instant};
 use egui::Color32;
 
 use super::worker::{Shared, Stop, Worker};
-use crate::render::film::encode_srgb8;
 use crate::render::progressive::{CancelToken, RenderOptions, TileRect};
 use crate::render::{
-    EditClass, Film, LiveError, LiveRender, LiveReport, RenderSettings, Scene, SceneDesc,
-    ShadingParams, TileUpdate,
+    DisplayTransform, EditClass, Film, LiveError, LiveRender, LiveReport, RenderSettings, Scene,
+    SceneDesc, ShadingParams, TileUpdate,
 };
 
 /// One finished tile, ready for `TextureHandle::set_partial`.
 pub struct TileMsg {
     pub generation: u64,
     pub rect: TileRect,
+    /// As shown: through `display`.
     pub pixels: Vec<Color32>,
+    /// The linear values (the viewer shows them again when the exposure
+    /// or the curve changes).
+    pub linear: Vec<glam::Vec3>,
+    /// The display transform `pixels` went through.
+    pub display: DisplayTransform,
     pub pass_index: usize,
     pub pass_count: usize,
     /// Shadow rays per hit point of the tile's pass.
@@ -108,6 +113,8 @@ struct State {
     /// Once a render is finished and nothing else is asked for, add camera
     /// samples up to this many per pixel (1: never).
     refine_to: u32,
+    /// How tiles are converted for the screen.
+    display: DisplayTransform,
 }
 
 impl Stop for State {
@@ -192,6 +199,12 @@ impl RenderJob {
         let mut tiles = std::mem::take(&mut s.tiles);
         tiles.retain(|t| t.generation == latest);
         tiles
+    }
+
+    /// Converts the tiles from now on through `display` (tiles already
+    /// delivered say which they went through).
+    pub fn set_display(&self, display: DisplayTransform) {
+        self.inner().lock().display = display;
     }
 
     /// Generation of the newest request.
@@ -373,12 +386,13 @@ fn worker_loop(inner: &Inner) {
 /// a newer request replaced `generation`.
 fn deliver(inner: &Inner, req: &Request, t: &TileUpdate, samples: u32, refinement: bool) {
     let generation = req.generation;
+    let display = inner.lock().display;
     // Convert on the worker: the UI only copies bytes into the texture.
     let pixels: Vec<Color32> = t
         .pixels
         .iter()
         .map(|&p| {
-            let [r, g, b] = encode_srgb8(p);
+            let [r, g, b] = display.encode(p);
             Color32::from_rgb(r, g, b)
         })
         .collect();
@@ -399,6 +413,8 @@ fn deliver(inner: &Inner, req: &Request, t: &TileUpdate, samples: u32, refinemen
             generation,
             rect: t.rect,
             pixels,
+            linear: t.pixels.to_vec(),
+            display,
             pass_index: t.pass_index,
             pass_count: t.pass_count,
             shadow_rays: t.pass.shadow_rays,

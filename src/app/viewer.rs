@@ -23,6 +23,9 @@ use super::error_view::{
 use super::export::IoTasks;
 use super::file_dialog::{DialogResult, PathDialog, Purpose};
 use super::history::{History, Snapshot};
+use super::image_toolbar::toolbar_ui;
+use super::image_view::{GRID_ZOOM, ImageView, paint_grid, zoom_step};
+use super::pinned::{Compare, CompareMode};
 use super::reference::{
     Match, Origin, RefAction, RefPanel, Reference, ReferenceTask, TaskKind, TaskOutcome, ViewMode,
     converged, reference_ui, same_limit,
@@ -35,10 +38,13 @@ use super::timings::Timings;
 use super::watch::SceneWatcher;
 use crate::render::scene::HitTarget;
 use crate::render::scene_file::CameraDesc;
-use crate::render::{Film, SceneDesc};
+use crate::render::{DisplayTransform, Film, SceneDesc};
 
 /// Background of the image area and of an image not yet rendered.
 const EMPTY: Color32 = Color32::from_rgb(24, 24, 24);
+
+/// A whole texture.
+const FULL_UV: egui::Rect = egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0));
 
 /// How the viewer starts.
 #[derive(Debug, Clone)]
@@ -81,6 +87,39 @@ pub struct PickInfo {
     pub what: String,
     pub material: Option<String>,
     pub linear_rgb: Option<[f32; 3]>,
+    /// The 8-bit sRGB code shown there (through the exposure and curve).
+    pub shown_srgb: Option<[u8; 3]>,
+    /// The pinned image A there: linear RGB and the sRGB code shown.
+    pub pinned: Option<([f32; 3], [u8; 3])>,
+}
+
+/// The inspector's text: what is there, its linear RGB and the sRGB code
+/// shown, for the live image and A.
+pub fn inspector_text(p: &PickInfo) -> String {
+    let values = |linear: [f32; 3], srgb: [u8; 3]| {
+        format!(
+            "linear RGB ({:.4}, {:.4}, {:.4})  sRGB ({}, {}, {})",
+            linear[0], linear[1], linear[2], srgb[0], srgb[1], srgb[2]
+        )
+    };
+    let mut text = format!(
+        "pixel ({}, {}): {}{}\nlive  {}",
+        p.pixel.0,
+        p.pixel.1,
+        p.what,
+        p.material
+            .as_ref()
+            .map(|m| format!(", material \"{m}\""))
+            .unwrap_or_default(),
+        match (p.linear_rgb, p.shown_srgb) {
+            (Some(l), Some(s)) => values(l, s),
+            _ => "not rendered yet".into(),
+        }
+    );
+    if let Some((l, s)) = p.pinned {
+        text.push_str(&format!("\nA     {}", values(l, s)));
+    }
+    text
 }
 
 pub struct Viewer {
@@ -97,6 +136,20 @@ pub struct Viewer {
     texture: Option<TextureHandle>,
     /// What the texture holds, kept on the CPU (for tests and resizes).
     shown: ColorImage,
+    /// The linear values of `shown` (to show them again through another
+    /// exposure or curve; the render's own film is never touched).
+    linear: Film,
+    /// Exposure and tone curve of the image view (and of a saved PNG).
+    display: DisplayTransform,
+    /// Zoom and pan of the image, independent of the camera.
+    image_view: ImageView,
+    /// The image area and pixels per point of the last frame (for the
+    /// zoom keys).
+    image_area: (egui::Rect, f32),
+    /// The textures draw image pixels as blocks (zoomed in).
+    blocks: bool,
+    /// The pinned image A and the comparison with it.
+    compare: Compare,
     progress: Progress,
     /// Generation whose end (finished or failed) was already handled.
     handled: u64,
@@ -195,6 +248,7 @@ impl Viewer {
             [desc.camera.width as usize, desc.camera.height as usize],
             EMPTY,
         );
+        let linear = Film::new(desc.camera.width, desc.camera.height);
         Viewer {
             home_camera: desc.camera.clone(),
             view: ViewSettings::for_scene(&desc),
@@ -224,6 +278,12 @@ impl Viewer {
             job: None,
             texture: None,
             shown,
+            linear,
+            display: DisplayTransform::default(),
+            image_view: ImageView::default(),
+            image_area: (egui::Rect::ZERO, 1.0),
+            blocks: false,
+            compare: Compare::default(),
             handled: 0,
             banner: options.startup_error,
             banner_from_render: false,
@@ -522,6 +582,19 @@ impl Viewer {
             }
             Command::Help => self.help_open = !self.help_open,
             Command::About => self.about_open = true,
+            Command::ZoomFit | Command::ZoomOneToOne | Command::ZoomIn | Command::ZoomOut => {
+                self.zoom_command(command)
+            }
+            Command::ZoomMode => self.image_view.zoom_mode = !self.image_view.zoom_mode,
+            Command::PinImage => self.pin_image(ctx),
+            Command::NextCompare => {
+                if self.compare.pinned.is_none() {
+                    self.notice = Some("nothing pinned: P pins the image as A".into());
+                } else {
+                    self.compare.mode = self.compare.mode.next();
+                    self.compare.restart_flicker();
+                }
+            }
             Command::Escape => {
                 // The topmost overlay only.
                 if self.confirm.take().is_some() {
@@ -639,8 +712,10 @@ impl Viewer {
         if self.shown.size != shown_size {
             // A new size: start from an empty picture of it.
             self.shown = ColorImage::filled(shown_size, EMPTY);
+            self.linear = Film::new(size.0, size.1);
+            let options = self.texture_options();
             if let Some(t) = &mut self.texture {
-                t.set(self.shown.clone(), TextureOptions::LINEAR);
+                t.set(self.shown.clone(), options);
             }
         }
     }
@@ -759,7 +834,7 @@ impl Viewer {
             Some(JobState::Finished(f)) if f.desc == full => Some(f.film.clone()),
             _ => None,
         };
-        self.io.save_png(ctx, full, film, path);
+        self.io.save_png(ctx, full, film, path, self.display);
     }
 
     /// Writes the settings as a scene file that renders to the same image.
@@ -777,6 +852,128 @@ impl Viewer {
         if self.scene_path.as_deref() != Some(path.as_path()) {
             self.scene_path = Some(path);
             self.watch(ctx);
+        }
+    }
+
+    // ----- image tools (display only) ------------------------------------
+
+    pub fn display(&self) -> DisplayTransform {
+        self.display
+    }
+
+    /// Shows the image through another exposure or curve: the texture is
+    /// converted again from the linear values on screen, the worker's
+    /// tiles go through it from now on. The render is not touched.
+    pub fn set_display(&mut self, display: DisplayTransform) {
+        self.display = display;
+        if let Some(job) = &self.job {
+            job.set_display(display);
+        }
+        self.shown.pixels = pixels_shown(&self.linear.pixels, &display);
+        let options = self.texture_options();
+        if let Some(t) = &mut self.texture {
+            t.set(self.shown.clone(), options);
+        }
+        self.compare.redisplay(&display, options);
+    }
+
+    pub fn image_view(&self) -> &ImageView {
+        &self.image_view
+    }
+
+    /// The image panel of the last frame and egui's pixels per point.
+    pub fn image_area(&self) -> (egui::Rect, f32) {
+        self.image_area
+    }
+
+    pub fn image_view_mut(&mut self) -> &mut ImageView {
+        &mut self.image_view
+    }
+
+    pub fn compare(&self) -> &Compare {
+        &self.compare
+    }
+
+    pub fn compare_mut(&mut self) -> &mut Compare {
+        &mut self.compare
+    }
+
+    /// Pins the image on screen as A.
+    pub fn pin_image(&mut self, ctx: &egui::Context) {
+        let samples = match self.job.as_ref().map(RenderJob::state) {
+            Some(JobState::Finished(f)) => f.samples,
+            _ => self.desc.render.samples_per_pixel,
+        };
+        let options = self.texture_options();
+        self.compare
+            .pin(ctx, self.linear.clone(), samples, &self.display, options);
+        self.notice = Some("pinned the image as A: edit, then compare (X)".into());
+    }
+
+    /// Zoom keys and buttons act about the panel's centre.
+    fn zoom_command(&mut self, command: Command) {
+        let (area, ppp) = self.image_area;
+        let size = self.shown.size;
+        let v = &mut self.image_view;
+        match command {
+            Command::ZoomFit => v.fit(),
+            Command::ZoomOneToOne => v.set_scale_about(area, size, ppp, area.center(), 1.0),
+            Command::ZoomIn | Command::ZoomOut => {
+                let s = zoom_step(v.scale(area, size, ppp), command == Command::ZoomIn);
+                v.set_scale_about(area, size, ppp, area.center(), s);
+            }
+            _ => {}
+        }
+    }
+
+    /// Nearest-pixel magnification once zoomed in (pixels as blocks), else
+    /// smooth.
+    fn texture_options(&self) -> TextureOptions {
+        if self.blocks {
+            TextureOptions {
+                magnification: egui::TextureFilter::Nearest,
+                ..TextureOptions::LINEAR
+            }
+        } else {
+            TextureOptions::LINEAR
+        }
+    }
+
+    /// Uploads the textures again when the zoom crosses into blocks or out.
+    fn update_texture_filter(&mut self, area: egui::Rect, ppp: f32) {
+        let blocks = self.image_view.shows_blocks(area, self.shown.size, ppp);
+        if blocks == self.blocks {
+            return;
+        }
+        self.blocks = blocks;
+        let options = self.texture_options();
+        if let Some(t) = &mut self.texture {
+            t.set(self.shown.clone(), options);
+        }
+        if let (Some(t), Some(e)) = (&mut self.error_texture, &self.error) {
+            t.set(ImageData::Color(e.image.clone()), options);
+        }
+        self.compare.set_texture_options(options);
+    }
+
+    /// Asks for the difference against A of the finished image, and takes
+    /// a finished one.
+    fn poll_compare(&mut self, ctx: &egui::Context) {
+        let options = self.texture_options();
+        self.compare.poll(ctx, options);
+        if self.compare.mode != CompareMode::Difference {
+            return;
+        }
+        let Some(job) = &self.job else { return };
+        if let JobState::Finished(f) = job.state() {
+            let generation = job.generation();
+            self.compare.request_difference(
+                ctx,
+                &f.film,
+                generation,
+                f.samples,
+                self.error_exposure,
+            );
         }
     }
 
@@ -882,11 +1079,10 @@ impl Viewer {
             return;
         };
         let image = ImageData::Color(shown.image.clone());
+        let options = self.texture_options();
         match &mut self.error_texture {
-            Some(t) => t.set(image, TextureOptions::LINEAR),
-            None => {
-                self.error_texture = Some(ctx.load_texture("error", image, TextureOptions::LINEAR))
-            }
+            Some(t) => t.set(image, options),
+            None => self.error_texture = Some(ctx.load_texture("error", image, options)),
         }
         self.error = Some(shown);
     }
@@ -1012,7 +1208,15 @@ impl Viewer {
                 _ => "reference.exr".into(),
             },
         };
-        self.dialog = Some(PathDialog::new(purpose, &dir.join(name)));
+        let mut dialog = PathDialog::new(purpose, &dir.join(name));
+        if purpose == Purpose::SavePng {
+            dialog.note = Some(format!(
+                "PNG: the image as shown ({}). EXR (name it .exr): the linear render, \
+                 without exposure or curve.",
+                self.display.describe()
+            ));
+        }
+        self.dialog = Some(dialog);
     }
 
     /// The open path dialog, if any (tests fill in its path).
@@ -1034,6 +1238,7 @@ impl Viewer {
         self.check_render_end();
         self.poll_reference();
         self.poll_error(&ctx);
+        self.poll_compare(&ctx);
 
         let mut changed = false;
         let mut action = None;
@@ -1099,6 +1304,17 @@ impl Viewer {
                     });
                 });
         }
+        egui::Panel::top("image-tools").show(ui, |ui| {
+            let (area, ppp) = self.image_area;
+            let zoom = self.image_view.label(area, self.shown.size, ppp);
+            let mut display = self.display;
+            let zoom_mode = self.image_view.zoom_mode;
+            let out = toolbar_ui(ui, &mut display, &mut self.compare, &zoom, zoom_mode);
+            if out.display_changed {
+                self.set_display(display);
+            }
+            commands.extend(out.commands);
+        });
         egui::CentralPanel::no_frame()
             .frame(egui::Frame::new().fill(EMPTY))
             .show(ui, |ui| changed |= self.image_ui(ui));
@@ -1231,6 +1447,28 @@ impl Viewer {
                 ui.separator();
                 ui.radio_value(&mut self.view_mode, ViewMode::Image, "Image");
                 ui.radio_value(&mut self.view_mode, ViewMode::Error, "Error");
+                ui.separator();
+                item(ui, "Zoom image to fit", Command::ZoomFit, true, commands);
+                item(ui, "Image 1:1", Command::ZoomOneToOne, true, commands);
+                item(ui, "Zoom image in", Command::ZoomIn, true, commands);
+                item(ui, "Zoom image out", Command::ZoomOut, true, commands);
+                let mark = if self.image_view.zoom_mode {
+                    "✔ "
+                } else {
+                    ""
+                };
+                let text = format!("{mark}Image zoom mode");
+                item(ui, &text, Command::ZoomMode, true, commands);
+                ui.separator();
+                item(ui, "Pin image as A", Command::PinImage, true, commands);
+                let pinned = self.compare.pinned.is_some();
+                item(
+                    ui,
+                    "Compare with A: next",
+                    Command::NextCompare,
+                    pinned,
+                    commands,
+                );
             });
             ui.menu_button("Render", |ui| {
                 let mark = if self.desc.render.cutaway { "✔ " } else { "" };
@@ -1311,7 +1549,7 @@ impl Viewer {
         }
         self.job = Some(RenderJob::with_refinement(ctx.clone(), self.refine_spp));
         self.errors = Some(ErrorJob::new(ctx.clone()));
-        self.texture = Some(ctx.load_texture("render", self.shown.clone(), TextureOptions::LINEAR));
+        self.texture = Some(ctx.load_texture("render", self.shown.clone(), self.texture_options()));
         self.watch(ctx);
         self.restart();
     }
@@ -1364,6 +1602,7 @@ impl Viewer {
     fn stream_tiles(&mut self) {
         let Some(job) = &self.job else { return };
         let tiles = job.take_tiles();
+        let options = self.texture_options();
         let Some(texture) = &mut self.texture else {
             return;
         };
@@ -1394,6 +1633,13 @@ impl Viewer {
             if x + w > self.shown.size[0] || y + h > self.shown.size[1] {
                 continue;
             }
+            self.linear
+                .write_block(t.rect.x, t.rect.y, t.rect.w, &t.linear);
+            let mut t = t;
+            if t.display != self.display {
+                // Converted before the exposure or curve changed.
+                t.pixels = pixels_shown(&t.linear, &self.display);
+            }
             for row in 0..h {
                 let dst = (y + row) * self.shown.size[0] + x;
                 self.shown.pixels[dst..dst + w].copy_from_slice(&t.pixels[row * w..(row + 1) * w]);
@@ -1402,11 +1648,11 @@ impl Viewer {
             self.timings.on_upload(t.generation);
             if !whole {
                 let image = ColorImage::new([w, h], t.pixels);
-                texture.set_partial([x, y], image, TextureOptions::LINEAR);
+                texture.set_partial([x, y], image, options);
             }
         }
         if whole {
-            texture.set(self.shown.clone(), TextureOptions::LINEAR);
+            texture.set(self.shown.clone(), options);
         }
         if pass_done {
             self.refresh_error();
@@ -1440,15 +1686,36 @@ impl Viewer {
         }
     }
 
-    /// The image, fitted to the panel, with mouse camera control; true if
-    /// the camera moved.
+    /// The image (fitted, or zoomed and panned: see [`ImageView`]), with
+    /// mouse camera control, the comparison with A and the inspector; true
+    /// if the camera moved.
     fn image_ui(&mut self, ui: &mut Ui) -> bool {
         let area = ui.available_rect_before_wrap();
         let response = ui.allocate_rect(area, Sense::click_and_drag());
-        let [w, h] = self.shown.size;
-        let fit = (area.width() / w as f32).min(area.height() / h as f32);
-        let rect =
-            egui::Rect::from_center_size(area.center(), egui::vec2(w as f32, h as f32) * fit);
+        let ppp = ui.ctx().pixels_per_point();
+        let size = self.shown.size;
+        self.image_area = (area, ppp);
+        // Ctrl+wheel (egui's zoom gesture), or the wheel in zoom mode, zooms
+        // the image about the cursor; Ctrl+drag, or a drag in zoom mode,
+        // pans it. Everything else is the camera's, as before.
+        let (zoom_delta, scroll, ctrl) =
+            ui.input(|i| (i.zoom_delta(), i.smooth_scroll_delta.y, i.modifiers.command));
+        if let Some(pos) = response.hover_pos() {
+            let mut factor = zoom_delta;
+            if self.image_view.zoom_mode && scroll != 0.0 {
+                factor *= (scroll * 0.005).exp();
+            }
+            if factor != 1.0 {
+                self.image_view.zoom_about(area, size, ppp, pos, factor);
+            }
+        }
+        let image_drag = self.image_view.zoom_mode || ctrl;
+        if image_drag && response.drag_delta() != egui::Vec2::ZERO {
+            self.image_view.pan(area, size, ppp, response.drag_delta());
+        }
+        self.update_texture_filter(area, ppp);
+        let rect = self.image_view.image_rect(area, size, ppp);
+        let painter = ui.painter_at(area);
         let error = self
             .current_error()
             .filter(|e| self.view_mode == ViewMode::Error && e.image.size == self.shown.size);
@@ -1457,12 +1724,14 @@ impl Viewer {
             None => self.texture.as_ref(),
         };
         if let Some(t) = texture {
-            ui.painter().image(
-                t.id(),
-                rect,
-                egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0)),
-                Color32::WHITE,
-            );
+            painter.image(t.id(), rect, FULL_UV, Color32::WHITE);
+        }
+        let shown_rect = rect.intersect(area);
+        if let Some(wait) = self.compare.paint(ui, &painter, rect, shown_rect, size) {
+            ui.ctx().request_repaint_after(wait);
+        }
+        if self.image_view.scale(area, size, ppp) >= GRID_ZOOM {
+            paint_grid(&painter, rect, [size[0], size[1]], area);
         }
         if self.view_mode == ViewMode::Error {
             let scale = error.map(|e| e.scale);
@@ -1477,7 +1746,7 @@ impl Viewer {
             };
             egui::Area::new(egui::Id::unique("penumbra-error-legend"))
                 .pivot(egui::Align2::LEFT_BOTTOM)
-                .fixed_pos(rect.left_bottom() + egui::vec2(8.0, -8.0))
+                .fixed_pos(shown_rect.left_bottom() + egui::vec2(8.0, -8.0))
                 .show(ui.ctx(), |ui| {
                     egui::Frame::popup(ui.style()).show(ui, |ui| match scale {
                         Some(s) => legend_ui(ui, s),
@@ -1487,37 +1756,24 @@ impl Viewer {
                     });
                 });
         }
-        let moved = camera_input(ui, &response, &mut self.desc.camera, rect.height());
+        let moved =
+            !image_drag && camera_input(ui, &response, &mut self.desc.camera, rect.height());
         if response.double_clicked()
             && let Some(pos) = response.interact_pointer_pos().or(response.hover_pos())
-            && rect.contains(pos)
+            && let Some([px, py]) = self.image_view.pixel_at(area, size, ppp, pos)
         {
-            let px = (((pos.x - rect.min.x) / fit) as u32).min(w as u32 - 1);
-            let py = (((pos.y - rect.min.y) / fit) as u32).min(h as u32 - 1);
             self.pick = self.pick_at(px, py);
             self.pick_pos = Some(pos);
             // The surface there becomes the pivot the camera orbits about.
             self.set_pivot_at(px, py);
         }
         if let Some(p) = &self.pick {
-            let text = format!(
-                "pixel ({}, {}): {}{}\nlinear RGB {}",
-                p.pixel.0,
-                p.pixel.1,
-                p.what,
-                p.material
-                    .as_ref()
-                    .map(|m| format!(", material \"{m}\""))
-                    .unwrap_or_default(),
-                p.linear_rgb
-                    .map(|c| format!("({:.4}, {:.4}, {:.4})", c[0], c[1], c[2]))
-                    .unwrap_or_else(|| "not rendered yet".into()),
-            );
+            let text = inspector_text(p);
             // At the cursor, kept inside the image area.
             let at = self.pick_pos.unwrap_or(rect.left_top()) + egui::vec2(12.0, 12.0);
             let at = egui::pos2(
-                at.x.min(area.right() - 260.0).max(area.left()),
-                at.y.min(area.bottom() - 90.0).max(area.top()),
+                at.x.min(area.right() - 300.0).max(area.left()),
+                at.y.min(area.bottom() - 130.0).max(area.top()),
             );
             egui::Area::new(egui::Id::unique("penumbra-pick"))
                 .fixed_pos(at)
@@ -1549,11 +1805,23 @@ impl Viewer {
             Some((HitTarget::Light, _)) => ("the light".to_string(), None),
             None => ("background".to_string(), None),
         };
+        let linear = job.pixel(px, py);
+        let pinned = self
+            .compare
+            .pinned
+            .as_ref()
+            .filter(|a| a.film.width > px && a.film.height > py)
+            .map(|a| {
+                let c = a.film.get(px, py);
+                (c.to_array(), self.display.encode(c))
+            });
         Some(PickInfo {
             pixel: (px, py),
             what,
             material,
-            linear_rgb: job.pixel(px, py).map(|c| c.to_array()),
+            linear_rgb: linear.map(|c| c.to_array()),
+            shown_srgb: linear.map(|c| self.display.encode(c)),
+            pinned,
         })
     }
 }
@@ -1572,6 +1840,17 @@ impl eframe::App for Viewer {
     fn persist_egui_memory(&self) -> bool {
         self.persist
     }
+}
+
+/// Linear pixels as the texture shows them.
+fn pixels_shown(linear: &[glam::Vec3], display: &DisplayTransform) -> Vec<Color32> {
+    linear
+        .iter()
+        .map(|&p| {
+            let [r, g, b] = display.encode(p);
+            Color32::from_rgb(r, g, b)
+        })
+        .collect()
 }
 
 /// A hot reload's three-way merge, field by field of the JSON tree: where

@@ -29,6 +29,7 @@ pub fn toolbar_ui(
     let ctx = ui.ctx().clone();
     let tip = |c: Command, what: &str| format!("{what} ({})", first_key(&ctx, c));
     ui.horizontal_wrapped(|ui| {
+        ui.spacing_mut().slider_width = 90.0;
         ui.label("Exposure");
         let r = ui
             .add(
@@ -94,8 +95,8 @@ pub fn toolbar_ui(
             out.commands.push(Command::PinImage);
         }
         if let Some(p) = &compare.pinned {
-            ui.label(format!(
-                "A: {}×{}, {} spp",
+            ui.label("A vs live:").on_hover_text(format!(
+                "A: {}×{}, {} camera samples per pixel",
                 p.film.width, p.film.height, p.samples
             ));
             for m in CompareMode::ALL {

@@ -348,7 +348,7 @@ fn tag(ui: &egui::Ui, id: &str, at: Pos2, pivot: Align2, text: &str) {
         .interactable(false)
         .show(ui.ctx(), |ui| {
             egui::Frame::popup(ui.style()).show(ui, |ui| {
-                ui.label(text);
+                ui.add(egui::Label::new(text).extend());
             });
         });
 }

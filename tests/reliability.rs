@@ -346,7 +346,12 @@ fn a_fifo_as_the_scene_or_a_mesh_is_refused_at_once_with_exit_2() {
     let out = dir.path().join("x.png");
     // Nobody writes to the FIFO: reading it would wait for ever.
     let start = Instant::now();
-    let r = penumbra(&["render", fifo.to_str().unwrap(), "-o", out.to_str().unwrap()]);
+    let r = penumbra(&[
+        "render",
+        fifo.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
     let err = stderr(&r);
     assert_eq!(r.status.code(), Some(2), "{err}");
     assert!(
@@ -361,19 +366,25 @@ fn a_fifo_as_the_scene_or_a_mesh_is_refused_at_once_with_exit_2() {
     let mesh_fifo = dir.path().join("m.obj");
     mkfifo(&mesh_fifo);
     let mut desc = seed(16, 9);
-    desc.objects.push(penumbra::render::scene_file::ObjectDesc::Mesh(
-        penumbra::render::scene_file::MeshDesc {
-            file: mesh_fifo.to_str().unwrap().into(),
-            material: "white".into(),
-            scale: penumbra::render::scene_file::MeshScale::Uniform(1.0),
-            rotate_y_deg: 0.0,
-            translate: [0.0; 3],
-            shading: penumbra::render::scene_file::MeshShading::Auto,
-        },
-    ));
+    desc.objects
+        .push(penumbra::render::scene_file::ObjectDesc::Mesh(
+            penumbra::render::scene_file::MeshDesc {
+                file: mesh_fifo.to_str().unwrap().into(),
+                material: "white".into(),
+                scale: penumbra::render::scene_file::MeshScale::Uniform(1.0),
+                rotate_y_deg: 0.0,
+                translate: [0.0; 3],
+                shading: penumbra::render::scene_file::MeshShading::Auto,
+            },
+        ));
     let scene = dir.path().join("with-mesh.json");
     std::fs::write(&scene, desc.to_json()).unwrap();
-    let r = penumbra(&["render", scene.to_str().unwrap(), "-o", out.to_str().unwrap()]);
+    let r = penumbra(&[
+        "render",
+        scene.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
     let err = stderr(&r);
     assert_eq!(r.status.code(), Some(2), "{err}");
     assert!(err.contains("a FIFO, not a regular file"), "{err}");

@@ -659,6 +659,12 @@ impl egui::DroppedFile for Dropped {
     }
 }
 
+/// Waits for the scene loads under way, then a frame takes the result.
+fn loaded(h: &mut Harness<'static, Viewer>) {
+    assert!(h.state().wait_for_loads(WAIT), "a load did not end");
+    h.step();
+}
+
 fn drop_file(h: &mut Harness<'static, Viewer>, path: std::path::PathBuf) {
     h.input_mut()
         .dropped_files
@@ -873,6 +879,7 @@ fn unsaved_edits_mark_the_title_and_quit_or_open_asks_first() {
     h.step();
     h.get_by_role_and_label(Role::Button, "Open").click();
     h.step();
+    loaded(&mut h);
     assert_eq!(h.state().scene_path(), Some(other.as_path()));
     assert_eq!(h.state().desc(), &o);
     assert!(!h.state().is_dirty());
@@ -892,6 +899,7 @@ fn dropping_a_scene_file_opens_it_and_a_png_loads_a_reference() {
     settle(&mut h);
     drop_file(&mut h, scene.clone());
     h.step();
+    loaded(&mut h);
     assert_eq!(h.state().scene_path(), Some(scene.as_path()));
     assert_eq!(h.state().recent()[0], std::path::absolute(&scene).unwrap());
     settle(&mut h);
@@ -1064,6 +1072,7 @@ fn the_last_scene_recent_files_and_view_settings_are_remembered() {
     settle(&mut h);
     drop_file(&mut h, path.clone());
     h.step();
+    loaded(&mut h);
     h.get_by_role_and_label(Role::Slider, "Resolution scale")
         .set_value_accesskit(0.5);
     h.step();

@@ -128,11 +128,12 @@ impl IoTasks {
         });
     }
 
-    /// Writes the scene as JSON (atomically).
-    pub fn save_scene(&mut self, ctx: &egui::Context, desc: &SceneDesc, path: PathBuf) {
-        let json = desc.to_json();
+    /// Writes the scene as JSON (atomically); the JSON is made on the
+    /// task's thread too (seconds for 10⁶ objects).
+    pub fn save_scene(&mut self, ctx: &egui::Context, desc: SceneDesc, path: PathBuf) {
         let label = format!("saving {}", file_name(&path));
         self.spawn(ctx, label, move |_| {
+            let json = desc.to_json();
             write_atomic(&path, |w| {
                 w.write_all(json.as_bytes()).map_err(|e| e.to_string())
             })

@@ -6,7 +6,8 @@
 //!   the error readout.
 //! - [`controls`], [`camera_control`], [`status`]: the panels and the mouse.
 //! - [`settings`]: viewer toggles that map onto the scene description.
-//! - [`file_dialog`], [`export`], [`watch`]: files in and out.
+//! - [`file_dialog`], [`export`], [`scene_loader`], [`watch`]: files in and
+//!   out, off the UI thread.
 //! - [`timings`]: the `--log-timings` figures.
 //! - [`mod@reference`], [`error_view`]: the converged reference and the live
 //!   error readout against it.
@@ -24,6 +25,7 @@ pub mod image_view;
 pub mod pinned;
 pub mod reference;
 pub mod render_job;
+pub mod scene_loader;
 pub mod settings;
 pub mod shortcuts;
 pub mod status;

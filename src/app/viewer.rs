@@ -31,6 +31,7 @@ use super::reference::{
     converged, reference_ui, same_limit,
 };
 use super::render_job::{JobState, RenderJob};
+use super::scene_loader::{LoadKind, LoadResult, SceneLoads, progress_ui};
 use super::settings::ViewSettings;
 use super::shortcuts::{self, Command, help_ui};
 use super::status::{Progress, status_ui};
@@ -159,6 +160,8 @@ pub struct Viewer {
     notice: Option<String>,
     dialog: Option<PathDialog>,
     io: IoTasks,
+    /// Scene files being read (open, hot reload) on their own thread.
+    loads: SceneLoads,
     pick: Option<PickInfo>,
     timings: Timings,
     wiggle: Option<(Duration, Instant, u32)>,
@@ -290,6 +293,7 @@ impl Viewer {
             notice: None,
             dialog: None,
             io: IoTasks::default(),
+            loads: SceneLoads::default(),
             pick: None,
             timings: Timings::new(options.log_timings),
             wiggle: options.wiggle.map(|d| (d, Instant::now(), 0)),
@@ -720,76 +724,124 @@ impl Viewer {
         }
     }
 
-    /// Opens a scene file; on failure the banner shows why and the current
+    /// Opens a scene file: read on the load thread (a newer open or reload
+    /// supersedes it); on failure the banner shows why and the current
     /// scene stays.
     pub fn open_scene(&mut self, ctx: &egui::Context, path: &Path) {
-        match SceneDesc::load(path) {
-            Ok(desc) => {
-                self.view = ViewSettings::for_scene(&desc);
-                self.home_camera = desc.camera.clone();
-                self.file_desc = Some(desc.clone());
-                self.saved = desc.clone();
-                self.history.reset(Snapshot {
-                    desc: desc.clone(),
-                    view: self.view.clone(),
-                });
-                self.desc = desc;
-                self.scene_path = Some(path.to_path_buf());
-                self.remember_dir(path);
-                self.add_recent(path);
-                self.watch(ctx);
-                self.banner = None;
-                self.pick = None;
-                self.notice = Some(format!("opened {}", path.display()));
-                self.restart();
-            }
-            Err(e) => self.show_error(e.to_string()),
-        }
+        self.loads.start(ctx, path, LoadKind::Open);
     }
 
-    /// Reads the watched file again. The rule for unsaved edits: the file
-    /// wins on every field it changed, and each edit of a field it left
-    /// alone (the camera included) stays; the viewer's own toggles are not
-    /// in the file and stay. The state before the reload is one undo step
-    /// away. A bad file only shows the banner.
-    fn reload(&mut self) {
+    /// Reads the watched file again, on the load thread. The rule for
+    /// unsaved edits: the file wins on every field it changed, and each
+    /// edit of a field it left alone (the camera included) stays; the
+    /// viewer's own toggles are not in the file and stay. The state before
+    /// the reload is one undo step away. A bad file only shows the banner.
+    fn reload(&mut self, ctx: &egui::Context) {
         let Some(path) = self.scene_path.clone() else {
             return;
         };
-        match SceneDesc::load(&path) {
-            Ok(theirs) => {
-                let merged = match &self.file_desc {
-                    Some(base) => merge_reload(base, &self.desc, &theirs),
-                    // Not read before (broken at launch): all of it.
-                    None => {
-                        self.view = ViewSettings::for_scene(&theirs);
-                        theirs.clone()
-                    }
-                };
-                if self
-                    .file_desc
-                    .as_ref()
-                    .is_none_or(|b| b.camera != theirs.camera)
-                {
-                    self.home_camera = theirs.camera.clone();
-                }
-                self.file_desc = Some(theirs.clone());
-                self.saved = theirs;
-                self.desc = merged;
-                self.banner = None;
-                self.notice = Some(format!(
-                    "reloaded {}{}",
-                    path.display(),
-                    if self.is_dirty() {
-                        " (your edits of other fields kept; Ctrl+Z goes back)"
-                    } else {
-                        ""
-                    }
-                ));
-                self.restart();
-            }
-            Err(e) => self.show_error(e.to_string()),
+        let kind = LoadKind::Reload {
+            base: self.file_desc.clone(),
+            mine: self.desc.clone(),
+        };
+        self.loads.start(ctx, &path, kind);
+    }
+
+    /// A load under way: its path, how long it has run, whether a reload.
+    pub fn loading(&self) -> Option<(&Path, Duration, bool)> {
+        self.loads.busy()
+    }
+
+    /// Stops waiting for the load under way (the scene shown stays).
+    pub fn cancel_load(&mut self) {
+        if let Some(p) = self.loads.cancel() {
+            self.notice = Some(format!("cancelled loading {}", p.display()));
         }
+    }
+
+    /// Blocks until every load thread ended (tests only); the next frame
+    /// takes the result.
+    pub fn wait_for_loads(&self, timeout: Duration) -> bool {
+        self.loads.wait_idle(timeout)
+    }
+
+    /// Test hook: load threads wait before reading while `on`.
+    pub fn hold_loads_for_tests(&self, on: bool) {
+        self.loads.hold_for_tests(on);
+    }
+
+    /// Takes a finished load.
+    fn poll_loads(&mut self, ctx: &egui::Context) {
+        let Some((path, result)) = self.loads.poll() else {
+            return;
+        };
+        match result {
+            LoadResult::Opened(desc) => self.opened(ctx, &path, desc),
+            LoadResult::Reloaded {
+                theirs,
+                merged,
+                mine,
+            } => {
+                // Edited while the file was read: merge those edits instead.
+                let merged = match &self.file_desc {
+                    Some(base) if self.desc != mine => merge_reload(base, &self.desc, &theirs),
+                    _ => merged,
+                };
+                self.reloaded(&path, theirs, merged)
+            }
+            LoadResult::Failed(e) => self.show_error(e),
+        }
+    }
+
+    fn opened(&mut self, ctx: &egui::Context, path: &Path, desc: SceneDesc) {
+        self.view = ViewSettings::for_scene(&desc);
+        self.home_camera = desc.camera.clone();
+        self.file_desc = Some(desc.clone());
+        self.saved = desc.clone();
+        self.history.reset(Snapshot {
+            desc: desc.clone(),
+            view: self.view.clone(),
+        });
+        self.desc = desc;
+        self.scene_path = Some(path.to_path_buf());
+        self.remember_dir(path);
+        self.add_recent(path);
+        self.watch(ctx);
+        self.banner = None;
+        self.pick = None;
+        self.notice = Some(format!("opened {}", path.display()));
+        self.restart();
+    }
+
+    fn reloaded(&mut self, path: &Path, theirs: SceneDesc, merged: SceneDesc) {
+        if self.scene_path.as_deref() != Some(path) {
+            return;
+        }
+        if self.file_desc.is_none() {
+            // Not read before (broken at launch): all of it.
+            self.view = ViewSettings::for_scene(&theirs);
+        }
+        if self
+            .file_desc
+            .as_ref()
+            .is_none_or(|b| b.camera != theirs.camera)
+        {
+            self.home_camera = theirs.camera.clone();
+        }
+        self.file_desc = Some(theirs.clone());
+        self.saved = theirs;
+        self.desc = merged;
+        self.banner = None;
+        self.notice = Some(format!(
+            "reloaded {}{}",
+            path.display(),
+            if self.is_dirty() {
+                " (your edits of other fields kept; Ctrl+Z goes back)"
+            } else {
+                ""
+            }
+        ));
+        self.restart();
     }
 
     fn add_recent(&mut self, path: &Path) {
@@ -843,7 +895,7 @@ impl Viewer {
             path.set_extension("json");
         }
         let full = self.view.apply(&self.desc, true);
-        self.io.save_scene(ctx, &full, path.clone());
+        self.io.save_scene(ctx, full.clone(), path.clone());
         // Saved as: this is now the scene's file (watched; its contents
         // are these settings, so the reload it causes changes nothing).
         self.saved = full.clone();
@@ -1239,6 +1291,7 @@ impl Viewer {
         self.poll_reference();
         self.poll_error(&ctx);
         self.poll_compare(&ctx);
+        self.poll_loads(&ctx);
 
         let mut changed = false;
         let mut action = None;
@@ -1265,6 +1318,13 @@ impl Viewer {
                         }
                     });
                 });
+        }
+        if self.loads.busy().is_some() {
+            let mut cancel = false;
+            egui::Panel::top("loading").show(ui, |ui| cancel = progress_ui(ui, &self.loads));
+            if cancel {
+                self.cancel_load();
+            }
         }
         egui::Panel::bottom("status").show(ui, |ui| {
             let state = self
@@ -1574,7 +1634,7 @@ impl Viewer {
         }
         if let Some(w) = &self.watcher {
             match w.poll() {
-                Ok(true) => self.reload(),
+                Ok(true) => self.reload(ctx),
                 Ok(false) => {}
                 Err(wait) => ctx.request_repaint_after(wait),
             }

@@ -509,17 +509,13 @@ impl Viewer {
     }
 
     pub fn can_undo(&self) -> bool {
-        self.history.can_undo() || self.snapshot() != *self.history_baseline()
-    }
-
-    fn history_baseline(&self) -> &Snapshot {
-        self.history.baseline()
+        self.history.can_undo() || !self.history.is_baseline(&self.desc, &self.view)
     }
 
     /// The scene differs from the file (or the built-in room) as last
     /// opened, reloaded or saved.
     pub fn is_dirty(&self) -> bool {
-        self.view.apply(&self.desc, true) != self.saved
+        !self.view.applied_equals(&self.desc, true, &self.saved)
     }
 
     /// The window title: the scene's name, with " •" while unsaved.
@@ -1440,8 +1436,11 @@ impl Viewer {
                     .iter()
                     .any(|&k| i.key_down(k))
         });
-        let snapshot = self.snapshot();
-        self.history.observe(&snapshot, gesture);
+        // (A copy of the scene only when it changed: it may be 10⁶ objects.)
+        if !gesture && !self.history.is_baseline(&self.desc, &self.view) {
+            let snapshot = self.snapshot();
+            self.history.observe(&snapshot, false);
+        }
 
         let title = self.title();
         if title != self.title {

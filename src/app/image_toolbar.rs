@@ -35,6 +35,7 @@ pub fn toolbar_ui(
             .add(
                 egui::Slider::new(&mut display.exposure, DisplayTransform::EXPOSURE_RANGE)
                     .step_by(0.1)
+                    .custom_formatter(|v, _| format!("{v:+.1}"))
                     .suffix(" EV"),
             )
             .on_hover_text("Stops: the image is shown ×2^EV (display only; the render and an EXR stay linear)");
@@ -94,6 +95,14 @@ pub fn toolbar_ui(
         {
             out.commands.push(Command::PinImage);
         }
+    });
+    // The comparison on a row of its own: the strip never runs off the
+    // panel's edge.
+    if compare.pinned.is_none() {
+        return out;
+    }
+    ui.horizontal_wrapped(|ui| {
+        ui.spacing_mut().slider_width = 120.0;
         if let Some(p) = &compare.pinned {
             ui.label("A vs live:").on_hover_text(format!(
                 "A: {}×{}, {} camera samples per pixel",
@@ -102,7 +111,10 @@ pub fn toolbar_ui(
             for m in CompareMode::ALL {
                 if ui
                     .selectable_label(compare.mode == m, m.label())
-                    .on_hover_text(tip(Command::NextCompare, "How the live image is set against A"))
+                    .on_hover_text(tip(
+                        Command::NextCompare,
+                        "How the live image is set against A",
+                    ))
                     .clicked()
                 {
                     compare.mode = m;

@@ -382,7 +382,7 @@ fn bad_files_are_refused_with_the_file_name() {
         (&empty, "EOF"),
         (&binary, "not UTF-8"),
         (&big, "at most"),
-        (&dir, "cannot read"),
+        (&dir, "a directory, not a regular file"),
         (&dir.join("missing.json"), "cannot read"),
     ] {
         let e = SceneDesc::load(path).unwrap_err();

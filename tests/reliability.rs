@@ -266,7 +266,11 @@ fn a_device_of_endless_bytes_is_refused_promptly_with_exit_2() {
     let r = penumbra(&["render", "/dev/zero", "-o", out.to_str().unwrap()]);
     let err = stderr(&r);
     assert_eq!(r.status.code(), Some(2), "{err}");
-    assert!(err.contains("/dev/zero: more than 67108864 bytes"), "{err}");
+    // Refused for what it is, before a byte is read.
+    assert!(
+        err.contains("/dev/zero: a character device, not a regular file"),
+        "{err}"
+    );
     assert!(
         start.elapsed() < Duration::from_secs(20),
         "{:?}",
@@ -324,6 +328,66 @@ fn a_scene_piped_through_stdin_is_bounded_too() {
         "{}",
         stderr(&o)
     );
+}
+
+// ---------------------------------------------------------------- item 6
+
+fn mkfifo(path: &Path) {
+    let c = std::ffi::CString::new(path.to_str().unwrap()).unwrap();
+    // SAFETY: a NUL-terminated path and a mode, no other pointers.
+    assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o600) }, 0, "mkfifo");
+}
+
+#[test]
+fn a_fifo_as_the_scene_or_a_mesh_is_refused_at_once_with_exit_2() {
+    let dir = scratch();
+    let fifo = dir.path().join("scene.json");
+    mkfifo(&fifo);
+    let out = dir.path().join("x.png");
+    // Nobody writes to the FIFO: reading it would wait for ever.
+    let start = Instant::now();
+    let r = penumbra(&[
+        "render",
+        fifo.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    let err = stderr(&r);
+    assert_eq!(r.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains(&format!("{}: a FIFO, not a regular file", fifo.display())),
+        "{err}"
+    );
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(start.elapsed() < Duration::from_secs(20));
+    assert!(!out.exists());
+
+    // A mesh file that is a FIFO, the same.
+    let mesh_fifo = dir.path().join("m.obj");
+    mkfifo(&mesh_fifo);
+    let mut desc = seed(16, 9);
+    desc.objects
+        .push(penumbra::render::scene_file::ObjectDesc::Mesh(
+            penumbra::render::scene_file::MeshDesc {
+                file: mesh_fifo.to_str().unwrap().into(),
+                material: "white".into(),
+                scale: penumbra::render::scene_file::MeshScale::Uniform(1.0),
+                rotate_y_deg: 0.0,
+                translate: [0.0; 3],
+                shading: penumbra::render::scene_file::MeshShading::Auto,
+            },
+        ));
+    let scene = dir.path().join("with-mesh.json");
+    std::fs::write(&scene, desc.to_json()).unwrap();
+    let r = penumbra(&[
+        "render",
+        scene.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    let err = stderr(&r);
+    assert_eq!(r.status.code(), Some(2), "{err}");
+    assert!(err.contains("a FIFO, not a regular file"), "{err}");
 }
 
 // ---------------------------------------------------------------- item 4

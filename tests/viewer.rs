@@ -659,6 +659,12 @@ impl egui::DroppedFile for Dropped {
     }
 }
 
+/// Waits for the scene loads under way, then a frame takes the result.
+fn loaded(h: &mut Harness<'static, Viewer>) {
+    assert!(h.state().wait_for_loads(WAIT), "a load did not end");
+    h.step();
+}
+
 fn drop_file(h: &mut Harness<'static, Viewer>, path: std::path::PathBuf) {
     h.input_mut()
         .dropped_files
@@ -873,6 +879,7 @@ fn unsaved_edits_mark_the_title_and_quit_or_open_asks_first() {
     h.step();
     h.get_by_role_and_label(Role::Button, "Open").click();
     h.step();
+    loaded(&mut h);
     assert_eq!(h.state().scene_path(), Some(other.as_path()));
     assert_eq!(h.state().desc(), &o);
     assert!(!h.state().is_dirty());
@@ -892,6 +899,7 @@ fn dropping_a_scene_file_opens_it_and_a_png_loads_a_reference() {
     settle(&mut h);
     drop_file(&mut h, scene.clone());
     h.step();
+    loaded(&mut h);
     assert_eq!(h.state().scene_path(), Some(scene.as_path()));
     assert_eq!(h.state().recent()[0], std::path::absolute(&scene).unwrap());
     settle(&mut h);
@@ -1064,6 +1072,7 @@ fn the_last_scene_recent_files_and_view_settings_are_remembered() {
     settle(&mut h);
     drop_file(&mut h, path.clone());
     h.step();
+    loaded(&mut h);
     h.get_by_role_and_label(Role::Slider, "Resolution scale")
         .set_value_accesskit(0.5);
     h.step();
@@ -1269,4 +1278,78 @@ fn w_a_s_d_walk_the_camera_and_its_pivot_and_a_walk_is_one_undo_step() {
     h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
     h.step();
     assert_eq!(h.state().desc().camera, before);
+}
+
+/// Steps until the finished image has `spp` samples per pixel; its film.
+fn refined_to(h: &mut Harness<'static, Viewer>, spp: u32) -> Film {
+    let start = Instant::now();
+    loop {
+        h.step();
+        if let Some(JobState::Finished(f)) = h.state().render_state()
+            && f.samples == spp
+        {
+            return (*f.film).clone();
+        }
+        assert!(start.elapsed() < WAIT, "no refinement to {spp} samples");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+}
+
+#[test]
+fn a_recombine_or_reshade_edit_keeps_the_refined_samples() {
+    let mut options = ViewerOptions::new(small_room());
+    options.refine_spp = 8;
+    let mut h = harness(options);
+    settle(&mut h);
+    refined_to(&mut h, 8);
+    let at = |edit: &dyn Fn(&mut SceneDesc), spp: u32| {
+        let mut d = small_room();
+        edit(&mut d);
+        d.render.samples_per_pixel = spp;
+        core_render(&d)
+    };
+    // A strength (recombine), then a shininess (re-shade): 8 samples at
+    // once, no camera rays, the image of a fresh 8-spp render.
+    let ambient = |d: &mut SceneDesc| d.render.terms.ambient = 0.5;
+    h.state_mut().edit(|d, _| ambient(d));
+    settle(&mut h);
+    match h.state().render_state() {
+        Some(JobState::Finished(f)) => {
+            assert_eq!(f.samples, 8);
+            assert_eq!(f.traced_rays, 0, "a recombine traces nothing");
+            assert_eq!(*f.film, at(&ambient, 8));
+        }
+        other => panic!("{other:?}"),
+    }
+    let shiny = |d: &mut SceneDesc| {
+        d.render.terms.ambient = 0.5;
+        d.materials.get_mut("white").unwrap().shininess = 80.0;
+    };
+    h.state_mut()
+        .edit(|d, _| d.materials.get_mut("white").unwrap().shininess = 80.0);
+    settle(&mut h);
+    match h.state().render_state() {
+        Some(JobState::Finished(f)) => {
+            assert_eq!(f.samples, 8);
+            assert_eq!(*f.film, at(&shiny, 8));
+        }
+        other => panic!("{other:?}"),
+    }
+    for _ in 0..3 {
+        h.step();
+    }
+    h.get_by_label("8 spp");
+    // A camera move starts from the scene's own sample again.
+    h.state_mut().edit(|d, _| d.camera.position[0] += 0.5);
+    settle(&mut h);
+    match h.state().render_state() {
+        Some(JobState::Finished(f)) => {
+            let moved = |d: &mut SceneDesc| {
+                shiny(d);
+                d.camera.position[0] += 0.5;
+            };
+            assert_eq!(*f.film, at(&moved, f.samples));
+        }
+        other => panic!("{other:?}"),
+    }
 }

@@ -33,7 +33,7 @@ impl Purpose {
     /// The file kinds listed; the first is the name field's hint.
     fn extensions(self) -> &'static [&'static str] {
         match self {
-            Purpose::SavePng => &["png"],
+            Purpose::SavePng => &["png", "exr"],
             Purpose::OpenReference => &["exr", "png"],
             _ => &["json"],
         }
@@ -55,6 +55,8 @@ pub struct PathDialog {
     focused: bool,
     /// A save onto this existing file waits for "Replace".
     overwrite: Option<PathBuf>,
+    /// A line under the title (what a saved file will hold).
+    pub note: Option<String>,
 }
 
 pub enum DialogResult {
@@ -88,6 +90,7 @@ impl PathDialog {
             listed: None,
             focused: false,
             overwrite: None,
+            note: None,
         }
     }
 
@@ -153,6 +156,9 @@ impl PathDialog {
             .fixed_size([480.0, 330.0])
             .anchor(egui::Align2::CENTER_CENTER, egui::Vec2::ZERO)
             .show(ctx, |ui| {
+                if let Some(n) = &self.note {
+                    ui.add(egui::Label::new(n.as_str()).wrap());
+                }
                 ui.add(egui::Label::new(format!("Folder: {}", self.dir.display())).truncate());
                 let mut go_up = false;
                 let mut enter: Option<String> = None;

@@ -53,6 +53,12 @@ impl History {
         self.redo.clear();
     }
 
+    /// Whether `desc` and `view` are the state after the last closed step
+    /// (compared in place: no copy of the scene every frame).
+    pub fn is_baseline(&self, desc: &SceneDesc, view: &ViewSettings) -> bool {
+        self.baseline.view == *view && self.baseline.desc == *desc
+    }
+
     /// The state before the last step, if any (`current` is closed as a
     /// step first if it has not been).
     pub fn undo(&mut self, current: &Snapshot) -> Option<Snapshot> {

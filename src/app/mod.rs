@@ -6,10 +6,13 @@
 //!   the error readout.
 //! - [`controls`], [`camera_control`], [`status`]: the panels and the mouse.
 //! - [`settings`]: viewer toggles that map onto the scene description.
-//! - [`file_dialog`], [`export`], [`watch`]: files in and out.
+//! - [`file_dialog`], [`export`], [`scene_loader`], [`watch`]: files in and
+//!   out, off the UI thread.
 //! - [`timings`]: the `--log-timings` figures.
 //! - [`mod@reference`], [`error_view`]: the converged reference and the live
 //!   error readout against it.
+//! - [`image_view`], [`image_toolbar`], [`pinned`]: the image tools (zoom
+//!   and pan, exposure and curve, the pinned image A); display only.
 
 pub mod camera_control;
 pub mod controls;
@@ -17,8 +20,12 @@ pub mod error_view;
 pub mod export;
 pub mod file_dialog;
 pub mod history;
+pub mod image_toolbar;
+pub mod image_view;
+pub mod pinned;
 pub mod reference;
 pub mod render_job;
+pub mod scene_loader;
 pub mod settings;
 pub mod shortcuts;
 pub mod status;

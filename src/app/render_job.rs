@@ -15,18 +15,23 @@ use std::time::{Duration, Instant};
 use egui::Color32;
 
 use super::worker::{Shared, Stop, Worker};
-use crate::render::film::encode_srgb8;
 use crate::render::progressive::{CancelToken, RenderOptions, TileRect};
 use crate::render::{
-    EditClass, Film, LiveError, LiveRender, LiveReport, RenderSettings, Scene, SceneDesc,
-    ShadingParams, TileUpdate,
+    DisplayTransform, EditClass, Film, LiveError, LiveRender, LiveReport, RenderSettings, Scene,
+    SceneDesc, ShadingParams, TileUpdate,
 };
 
 /// One finished tile, ready for `TextureHandle::set_partial`.
 pub struct TileMsg {
     pub generation: u64,
     pub rect: TileRect,
+    /// As shown: through `display`.
     pub pixels: Vec<Color32>,
+    /// The linear values (the viewer shows them again when the exposure
+    /// or the curve changes).
+    pub linear: Vec<glam::Vec3>,
+    /// The display transform `pixels` went through.
+    pub display: DisplayTransform,
     pub pass_index: usize,
     pub pass_count: usize,
     /// Shadow rays per hit point of the tile's pass.
@@ -108,6 +113,8 @@ struct State {
     /// Once a render is finished and nothing else is asked for, add camera
     /// samples up to this many per pixel (1: never).
     refine_to: u32,
+    /// How tiles are converted for the screen.
+    display: DisplayTransform,
 }
 
 impl Stop for State {
@@ -139,7 +146,9 @@ impl RenderJob {
     /// A worker that, once a render is finished and no new request waits,
     /// keeps refining it with more camera samples per pixel (2, 4, 8, …) up
     /// to `refine_to`; each level is the image `penumbra render --spp N`
-    /// gives, streamed tile by tile over the last one.
+    /// gives, streamed tile by tile over the last one. The highest level
+    /// whose records fit the cap is recorded: a recombine or re-shade edit
+    /// is then shown at that many samples at once.
     pub fn with_refinement(repaint: egui::Context, refine_to: u32) -> RenderJob {
         let worker = Worker::spawn(
             "penumbra-render",
@@ -192,6 +201,12 @@ impl RenderJob {
         let mut tiles = std::mem::take(&mut s.tiles);
         tiles.retain(|t| t.generation == latest);
         tiles
+    }
+
+    /// Converts the tiles from now on through `display` (tiles already
+    /// delivered say which they went through).
+    pub fn set_display(&self, display: DisplayTransform) {
+        self.inner().lock().display = display;
     }
 
     /// Generation of the newest request.
@@ -306,8 +321,20 @@ fn lower_priority() {
 #[cfg(not(target_os = "linux"))]
 fn lower_priority() {}
 
+/// The records of a refined level (more camera samples than the scene's
+/// own), kept so that a recombine or re-shade edit shows that many samples
+/// at once instead of starting the refinement again. Only levels whose
+/// records fit the live render's cap are recorded.
+#[derive(Default)]
+struct Kept {
+    live: LiveRender,
+    /// Samples per pixel of `live`'s records (0: none).
+    level: u32,
+}
+
 fn worker_loop(inner: &Inner) {
     let mut live = LiveRender::default();
+    let mut kept = Kept::default();
     loop {
         let Some((req, panic_now)) = inner.next(|s| {
             let req = s.pending.take()?;
@@ -325,23 +352,28 @@ fn worker_loop(inner: &Inner) {
         // A panic anywhere in the render (our callback included) ends this
         // generation with an error message; the thread and the window live on.
         let result = std::panic::catch_unwind(AssertUnwindSafe(|| {
-            run_one(inner, &req, panic_now, &mut live)
+            run_one(inner, &req, panic_now, &mut live, &mut kept)
         }));
         if result.is_err() {
             // Whatever the panic interrupted is not to be reused.
             live = LiveRender::default();
+            kept = Kept::default();
         }
+        let mut done = None;
         let state = match result {
-            Ok(Ok(Some(report))) => JobState::Finished(Arc::new(FinishedRender {
-                samples: req.desc.render.samples_per_pixel,
-                desc: req.desc.clone(),
-                traced_rays: report.stats.traced(),
-                elapsed: report.elapsed,
-                class: report.class,
-                since_request: req.at.elapsed(),
-                record_bytes: report.record_bytes,
-                film: Arc::new(report.film),
-            })),
+            Ok(Ok(Some((report, samples, from_kept)))) => {
+                done = Some((samples, from_kept));
+                JobState::Finished(Arc::new(FinishedRender {
+                    samples,
+                    desc: req.desc.clone(),
+                    traced_rays: report.stats.traced(),
+                    elapsed: report.elapsed,
+                    class: report.class,
+                    since_request: req.at.elapsed(),
+                    record_bytes: report.record_bytes,
+                    film: Arc::new(report.film),
+                }))
+            }
             Ok(Ok(None)) => JobState::Cancelled,
             Ok(Err(msg)) => JobState::Failed(msg),
             Err(payload) => JobState::Failed(format!(
@@ -349,7 +381,6 @@ fn worker_loop(inner: &Inner) {
                 panic_message(payload.as_ref())
             )),
         };
-        let finished = matches!(state, JobState::Finished(_));
         {
             let mut s = inner.lock();
             s.running = None;
@@ -358,27 +389,36 @@ fn worker_loop(inner: &Inner) {
             }
         }
         inner.announce();
-        if finished && let Some(scene) = live.scene() {
-            let scene = scene.clone();
-            let refined =
-                std::panic::catch_unwind(AssertUnwindSafe(|| refine(inner, &req, &scene)));
+        if let Some((samples, from_kept)) = done {
+            let refined = std::panic::catch_unwind(AssertUnwindSafe(|| {
+                refine(inner, &req, &live, &mut kept, samples, from_kept)
+            }));
             if refined.is_err() {
                 live = LiveRender::default();
+                kept = Kept::default();
             }
         }
     }
+}
+
+/// `desc` at `spp` camera samples per pixel.
+fn at_samples(desc: &SceneDesc, spp: u32) -> SceneDesc {
+    let mut d = desc.clone();
+    d.render.samples_per_pixel = spp;
+    d
 }
 
 /// Converts a finished tile for the texture and hands it to the UI, unless
 /// a newer request replaced `generation`.
 fn deliver(inner: &Inner, req: &Request, t: &TileUpdate, samples: u32, refinement: bool) {
     let generation = req.generation;
+    let display = inner.lock().display;
     // Convert on the worker: the UI only copies bytes into the texture.
     let pixels: Vec<Color32> = t
         .pixels
         .iter()
         .map(|&p| {
-            let [r, g, b] = encode_srgb8(p);
+            let [r, g, b] = display.encode(p);
             Color32::from_rgb(r, g, b)
         })
         .collect();
@@ -399,6 +439,8 @@ fn deliver(inner: &Inner, req: &Request, t: &TileUpdate, samples: u32, refinemen
             generation,
             rect: t.rect,
             pixels,
+            linear: t.pixels.to_vec(),
+            display,
             pass_index: t.pass_index,
             pass_count: t.pass_count,
             shadow_rays: t.pass.shadow_rays,
@@ -413,12 +455,28 @@ fn deliver(inner: &Inner, req: &Request, t: &TileUpdate, samples: u32, refinemen
 }
 
 /// Refines a finished render with more camera samples per pixel, level by
-/// level, while no new request waits. Each level renders every sample
-/// again (a pixel is the average of its own samples, so level N equals a
-/// fresh render at N samples); the records of the scene's own level stay
-/// with the live render for the next edit.
-fn refine(inner: &Inner, req: &Request, scene: &Arc<Scene>) {
-    let (refine_to, spp) = (inner.lock().refine_to, req.desc.render.samples_per_pixel);
+/// level from above `samples`, while no new request waits. Each level
+/// renders every sample again (a pixel is the average of its own samples,
+/// so level N equals a fresh render at N samples). A level whose records
+/// fit the cap (estimated from the records per sample of the render
+/// before) is rendered by the kept live render, which records it; the
+/// others by a plain render. `from_kept`: the image was the kept render's.
+fn refine(
+    inner: &Inner,
+    req: &Request,
+    live: &LiveRender,
+    kept: &mut Kept,
+    samples: u32,
+    from_kept: bool,
+) {
+    let refine_to = inner.lock().refine_to;
+    let source = if from_kept { &kept.live } else { live };
+    let (Some(scene), per_sample) = (
+        source.scene().cloned(),
+        source.record_bytes() / samples.max(1) as usize,
+    ) else {
+        return;
+    };
     let mut settings = RenderSettings::from_desc(&req.desc);
     let shading = ShadingParams::from_desc(&req.desc);
     let options = RenderOptions {
@@ -426,7 +484,7 @@ fn refine(inner: &Inner, req: &Request, scene: &Arc<Scene>) {
         progressive: false,
         tile_size: 32,
     };
-    let mut level = (spp + 1).next_power_of_two();
+    let mut level = (samples + 1).next_power_of_two();
     while level <= refine_to {
         let cancel = CancelToken::new();
         {
@@ -436,13 +494,34 @@ fn refine(inner: &Inner, req: &Request, scene: &Arc<Scene>) {
             }
             s.running = Some(cancel.clone());
         }
-        settings.samples_per_pixel = level;
-        let result = crate::render::render(scene, &settings, &shading, &options, &cancel, &|t| {
-            deliver(inner, req, t, level, true)
-        });
+        let on_tile = |t: &TileUpdate| deliver(inner, req, t, level, true);
+        let fits = per_sample > 0 && per_sample.saturating_mul(level as usize) <= kept.live.cap();
+        let result = if fits {
+            let desc = at_samples(&req.desc, level);
+            if !from_kept && kept.live.class_of(&desc) == EditClass::Rebuild {
+                // Over the objects and BVH already built.
+                kept.live.share_scene(live);
+            }
+            // Its records are replaced (gone if this level is cancelled).
+            kept.level = 0;
+            kept.live
+                .render(&desc, &options, &cancel, &on_tile)
+                .map(|r| {
+                    if r.record_bytes > 0 {
+                        kept.level = level;
+                    }
+                    (r.film, r.stats.traced())
+                })
+                .map_err(|_| ())
+        } else {
+            settings.samples_per_pixel = level;
+            crate::render::render(&scene, &settings, &shading, &options, &cancel, &on_tile)
+                .map(|r| (r.film, r.stats.traced()))
+                .map_err(|_| ())
+        };
         let mut s = inner.lock();
         s.running = None;
-        let Ok(report) = result else { return };
+        let Ok((film, traced)) = result else { return };
         if s.latest != req.generation {
             return;
         }
@@ -450,9 +529,9 @@ fn refine(inner: &Inner, req: &Request, scene: &Arc<Scene>) {
             && *g == req.generation
         {
             let mut refined = (**f).clone();
-            refined.film = Arc::new(report.film);
+            refined.film = Arc::new(film);
             refined.samples = level;
-            refined.traced_rays = report.stats.traced();
+            refined.traced_rays = traced;
             s.state = Some((req.generation, JobState::Finished(Arc::new(refined))));
         }
         drop(s);
@@ -461,13 +540,44 @@ fn refine(inner: &Inner, req: &Request, scene: &Arc<Scene>) {
     }
 }
 
-/// Runs one request: `Ok(None)` if cancelled, `Err` if the scene is refused.
+/// Runs one request: `Ok(None)` if cancelled, `Err` if the scene is
+/// refused; else the report, its samples per pixel and whether the kept
+/// refined records made it. An edit that only recombines or re-shades the
+/// kept records is rendered from them, at their samples per pixel (exactly
+/// the image a fresh render at that count gives).
 fn run_one(
     inner: &Inner,
     req: &Request,
     panic_now: bool,
     live: &mut LiveRender,
-) -> Result<Option<LiveReport>, String> {
+    kept: &mut Kept,
+) -> Result<Option<(LiveReport, u32, bool)>, String> {
+    let spp = req.desc.render.samples_per_pixel;
+    if kept.level > spp && !panic_now {
+        let level = kept.level;
+        let desc = at_samples(&req.desc, level);
+        if kept.live.class_of(&desc) <= EditClass::Reshade {
+            let options = RenderOptions {
+                threads: None,
+                progressive: false,
+                tile_size: 32,
+            };
+            let result = kept.live.render(&desc, &options, &req.cancel, &|t| {
+                deliver(inner, req, t, level, false);
+            });
+            if let Some(scene) = kept.live.scene() {
+                inner.lock().scene = Some((req.generation, scene.clone()));
+            }
+            return match result {
+                Ok(report) => Ok(Some((report, level, true))),
+                Err(LiveError::Cancelled(_)) => {
+                    kept.level = 0;
+                    Ok(None)
+                }
+                Err(LiveError::Scene(e)) => Err(e.to_string()),
+            };
+        }
+    }
     let options = RenderOptions {
         threads: None,
         progressive: true,
@@ -477,13 +587,13 @@ fn run_one(
         if panic_now {
             panic!("injected test panic");
         }
-        deliver(inner, req, t, req.desc.render.samples_per_pixel, false);
+        deliver(inner, req, t, spp, false);
     });
     if let Some(scene) = live.scene() {
         inner.lock().scene = Some((req.generation, scene.clone()));
     }
     match result {
-        Ok(report) => Ok(Some(report)),
+        Ok(report) => Ok(Some((report, spp, false))),
         Err(LiveError::Cancelled(_)) => Ok(None),
         Err(LiveError::Scene(e)) => Err(e.to_string()),
     }

@@ -37,6 +37,23 @@ impl ViewSettings {
     /// The scene to render: `desc` with the toggles applied, at the
     /// resolution scale (`full`: at the scene's own size, for export and
     /// "save scene").
+    /// `self.apply(desc, full) == *other`, without copying the objects
+    /// (the viewer asks every frame; a scene may hold 10⁶ of them).
+    pub fn applied_equals(&self, desc: &SceneDesc, full: bool, other: &SceneDesc) -> bool {
+        let head = |d: &SceneDesc| SceneDesc {
+            format: d.format,
+            camera: d.camera.clone(),
+            render: d.render.clone(),
+            light: d.light.clone(),
+            materials: Default::default(),
+            objects: Vec::new(),
+            base_dir: None,
+        };
+        desc.objects == other.objects
+            && desc.materials == other.materials
+            && self.apply(&head(desc), full) == head(other)
+    }
+
     pub fn apply(&self, desc: &SceneDesc, full: bool) -> SceneDesc {
         let mut d = desc.clone();
         let t = &mut d.render.terms;

@@ -19,6 +19,15 @@ pub enum Command {
     Fullscreen,
     Help,
     About,
+    /// The image tools: zoom the image (not the camera), pin it as A and
+    /// compare the live render with it.
+    ZoomFit,
+    ZoomOneToOne,
+    ZoomIn,
+    ZoomOut,
+    ZoomMode,
+    PinImage,
+    NextCompare,
     /// Close the topmost overlay (help, inspector, dialog).
     Escape,
 }
@@ -79,6 +88,41 @@ pub const BINDINGS: &[(Command, &[KeyboardShortcut], &str)] = &[
     ),
     (Command::Fullscreen, &[ks(NONE, Key::F11)], "Full screen"),
     (
+        Command::ZoomFit,
+        &[ks(NONE, Key::Num0)],
+        "Image: fit the panel",
+    ),
+    (
+        Command::ZoomOneToOne,
+        &[ks(NONE, Key::Num1)],
+        "Image: 1:1 (one image pixel per screen pixel)",
+    ),
+    (
+        Command::ZoomIn,
+        &[ks(NONE, Key::Plus), ks(NONE, Key::Equals)],
+        "Image: zoom in 2× (up to 32×, pixel grid from 8×)",
+    ),
+    (
+        Command::ZoomOut,
+        &[ks(NONE, Key::Minus)],
+        "Image: zoom out 2×",
+    ),
+    (
+        Command::ZoomMode,
+        &[ks(NONE, Key::Z)],
+        "Image zoom mode: drag pans, wheel zooms the image",
+    ),
+    (
+        Command::PinImage,
+        &[ks(NONE, Key::P)],
+        "Pin the image as A (to compare after edits)",
+    ),
+    (
+        Command::NextCompare,
+        &[ks(NONE, Key::X)],
+        "Compare with A: live, split, flicker, difference",
+    ),
+    (
         Command::Help,
         &[ks(NONE, Key::F1), ks(NONE, Key::Questionmark)],
         "This help",
@@ -95,6 +139,11 @@ pub const MOUSE: &[(&str, &str)] = &[
     ("Drag", "Orbit about the pivot"),
     ("Shift+drag, middle-drag", "Pan"),
     ("Wheel", "Zoom towards the pivot"),
+    (
+        "Ctrl+wheel",
+        "Zoom the image about the cursor (not the camera)",
+    ),
+    ("Ctrl+drag", "Pan the zoomed image"),
     ("Double-click", "Set the pivot there and inspect the pixel"),
     (
         "Drop a file",

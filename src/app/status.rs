@@ -49,6 +49,11 @@ impl Progress {
 
     pub fn on_tile(&mut self, t: &TileMsg) {
         if t.refinement {
+            if t.samples <= self.samples {
+                // A late tile of a level already complete (tiles of one
+                // level reach the mailbox in any order).
+                return;
+            }
             // A refinement of the finished image: its own progress.
             let done = match self.refining {
                 Some((to, done, _)) if to == t.samples => done.max(t.tiles_done),

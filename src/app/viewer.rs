@@ -23,11 +23,15 @@ use super::error_view::{
 use super::export::IoTasks;
 use super::file_dialog::{DialogResult, PathDialog, Purpose};
 use super::history::{History, Snapshot};
+use super::image_toolbar::toolbar_ui;
+use super::image_view::{GRID_ZOOM, ImageView, paint_grid, zoom_step};
+use super::pinned::{Compare, CompareMode};
 use super::reference::{
     Match, Origin, RefAction, RefPanel, Reference, ReferenceTask, TaskKind, TaskOutcome, ViewMode,
     converged, reference_ui, same_limit,
 };
 use super::render_job::{JobState, RenderJob};
+use super::scene_loader::{LoadKind, LoadResult, SceneLoads, progress_ui};
 use super::settings::ViewSettings;
 use super::shortcuts::{self, Command, help_ui};
 use super::status::{Progress, status_ui};
@@ -35,10 +39,13 @@ use super::timings::Timings;
 use super::watch::SceneWatcher;
 use crate::render::scene::HitTarget;
 use crate::render::scene_file::CameraDesc;
-use crate::render::{Film, SceneDesc};
+use crate::render::{DisplayTransform, Film, SceneDesc};
 
 /// Background of the image area and of an image not yet rendered.
 const EMPTY: Color32 = Color32::from_rgb(24, 24, 24);
+
+/// A whole texture.
+const FULL_UV: egui::Rect = egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0));
 
 /// How the viewer starts.
 #[derive(Debug, Clone)]
@@ -81,6 +88,39 @@ pub struct PickInfo {
     pub what: String,
     pub material: Option<String>,
     pub linear_rgb: Option<[f32; 3]>,
+    /// The 8-bit sRGB code shown there (through the exposure and curve).
+    pub shown_srgb: Option<[u8; 3]>,
+    /// The pinned image A there: linear RGB and the sRGB code shown.
+    pub pinned: Option<([f32; 3], [u8; 3])>,
+}
+
+/// The inspector's text: what is there, its linear RGB and the sRGB code
+/// shown, for the live image and A.
+pub fn inspector_text(p: &PickInfo) -> String {
+    let values = |linear: [f32; 3], srgb: [u8; 3]| {
+        format!(
+            "linear RGB ({:.4}, {:.4}, {:.4})  sRGB ({}, {}, {})",
+            linear[0], linear[1], linear[2], srgb[0], srgb[1], srgb[2]
+        )
+    };
+    let mut text = format!(
+        "pixel ({}, {}): {}{}\nlive  {}",
+        p.pixel.0,
+        p.pixel.1,
+        p.what,
+        p.material
+            .as_ref()
+            .map(|m| format!(", material \"{m}\""))
+            .unwrap_or_default(),
+        match (p.linear_rgb, p.shown_srgb) {
+            (Some(l), Some(s)) => values(l, s),
+            _ => "not rendered yet".into(),
+        }
+    );
+    if let Some((l, s)) = p.pinned {
+        text.push_str(&format!("\nA     {}", values(l, s)));
+    }
+    text
 }
 
 pub struct Viewer {
@@ -97,6 +137,20 @@ pub struct Viewer {
     texture: Option<TextureHandle>,
     /// What the texture holds, kept on the CPU (for tests and resizes).
     shown: ColorImage,
+    /// The linear values of `shown` (to show them again through another
+    /// exposure or curve; the render's own film is never touched).
+    linear: Film,
+    /// Exposure and tone curve of the image view (and of a saved PNG).
+    display: DisplayTransform,
+    /// Zoom and pan of the image, independent of the camera.
+    image_view: ImageView,
+    /// The image area and pixels per point of the last frame (for the
+    /// zoom keys).
+    image_area: (egui::Rect, f32),
+    /// The textures draw image pixels as blocks (zoomed in).
+    blocks: bool,
+    /// The pinned image A and the comparison with it.
+    compare: Compare,
     progress: Progress,
     /// Generation whose end (finished or failed) was already handled.
     handled: u64,
@@ -106,6 +160,8 @@ pub struct Viewer {
     notice: Option<String>,
     dialog: Option<PathDialog>,
     io: IoTasks,
+    /// Scene files being read (open, hot reload) on their own thread.
+    loads: SceneLoads,
     pick: Option<PickInfo>,
     timings: Timings,
     wiggle: Option<(Duration, Instant, u32)>,
@@ -195,6 +251,7 @@ impl Viewer {
             [desc.camera.width as usize, desc.camera.height as usize],
             EMPTY,
         );
+        let linear = Film::new(desc.camera.width, desc.camera.height);
         Viewer {
             home_camera: desc.camera.clone(),
             view: ViewSettings::for_scene(&desc),
@@ -224,12 +281,19 @@ impl Viewer {
             job: None,
             texture: None,
             shown,
+            linear,
+            display: DisplayTransform::default(),
+            image_view: ImageView::default(),
+            image_area: (egui::Rect::ZERO, 1.0),
+            blocks: false,
+            compare: Compare::default(),
             handled: 0,
             banner: options.startup_error,
             banner_from_render: false,
             notice: None,
             dialog: None,
             io: IoTasks::default(),
+            loads: SceneLoads::default(),
             pick: None,
             timings: Timings::new(options.log_timings),
             wiggle: options.wiggle.map(|d| (d, Instant::now(), 0)),
@@ -445,17 +509,13 @@ impl Viewer {
     }
 
     pub fn can_undo(&self) -> bool {
-        self.history.can_undo() || self.snapshot() != *self.history_baseline()
-    }
-
-    fn history_baseline(&self) -> &Snapshot {
-        self.history.baseline()
+        self.history.can_undo() || !self.history.is_baseline(&self.desc, &self.view)
     }
 
     /// The scene differs from the file (or the built-in room) as last
     /// opened, reloaded or saved.
     pub fn is_dirty(&self) -> bool {
-        self.view.apply(&self.desc, true) != self.saved
+        !self.view.applied_equals(&self.desc, true, &self.saved)
     }
 
     /// The window title: the scene's name, with " •" while unsaved.
@@ -522,6 +582,19 @@ impl Viewer {
             }
             Command::Help => self.help_open = !self.help_open,
             Command::About => self.about_open = true,
+            Command::ZoomFit | Command::ZoomOneToOne | Command::ZoomIn | Command::ZoomOut => {
+                self.zoom_command(command)
+            }
+            Command::ZoomMode => self.image_view.zoom_mode = !self.image_view.zoom_mode,
+            Command::PinImage => self.pin_image(ctx),
+            Command::NextCompare => {
+                if self.compare.pinned.is_none() {
+                    self.notice = Some("nothing pinned: P pins the image as A".into());
+                } else {
+                    self.compare.mode = self.compare.mode.next();
+                    self.compare.restart_flicker();
+                }
+            }
             Command::Escape => {
                 // The topmost overlay only.
                 if self.confirm.take().is_some() {
@@ -639,82 +712,132 @@ impl Viewer {
         if self.shown.size != shown_size {
             // A new size: start from an empty picture of it.
             self.shown = ColorImage::filled(shown_size, EMPTY);
+            self.linear = Film::new(size.0, size.1);
+            let options = self.texture_options();
             if let Some(t) = &mut self.texture {
-                t.set(self.shown.clone(), TextureOptions::LINEAR);
+                t.set(self.shown.clone(), options);
             }
         }
     }
 
-    /// Opens a scene file; on failure the banner shows why and the current
+    /// Opens a scene file: read on the load thread (a newer open or reload
+    /// supersedes it); on failure the banner shows why and the current
     /// scene stays.
     pub fn open_scene(&mut self, ctx: &egui::Context, path: &Path) {
-        match SceneDesc::load(path) {
-            Ok(desc) => {
-                self.view = ViewSettings::for_scene(&desc);
-                self.home_camera = desc.camera.clone();
-                self.file_desc = Some(desc.clone());
-                self.saved = desc.clone();
-                self.history.reset(Snapshot {
-                    desc: desc.clone(),
-                    view: self.view.clone(),
-                });
-                self.desc = desc;
-                self.scene_path = Some(path.to_path_buf());
-                self.remember_dir(path);
-                self.add_recent(path);
-                self.watch(ctx);
-                self.banner = None;
-                self.pick = None;
-                self.notice = Some(format!("opened {}", path.display()));
-                self.restart();
-            }
-            Err(e) => self.show_error(e.to_string()),
-        }
+        self.loads.start(ctx, path, LoadKind::Open);
     }
 
-    /// Reads the watched file again. The rule for unsaved edits: the file
-    /// wins on every field it changed, and each edit of a field it left
-    /// alone (the camera included) stays; the viewer's own toggles are not
-    /// in the file and stay. The state before the reload is one undo step
-    /// away. A bad file only shows the banner.
-    fn reload(&mut self) {
+    /// Reads the watched file again, on the load thread. The rule for
+    /// unsaved edits: the file wins on every field it changed, and each
+    /// edit of a field it left alone (the camera included) stays; the
+    /// viewer's own toggles are not in the file and stay. The state before
+    /// the reload is one undo step away. A bad file only shows the banner.
+    fn reload(&mut self, ctx: &egui::Context) {
         let Some(path) = self.scene_path.clone() else {
             return;
         };
-        match SceneDesc::load(&path) {
-            Ok(theirs) => {
-                let merged = match &self.file_desc {
-                    Some(base) => merge_reload(base, &self.desc, &theirs),
-                    // Not read before (broken at launch): all of it.
-                    None => {
-                        self.view = ViewSettings::for_scene(&theirs);
-                        theirs.clone()
-                    }
-                };
-                if self
-                    .file_desc
-                    .as_ref()
-                    .is_none_or(|b| b.camera != theirs.camera)
-                {
-                    self.home_camera = theirs.camera.clone();
-                }
-                self.file_desc = Some(theirs.clone());
-                self.saved = theirs;
-                self.desc = merged;
-                self.banner = None;
-                self.notice = Some(format!(
-                    "reloaded {}{}",
-                    path.display(),
-                    if self.is_dirty() {
-                        " (your edits of other fields kept; Ctrl+Z goes back)"
-                    } else {
-                        ""
-                    }
-                ));
-                self.restart();
-            }
-            Err(e) => self.show_error(e.to_string()),
+        let kind = LoadKind::Reload {
+            base: self.file_desc.clone(),
+            mine: self.desc.clone(),
+        };
+        self.loads.start(ctx, &path, kind);
+    }
+
+    /// A load under way: its path, how long it has run, whether a reload.
+    pub fn loading(&self) -> Option<(&Path, Duration, bool)> {
+        self.loads.busy()
+    }
+
+    /// Stops waiting for the load under way (the scene shown stays).
+    pub fn cancel_load(&mut self) {
+        if let Some(p) = self.loads.cancel() {
+            self.notice = Some(format!("cancelled loading {}", p.display()));
         }
+    }
+
+    /// Blocks until every load thread ended (tests only); the next frame
+    /// takes the result.
+    pub fn wait_for_loads(&self, timeout: Duration) -> bool {
+        self.loads.wait_idle(timeout)
+    }
+
+    /// Test hook: load threads wait before reading while `on`.
+    pub fn hold_loads_for_tests(&self, on: bool) {
+        self.loads.hold_for_tests(on);
+    }
+
+    /// Takes a finished load.
+    fn poll_loads(&mut self, ctx: &egui::Context) {
+        let Some((path, result)) = self.loads.poll() else {
+            return;
+        };
+        match result {
+            LoadResult::Opened(desc) => self.opened(ctx, &path, desc),
+            LoadResult::Reloaded {
+                theirs,
+                merged,
+                mine,
+            } => {
+                // Edited while the file was read: merge those edits instead.
+                let merged = match &self.file_desc {
+                    Some(base) if self.desc != mine => merge_reload(base, &self.desc, &theirs),
+                    _ => merged,
+                };
+                self.reloaded(&path, theirs, merged)
+            }
+            LoadResult::Failed(e) => self.show_error(e),
+        }
+    }
+
+    fn opened(&mut self, ctx: &egui::Context, path: &Path, desc: SceneDesc) {
+        self.view = ViewSettings::for_scene(&desc);
+        self.home_camera = desc.camera.clone();
+        self.file_desc = Some(desc.clone());
+        self.saved = desc.clone();
+        self.history.reset(Snapshot {
+            desc: desc.clone(),
+            view: self.view.clone(),
+        });
+        self.desc = desc;
+        self.scene_path = Some(path.to_path_buf());
+        self.remember_dir(path);
+        self.add_recent(path);
+        self.watch(ctx);
+        self.banner = None;
+        self.pick = None;
+        self.notice = Some(format!("opened {}", path.display()));
+        self.restart();
+    }
+
+    fn reloaded(&mut self, path: &Path, theirs: SceneDesc, merged: SceneDesc) {
+        if self.scene_path.as_deref() != Some(path) {
+            return;
+        }
+        if self.file_desc.is_none() {
+            // Not read before (broken at launch): all of it.
+            self.view = ViewSettings::for_scene(&theirs);
+        }
+        if self
+            .file_desc
+            .as_ref()
+            .is_none_or(|b| b.camera != theirs.camera)
+        {
+            self.home_camera = theirs.camera.clone();
+        }
+        self.file_desc = Some(theirs.clone());
+        self.saved = theirs;
+        self.desc = merged;
+        self.banner = None;
+        self.notice = Some(format!(
+            "reloaded {}{}",
+            path.display(),
+            if self.is_dirty() {
+                " (your edits of other fields kept; Ctrl+Z goes back)"
+            } else {
+                ""
+            }
+        ));
+        self.restart();
     }
 
     fn add_recent(&mut self, path: &Path) {
@@ -759,7 +882,7 @@ impl Viewer {
             Some(JobState::Finished(f)) if f.desc == full => Some(f.film.clone()),
             _ => None,
         };
-        self.io.save_png(ctx, full, film, path);
+        self.io.save_png(ctx, full, film, path, self.display);
     }
 
     /// Writes the settings as a scene file that renders to the same image.
@@ -768,7 +891,7 @@ impl Viewer {
             path.set_extension("json");
         }
         let full = self.view.apply(&self.desc, true);
-        self.io.save_scene(ctx, &full, path.clone());
+        self.io.save_scene(ctx, full.clone(), path.clone());
         // Saved as: this is now the scene's file (watched; its contents
         // are these settings, so the reload it causes changes nothing).
         self.saved = full.clone();
@@ -777,6 +900,128 @@ impl Viewer {
         if self.scene_path.as_deref() != Some(path.as_path()) {
             self.scene_path = Some(path);
             self.watch(ctx);
+        }
+    }
+
+    // ----- image tools (display only) ------------------------------------
+
+    pub fn display(&self) -> DisplayTransform {
+        self.display
+    }
+
+    /// Shows the image through another exposure or curve: the texture is
+    /// converted again from the linear values on screen, the worker's
+    /// tiles go through it from now on. The render is not touched.
+    pub fn set_display(&mut self, display: DisplayTransform) {
+        self.display = display;
+        if let Some(job) = &self.job {
+            job.set_display(display);
+        }
+        self.shown.pixels = pixels_shown(&self.linear.pixels, &display);
+        let options = self.texture_options();
+        if let Some(t) = &mut self.texture {
+            t.set(self.shown.clone(), options);
+        }
+        self.compare.redisplay(&display, options);
+    }
+
+    pub fn image_view(&self) -> &ImageView {
+        &self.image_view
+    }
+
+    /// The image panel of the last frame and egui's pixels per point.
+    pub fn image_area(&self) -> (egui::Rect, f32) {
+        self.image_area
+    }
+
+    pub fn image_view_mut(&mut self) -> &mut ImageView {
+        &mut self.image_view
+    }
+
+    pub fn compare(&self) -> &Compare {
+        &self.compare
+    }
+
+    pub fn compare_mut(&mut self) -> &mut Compare {
+        &mut self.compare
+    }
+
+    /// Pins the image on screen as A.
+    pub fn pin_image(&mut self, ctx: &egui::Context) {
+        let samples = match self.job.as_ref().map(RenderJob::state) {
+            Some(JobState::Finished(f)) => f.samples,
+            _ => self.desc.render.samples_per_pixel,
+        };
+        let options = self.texture_options();
+        self.compare
+            .pin(ctx, self.linear.clone(), samples, &self.display, options);
+        self.notice = Some("pinned the image as A: edit, then compare (X)".into());
+    }
+
+    /// Zoom keys and buttons act about the panel's centre.
+    fn zoom_command(&mut self, command: Command) {
+        let (area, ppp) = self.image_area;
+        let size = self.shown.size;
+        let v = &mut self.image_view;
+        match command {
+            Command::ZoomFit => v.fit(),
+            Command::ZoomOneToOne => v.set_scale_about(area, size, ppp, area.center(), 1.0),
+            Command::ZoomIn | Command::ZoomOut => {
+                let s = zoom_step(v.scale(area, size, ppp), command == Command::ZoomIn);
+                v.set_scale_about(area, size, ppp, area.center(), s);
+            }
+            _ => {}
+        }
+    }
+
+    /// Nearest-pixel magnification once zoomed in (pixels as blocks), else
+    /// smooth.
+    fn texture_options(&self) -> TextureOptions {
+        if self.blocks {
+            TextureOptions {
+                magnification: egui::TextureFilter::Nearest,
+                ..TextureOptions::LINEAR
+            }
+        } else {
+            TextureOptions::LINEAR
+        }
+    }
+
+    /// Uploads the textures again when the zoom crosses into blocks or out.
+    fn update_texture_filter(&mut self, area: egui::Rect, ppp: f32) {
+        let blocks = self.image_view.shows_blocks(area, self.shown.size, ppp);
+        if blocks == self.blocks {
+            return;
+        }
+        self.blocks = blocks;
+        let options = self.texture_options();
+        if let Some(t) = &mut self.texture {
+            t.set(self.shown.clone(), options);
+        }
+        if let (Some(t), Some(e)) = (&mut self.error_texture, &self.error) {
+            t.set(ImageData::Color(e.image.clone()), options);
+        }
+        self.compare.set_texture_options(options);
+    }
+
+    /// Asks for the difference against A of the finished image, and takes
+    /// a finished one.
+    fn poll_compare(&mut self, ctx: &egui::Context) {
+        let options = self.texture_options();
+        self.compare.poll(ctx, options);
+        if self.compare.mode != CompareMode::Difference {
+            return;
+        }
+        let Some(job) = &self.job else { return };
+        if let JobState::Finished(f) = job.state() {
+            let generation = job.generation();
+            self.compare.request_difference(
+                ctx,
+                &f.film,
+                generation,
+                f.samples,
+                self.error_exposure,
+            );
         }
     }
 
@@ -882,11 +1127,10 @@ impl Viewer {
             return;
         };
         let image = ImageData::Color(shown.image.clone());
+        let options = self.texture_options();
         match &mut self.error_texture {
-            Some(t) => t.set(image, TextureOptions::LINEAR),
-            None => {
-                self.error_texture = Some(ctx.load_texture("error", image, TextureOptions::LINEAR))
-            }
+            Some(t) => t.set(image, options),
+            None => self.error_texture = Some(ctx.load_texture("error", image, options)),
         }
         self.error = Some(shown);
     }
@@ -1012,7 +1256,15 @@ impl Viewer {
                 _ => "reference.exr".into(),
             },
         };
-        self.dialog = Some(PathDialog::new(purpose, &dir.join(name)));
+        let mut dialog = PathDialog::new(purpose, &dir.join(name));
+        if purpose == Purpose::SavePng {
+            dialog.note = Some(format!(
+                "PNG: the image as shown ({}). EXR (name it .exr): the linear render, \
+                 without exposure or curve.",
+                self.display.describe()
+            ));
+        }
+        self.dialog = Some(dialog);
     }
 
     /// The open path dialog, if any (tests fill in its path).
@@ -1034,6 +1286,8 @@ impl Viewer {
         self.check_render_end();
         self.poll_reference();
         self.poll_error(&ctx);
+        self.poll_compare(&ctx);
+        self.poll_loads(&ctx);
 
         let mut changed = false;
         let mut action = None;
@@ -1060,6 +1314,13 @@ impl Viewer {
                         }
                     });
                 });
+        }
+        if self.loads.busy().is_some() {
+            let mut cancel = false;
+            egui::Panel::top("loading").show(ui, |ui| cancel = progress_ui(ui, &self.loads));
+            if cancel {
+                self.cancel_load();
+            }
         }
         egui::Panel::bottom("status").show(ui, |ui| {
             let state = self
@@ -1099,6 +1360,17 @@ impl Viewer {
                     });
                 });
         }
+        egui::Panel::top("image-tools").show(ui, |ui| {
+            let (area, ppp) = self.image_area;
+            let zoom = self.image_view.label(area, self.shown.size, ppp);
+            let mut display = self.display;
+            let zoom_mode = self.image_view.zoom_mode;
+            let out = toolbar_ui(ui, &mut display, &mut self.compare, &zoom, zoom_mode);
+            if out.display_changed {
+                self.set_display(display);
+            }
+            commands.extend(out.commands);
+        });
         egui::CentralPanel::no_frame()
             .frame(egui::Frame::new().fill(EMPTY))
             .show(ui, |ui| changed |= self.image_ui(ui));
@@ -1164,8 +1436,11 @@ impl Viewer {
                     .iter()
                     .any(|&k| i.key_down(k))
         });
-        let snapshot = self.snapshot();
-        self.history.observe(&snapshot, gesture);
+        // (A copy of the scene only when it changed: it may be 10⁶ objects.)
+        if !gesture && !self.history.is_baseline(&self.desc, &self.view) {
+            let snapshot = self.snapshot();
+            self.history.observe(&snapshot, false);
+        }
 
         let title = self.title();
         if title != self.title {
@@ -1231,6 +1506,28 @@ impl Viewer {
                 ui.separator();
                 ui.radio_value(&mut self.view_mode, ViewMode::Image, "Image");
                 ui.radio_value(&mut self.view_mode, ViewMode::Error, "Error");
+                ui.separator();
+                item(ui, "Zoom image to fit", Command::ZoomFit, true, commands);
+                item(ui, "Image 1:1", Command::ZoomOneToOne, true, commands);
+                item(ui, "Zoom image in", Command::ZoomIn, true, commands);
+                item(ui, "Zoom image out", Command::ZoomOut, true, commands);
+                let mark = if self.image_view.zoom_mode {
+                    "✔ "
+                } else {
+                    ""
+                };
+                let text = format!("{mark}Image zoom mode");
+                item(ui, &text, Command::ZoomMode, true, commands);
+                ui.separator();
+                item(ui, "Pin image as A", Command::PinImage, true, commands);
+                let pinned = self.compare.pinned.is_some();
+                item(
+                    ui,
+                    "Compare with A: next",
+                    Command::NextCompare,
+                    pinned,
+                    commands,
+                );
             });
             ui.menu_button("Render", |ui| {
                 let mark = if self.desc.render.cutaway { "✔ " } else { "" };
@@ -1311,7 +1608,7 @@ impl Viewer {
         }
         self.job = Some(RenderJob::with_refinement(ctx.clone(), self.refine_spp));
         self.errors = Some(ErrorJob::new(ctx.clone()));
-        self.texture = Some(ctx.load_texture("render", self.shown.clone(), TextureOptions::LINEAR));
+        self.texture = Some(ctx.load_texture("render", self.shown.clone(), self.texture_options()));
         self.watch(ctx);
         self.restart();
     }
@@ -1336,7 +1633,7 @@ impl Viewer {
         }
         if let Some(w) = &self.watcher {
             match w.poll() {
-                Ok(true) => self.reload(),
+                Ok(true) => self.reload(ctx),
                 Ok(false) => {}
                 Err(wait) => ctx.request_repaint_after(wait),
             }
@@ -1364,6 +1661,7 @@ impl Viewer {
     fn stream_tiles(&mut self) {
         let Some(job) = &self.job else { return };
         let tiles = job.take_tiles();
+        let options = self.texture_options();
         let Some(texture) = &mut self.texture else {
             return;
         };
@@ -1394,6 +1692,13 @@ impl Viewer {
             if x + w > self.shown.size[0] || y + h > self.shown.size[1] {
                 continue;
             }
+            self.linear
+                .write_block(t.rect.x, t.rect.y, t.rect.w, &t.linear);
+            let mut t = t;
+            if t.display != self.display {
+                // Converted before the exposure or curve changed.
+                t.pixels = pixels_shown(&t.linear, &self.display);
+            }
             for row in 0..h {
                 let dst = (y + row) * self.shown.size[0] + x;
                 self.shown.pixels[dst..dst + w].copy_from_slice(&t.pixels[row * w..(row + 1) * w]);
@@ -1402,11 +1707,11 @@ impl Viewer {
             self.timings.on_upload(t.generation);
             if !whole {
                 let image = ColorImage::new([w, h], t.pixels);
-                texture.set_partial([x, y], image, TextureOptions::LINEAR);
+                texture.set_partial([x, y], image, options);
             }
         }
         if whole {
-            texture.set(self.shown.clone(), TextureOptions::LINEAR);
+            texture.set(self.shown.clone(), options);
         }
         if pass_done {
             self.refresh_error();
@@ -1440,15 +1745,36 @@ impl Viewer {
         }
     }
 
-    /// The image, fitted to the panel, with mouse camera control; true if
-    /// the camera moved.
+    /// The image (fitted, or zoomed and panned: see [`ImageView`]), with
+    /// mouse camera control, the comparison with A and the inspector; true
+    /// if the camera moved.
     fn image_ui(&mut self, ui: &mut Ui) -> bool {
         let area = ui.available_rect_before_wrap();
         let response = ui.allocate_rect(area, Sense::click_and_drag());
-        let [w, h] = self.shown.size;
-        let fit = (area.width() / w as f32).min(area.height() / h as f32);
-        let rect =
-            egui::Rect::from_center_size(area.center(), egui::vec2(w as f32, h as f32) * fit);
+        let ppp = ui.ctx().pixels_per_point();
+        let size = self.shown.size;
+        self.image_area = (area, ppp);
+        // Ctrl+wheel (egui's zoom gesture), or the wheel in zoom mode, zooms
+        // the image about the cursor; Ctrl+drag, or a drag in zoom mode,
+        // pans it. Everything else is the camera's, as before.
+        let (zoom_delta, scroll, ctrl) =
+            ui.input(|i| (i.zoom_delta(), i.smooth_scroll_delta.y, i.modifiers.command));
+        if let Some(pos) = response.hover_pos() {
+            let mut factor = zoom_delta;
+            if self.image_view.zoom_mode && scroll != 0.0 {
+                factor *= (scroll * 0.005).exp();
+            }
+            if factor != 1.0 {
+                self.image_view.zoom_about(area, size, ppp, pos, factor);
+            }
+        }
+        let image_drag = self.image_view.zoom_mode || ctrl;
+        if image_drag && response.drag_delta() != egui::Vec2::ZERO {
+            self.image_view.pan(area, size, ppp, response.drag_delta());
+        }
+        self.update_texture_filter(area, ppp);
+        let rect = self.image_view.image_rect(area, size, ppp);
+        let painter = ui.painter_at(area);
         let error = self
             .current_error()
             .filter(|e| self.view_mode == ViewMode::Error && e.image.size == self.shown.size);
@@ -1457,12 +1783,14 @@ impl Viewer {
             None => self.texture.as_ref(),
         };
         if let Some(t) = texture {
-            ui.painter().image(
-                t.id(),
-                rect,
-                egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0)),
-                Color32::WHITE,
-            );
+            painter.image(t.id(), rect, FULL_UV, Color32::WHITE);
+        }
+        let shown_rect = rect.intersect(area);
+        if let Some(wait) = self.compare.paint(ui, &painter, rect, shown_rect, size) {
+            ui.ctx().request_repaint_after(wait);
+        }
+        if self.image_view.scale(area, size, ppp) >= GRID_ZOOM {
+            paint_grid(&painter, rect, [size[0], size[1]], area);
         }
         if self.view_mode == ViewMode::Error {
             let scale = error.map(|e| e.scale);
@@ -1477,7 +1805,7 @@ impl Viewer {
             };
             egui::Area::new(egui::Id::unique("penumbra-error-legend"))
                 .pivot(egui::Align2::LEFT_BOTTOM)
-                .fixed_pos(rect.left_bottom() + egui::vec2(8.0, -8.0))
+                .fixed_pos(shown_rect.left_bottom() + egui::vec2(8.0, -8.0))
                 .show(ui.ctx(), |ui| {
                     egui::Frame::popup(ui.style()).show(ui, |ui| match scale {
                         Some(s) => legend_ui(ui, s),
@@ -1487,37 +1815,24 @@ impl Viewer {
                     });
                 });
         }
-        let moved = camera_input(ui, &response, &mut self.desc.camera, rect.height());
+        let moved =
+            !image_drag && camera_input(ui, &response, &mut self.desc.camera, rect.height());
         if response.double_clicked()
             && let Some(pos) = response.interact_pointer_pos().or(response.hover_pos())
-            && rect.contains(pos)
+            && let Some([px, py]) = self.image_view.pixel_at(area, size, ppp, pos)
         {
-            let px = (((pos.x - rect.min.x) / fit) as u32).min(w as u32 - 1);
-            let py = (((pos.y - rect.min.y) / fit) as u32).min(h as u32 - 1);
             self.pick = self.pick_at(px, py);
             self.pick_pos = Some(pos);
             // The surface there becomes the pivot the camera orbits about.
             self.set_pivot_at(px, py);
         }
         if let Some(p) = &self.pick {
-            let text = format!(
-                "pixel ({}, {}): {}{}\nlinear RGB {}",
-                p.pixel.0,
-                p.pixel.1,
-                p.what,
-                p.material
-                    .as_ref()
-                    .map(|m| format!(", material \"{m}\""))
-                    .unwrap_or_default(),
-                p.linear_rgb
-                    .map(|c| format!("({:.4}, {:.4}, {:.4})", c[0], c[1], c[2]))
-                    .unwrap_or_else(|| "not rendered yet".into()),
-            );
+            let text = inspector_text(p);
             // At the cursor, kept inside the image area.
             let at = self.pick_pos.unwrap_or(rect.left_top()) + egui::vec2(12.0, 12.0);
             let at = egui::pos2(
-                at.x.min(area.right() - 260.0).max(area.left()),
-                at.y.min(area.bottom() - 90.0).max(area.top()),
+                at.x.min(area.right() - 300.0).max(area.left()),
+                at.y.min(area.bottom() - 130.0).max(area.top()),
             );
             egui::Area::new(egui::Id::unique("penumbra-pick"))
                 .fixed_pos(at)
@@ -1549,11 +1864,23 @@ impl Viewer {
             Some((HitTarget::Light, _)) => ("the light".to_string(), None),
             None => ("background".to_string(), None),
         };
+        let linear = job.pixel(px, py);
+        let pinned = self
+            .compare
+            .pinned
+            .as_ref()
+            .filter(|a| a.film.width > px && a.film.height > py)
+            .map(|a| {
+                let c = a.film.get(px, py);
+                (c.to_array(), self.display.encode(c))
+            });
         Some(PickInfo {
             pixel: (px, py),
             what,
             material,
-            linear_rgb: job.pixel(px, py).map(|c| c.to_array()),
+            linear_rgb: linear.map(|c| c.to_array()),
+            shown_srgb: linear.map(|c| self.display.encode(c)),
+            pinned,
         })
     }
 }
@@ -1572,6 +1899,17 @@ impl eframe::App for Viewer {
     fn persist_egui_memory(&self) -> bool {
         self.persist
     }
+}
+
+/// Linear pixels as the texture shows them.
+fn pixels_shown(linear: &[glam::Vec3], display: &DisplayTransform) -> Vec<Color32> {
+    linear
+        .iter()
+        .map(|&p| {
+            let [r, g, b] = display.encode(p);
+            Color32::from_rgb(r, g, b)
+        })
+        .collect()
 }
 
 /// A hot reload's three-way merge, field by field of the JSON tree: where

@@ -8,7 +8,7 @@ use glam::DVec3;
 
 use super::geometry::Triangle;
 pub use super::mesh_ply::read_ply;
-use super::scene_file::{MeshDesc, MeshShading, read_bounded};
+use super::scene_file::{MeshDesc, MeshShading, read_regular};
 
 /// Limits of mesh input (documented in the README).
 pub mod limits {
@@ -64,7 +64,7 @@ pub fn load(desc: &MeshDesc, base_dir: Option<&Path>, budget: usize) -> Result<L
         .map(str::to_ascii_lowercase)
         .unwrap_or_default();
     let read = |what: &str| -> Result<Vec<u8>, String> {
-        read_bounded(&path, limits::MAX_MESH_FILE_BYTES).map_err(|e| format!("{name}: {e}{what}"))
+        read_regular(&path, limits::MAX_MESH_FILE_BYTES).map_err(|e| format!("{name}: {e}{what}"))
     };
     let raw = match ext.as_str() {
         "obj" => read_obj(&read("")?),
@@ -347,7 +347,7 @@ pub fn read_gltf(bytes: &[u8], dir: Option<&Path>) -> Result<RawMesh, String> {
             }
             gltf::buffer::Source::Uri(uri) => {
                 let path = dir.map_or_else(|| PathBuf::from(uri), |d| d.join(uri));
-                read_bounded(&path, limits::MAX_MESH_FILE_BYTES)
+                read_regular(&path, limits::MAX_MESH_FILE_BYTES)
                     .map_err(|e| format!("buffer {} ({uri}): {e}", b.index()))?
             }
         };

@@ -9,6 +9,7 @@
 
 // The format, the primitives and the image files: public modules.
 pub mod compare;
+pub mod display;
 pub mod film;
 pub mod generate;
 pub mod geometry;
@@ -49,6 +50,7 @@ pub(crate) mod shading_params;
 pub(crate) mod sobol;
 pub(crate) mod stats;
 
+pub use display::{DisplayTransform, ToneCurve};
 pub use error::{ImageError, SceneError};
 pub use film::Film;
 pub use live::{EditClass, LiveError, LiveRender, LiveReport, classify};

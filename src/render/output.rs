@@ -10,6 +10,7 @@ use std::sync::atomic::{AtomicBool, AtomicPtr, Ordering};
 use glam::Vec3;
 use image::{ImageFormat, ImageReader};
 
+use super::display::DisplayTransform;
 use super::error::ImageError;
 use super::film::{Film, decode_channel};
 
@@ -278,6 +279,16 @@ pub fn write_atomic(
 /// A film with NaN or infinite pixels is refused, not written: such a
 /// pixel is a bug, and a file holding it would pass it on.
 pub fn write_film(film: &Film, path: &Path) -> Result<(), ImageError> {
+    write_film_shown(film, path, &DisplayTransform::default())
+}
+
+/// [`write_film`] with a display transform for the PNG: the image as the
+/// viewer shows it. An EXR stays linear, the transform is not applied.
+pub fn write_film_shown(
+    film: &Film,
+    path: &Path,
+    display: &DisplayTransform,
+) -> Result<(), ImageError> {
     let kind = FileKind::of(path)?;
     if let Some((count, (x, y))) = film.non_finite() {
         return Err(ImageError::Write {
@@ -288,7 +299,12 @@ pub fn write_film(film: &Film, path: &Path) -> Result<(), ImageError> {
         });
     }
     match kind {
-        FileKind::Png => write_rgb8(path, film.width, film.height, &film.to_srgb8()),
+        FileKind::Png => write_rgb8(
+            path,
+            film.width,
+            film.height,
+            &display.encode_all(&film.pixels),
+        ),
         FileKind::Exr => {
             let data: Vec<f32> = film.pixels.iter().flat_map(|p| p.to_array()).collect();
             let img = image::Rgb32FImage::from_raw(film.width, film.height, data)

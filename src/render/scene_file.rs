@@ -89,6 +89,87 @@ pub fn read_bounded(path: &Path, limit: u64) -> Result<Vec<u8>, String> {
     Ok(bytes)
 }
 
+/// Reads a scene or mesh file of at most `limit` bytes: a regular file,
+/// its type checked before a byte is read (a FIFO blocks the reader until
+/// something writes to it, a device may never end); standard input only
+/// when named so (`-` or `/dev/stdin`), bounded like a file. The message
+/// says what went wrong, without the file name.
+pub fn read_regular(path: &Path, limit: u64) -> Result<Vec<u8>, String> {
+    use std::io::Read;
+    if path == Path::new("-") || path == Path::new("/dev/stdin") {
+        return read_all_bounded(std::io::stdin().lock(), limit, 0);
+    }
+    let file = open_without_blocking(path).map_err(|e| format!("cannot read: {e}"))?;
+    let meta = file.metadata().map_err(|e| format!("cannot read: {e}"))?;
+    if !meta.is_file() {
+        return Err(format!(
+            "{}, not a regular file: scenes and meshes are read from regular files \
+             (standard input as `-`)",
+            file_type_name(&meta.file_type())
+        ));
+    }
+    if meta.len() > limit {
+        return Err(format!(
+            "file is {} bytes, at most {limit} are read",
+            meta.len()
+        ));
+    }
+    read_all_bounded(file.take(limit + 1), limit, meta.len())
+}
+
+/// Opens for reading without waiting for a FIFO's writer (a regular file
+/// reads as ever).
+fn open_without_blocking(path: &Path) -> std::io::Result<std::fs::File> {
+    let mut options = std::fs::OpenOptions::new();
+    options.read(true);
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::OpenOptionsExt;
+        options.custom_flags(libc::O_NONBLOCK);
+    }
+    options.open(path)
+}
+
+/// "a FIFO (named pipe)", "a character device", ...
+fn file_type_name(t: &std::fs::FileType) -> &'static str {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt;
+        if t.is_fifo() {
+            return "a FIFO";
+        }
+        if t.is_char_device() {
+            return "a character device";
+        }
+        if t.is_block_device() {
+            return "a block device";
+        }
+        if t.is_socket() {
+            return "a socket";
+        }
+    }
+    if t.is_dir() {
+        "a directory"
+    } else {
+        "not a file"
+    }
+}
+
+fn read_all_bounded(reader: impl std::io::Read, limit: u64, hint: u64) -> Result<Vec<u8>, String> {
+    use std::io::Read;
+    let mut bytes = Vec::with_capacity(hint.min(limit) as usize);
+    reader
+        .take(limit + 1)
+        .read_to_end(&mut bytes)
+        .map_err(|e| format!("cannot read: {e}"))?;
+    if bytes.len() as u64 > limit {
+        return Err(format!(
+            "more than {limit} bytes (at most {limit} are read; stopped there)"
+        ));
+    }
+    Ok(bytes)
+}
+
 pub type Vec3Desc = [f64; 3];
 
 /// A whole scene file.
@@ -667,7 +748,7 @@ impl SceneDesc {
     /// Reads, parses and validates a scene file; errors name the file.
     pub fn load(path: &Path) -> Result<SceneDesc, SceneError> {
         let fail = |msg: String| SceneError::new("", msg).in_file(path);
-        let bytes = read_bounded(path, limits::MAX_FILE_BYTES).map_err(fail)?;
+        let bytes = read_regular(path, limits::MAX_FILE_BYTES).map_err(fail)?;
         let text = String::from_utf8(bytes).map_err(|_| fail("not UTF-8 text".into()))?;
         let mut desc = SceneDesc::from_json(&text).map_err(|e| e.in_file(path))?;
         desc.base_dir = Some(match path.parent() {

@@ -112,6 +112,23 @@ impl LiveRender {
         LiveRender { cap, current: None }
     }
 
+    /// Takes `other`'s scene (no records): the next render re-traces over
+    /// its objects and BVH instead of building them again.
+    pub fn share_scene(&mut self, other: &LiveRender) {
+        self.current = other.current.as_ref().map(|c| Current {
+            desc: c.desc.clone(),
+            scene: c.scene.clone(),
+            settings: c.settings.clone(),
+            shading: c.shading.clone(),
+            frame: None,
+        });
+    }
+
+    /// The memory cap of the records.
+    pub fn cap(&self) -> usize {
+        self.cap
+    }
+
     /// The scene of the last render, if any.
     pub fn scene(&self) -> Option<&Arc<Scene>> {
         self.current.as_ref().map(|c| &c.scene)

@@ -1,0 +1,207 @@
+//! Scene files in the viewer are read off the UI thread: frames go on
+//! while a load runs, a newer load supersedes an older one, a load can be
+//! cancelled, and a FIFO or device in place of a scene is refused with a
+//! banner instead of freezing the window.
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use egui::accesskit::Role;
+use egui_kittest::Harness;
+use egui_kittest::kittest::Queryable;
+use penumbra::app::{Viewer, ViewerOptions};
+use penumbra::render::{SEED_ROOM_JSON, SceneDesc};
+
+const WAIT: Duration = Duration::from_secs(60);
+
+fn small_room() -> SceneDesc {
+    let mut d = SceneDesc::from_json(SEED_ROOM_JSON).unwrap();
+    d.camera.width = 32;
+    d.camera.height = 18;
+    d.render.shadow_rays = 4;
+    d
+}
+
+fn harness(options: ViewerOptions) -> Harness<'static, Viewer> {
+    Harness::builder()
+        .with_size([1280.0, 960.0])
+        .with_step_dt(1.0 / 60.0)
+        .build_ui_state(|ui, v: &mut Viewer| v.show(ui, None), Viewer::new(options))
+}
+
+#[derive(Debug)]
+struct Dropped(PathBuf);
+
+impl egui::DroppedFile for Dropped {
+    fn path(&self) -> &Path {
+        &self.0
+    }
+    fn bytes(&self) -> Result<Vec<u8>, String> {
+        Err("not read".into())
+    }
+}
+
+fn drop_file(h: &mut Harness<'static, Viewer>, path: &Path) {
+    h.input_mut()
+        .dropped_files
+        .push(Arc::new(Dropped(path.to_path_buf())));
+    h.step();
+}
+
+fn mkfifo(path: &Path) {
+    let c = std::ffi::CString::new(path.to_str().unwrap()).unwrap();
+    // SAFETY: a NUL-terminated path and a mode, no other pointers.
+    assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o600) }, 0, "mkfifo");
+}
+
+/// Writes to the FIFO after a while, so that a viewer blocked on it (the
+/// bug) comes back and the test fails instead of hanging; `fired` says
+/// whether it had to.
+fn unblock_later(fifo: PathBuf) -> Arc<AtomicBool> {
+    let fired = Arc::new(AtomicBool::new(false));
+    let f = fired.clone();
+    std::thread::spawn(move || {
+        std::thread::sleep(Duration::from_secs(30));
+        f.store(true, Ordering::SeqCst);
+        if let Ok(mut w) = std::fs::OpenOptions::new().write(true).open(&fifo) {
+            use std::io::Write;
+            let _ = w.write_all(b"{}");
+        }
+    });
+    fired
+}
+
+fn step_until(h: &mut Harness<'static, Viewer>, done: impl Fn(&Viewer) -> bool) {
+    let start = Instant::now();
+    while !done(h.state()) {
+        assert!(start.elapsed() < WAIT, "timed out");
+        h.step();
+        std::thread::sleep(Duration::from_millis(10));
+    }
+}
+
+#[test]
+fn a_fifo_in_place_of_the_watched_scene_shows_a_banner_and_frames_go_on() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("room.json");
+    std::fs::write(&path, small_room().to_json()).unwrap();
+    let mut options = ViewerOptions::new(SceneDesc::load(&path).unwrap());
+    options.scene_path = Some(path.clone());
+    let mut h = harness(options);
+    h.step();
+    assert!(h.state().wait_for_render(WAIT));
+    h.step();
+    let before = h.state().desc().clone();
+
+    // Replaced by a FIFO nobody writes to: the hot reload refuses it.
+    std::fs::remove_file(&path).unwrap();
+    mkfifo(&path);
+    let fired = unblock_later(path.clone());
+    step_until(&mut h, |v| v.banner().is_some());
+    let banner = h.state().banner().unwrap().to_string();
+    assert!(
+        !fired.load(Ordering::SeqCst),
+        "the viewer waited for the FIFO"
+    );
+    assert!(
+        banner.contains(&format!("{}: a FIFO, not a regular file", path.display())),
+        "{banner}"
+    );
+    h.get_by_label_contains("a FIFO, not a regular file");
+    assert_eq!(h.state().desc(), &before);
+    assert!(h.state().loading().is_none());
+
+    // Opened by a drop, the same; so is a device.
+    h.state_mut().edit(|d, _| d.render.terms.ambient = 0.25);
+    for refused in [path.as_path(), Path::new("/dev/zero")] {
+        drop_file(&mut h, refused);
+        assert!(h.state().wait_for_loads(WAIT));
+        h.step();
+        assert!(h.state().banner().unwrap().contains("not a regular file"));
+        assert_eq!(h.state().desc().render.terms.ambient, 0.25);
+    }
+    assert!(!fired.load(Ordering::SeqCst));
+}
+
+#[test]
+fn frames_run_while_a_load_waits_a_newer_load_supersedes_it_and_cancel_keeps_the_scene() {
+    let dir = tempfile::tempdir().unwrap();
+    let (a, b) = (dir.path().join("a.json"), dir.path().join("b.json"));
+    let mut da = small_room();
+    da.render.terms.ambient = 0.5;
+    let mut db = small_room();
+    db.render.terms.ambient = 2.0;
+    std::fs::write(&a, da.to_json()).unwrap();
+    std::fs::write(&b, db.to_json()).unwrap();
+    let mut h = harness(ViewerOptions::new(small_room()));
+    h.step();
+    let seed = h.state().desc().clone();
+
+    // The load thread waits (test hook): frames go on, with the progress
+    // strip and its Cancel button.
+    h.state().hold_loads_for_tests(true);
+    drop_file(&mut h, &a);
+    for _ in 0..10 {
+        h.step();
+    }
+    let (loading, _, reload) = h.state().loading().expect("a load under way");
+    assert_eq!(loading, a.as_path());
+    assert!(!reload);
+    h.get_by_label_contains(&format!("loading {}…", a.display()));
+    assert_eq!(h.state().desc(), &seed);
+
+    // B supersedes A: only B is taken, though A's thread ends too.
+    drop_file(&mut h, &b);
+    assert_eq!(h.state().loading().unwrap().0, b.as_path());
+    h.state().hold_loads_for_tests(false);
+    assert!(h.state().wait_for_loads(WAIT));
+    h.step();
+    h.step();
+    assert!(h.state().loading().is_none());
+    assert_eq!(h.state().scene_path(), Some(b.as_path()));
+    assert_eq!(h.state().desc().render.terms.ambient, 2.0);
+
+    // Cancel: the scene shown stays.
+    h.state().hold_loads_for_tests(true);
+    drop_file(&mut h, &a);
+    h.step();
+    h.get_by_role_and_label(Role::Button, "Cancel").click();
+    h.step();
+    assert!(h.state().loading().is_none());
+    h.state().hold_loads_for_tests(false);
+    assert!(h.state().wait_for_loads(WAIT));
+    h.step();
+    assert_eq!(h.state().scene_path(), Some(b.as_path()));
+    assert_eq!(h.state().desc().render.terms.ambient, 2.0);
+    assert!(h.state().notice().unwrap().contains("cancelled loading"));
+}
+
+#[test]
+fn a_big_scene_is_read_while_frames_go_on() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("big.json");
+    let n = 200_000;
+    let mut big = penumbra::render::generate::spheres_in_room(n, 7);
+    big.camera.width = 16;
+    big.camera.height = 9;
+    big.render.shadow_rays = 1;
+    std::fs::write(&path, big.to_json()).unwrap();
+    let mut h = harness(ViewerOptions::new(small_room()));
+    h.step();
+    // The frame that takes the drop returns with the file still being
+    // read (read on the UI thread, it would have been loaded by then).
+    drop_file(&mut h, &path);
+    assert!(h.state().loading().is_some(), "the load ran in the frame");
+    let mut frames = 0;
+    while h.state().loading().is_some() {
+        h.step();
+        frames += 1;
+        std::thread::sleep(Duration::from_millis(5));
+        assert!(frames < 100_000);
+    }
+    assert!(frames > 1, "{frames}");
+    assert_eq!(h.state().desc().objects.len(), big.objects.len());
+    assert!(h.state().banner().is_none(), "{:?}", h.state().banner());
+}

@@ -211,6 +211,7 @@ pub enum ModelArg {
     #[value(alias = "nearest_point")]
     NearestPoint,
     Analytic,
+    Exact,
 }
 
 impl From<ModelArg> for AreaLightModel {
@@ -219,6 +220,7 @@ impl From<ModelArg> for AreaLightModel {
             ModelArg::Sampled => AreaLightModel::Sampled,
             ModelArg::NearestPoint => AreaLightModel::NearestPoint,
             ModelArg::Analytic => AreaLightModel::Analytic,
+            ModelArg::Exact => AreaLightModel::Exact,
         }
     }
 }

@@ -140,6 +140,7 @@ fn reference(l: &Loaded, p: &ExactPoint) -> (f64, f64) {
         (d, s)
     };
     // Adaptive Simpson over b, on both terms at once.
+    #[allow(clippy::too_many_arguments)]
     fn simpson(
         row: &impl Fn(f64) -> (f64, f64),
         lo: f64,

@@ -24,6 +24,7 @@ use std::sync::OnceLock;
 use glam::{DVec2, DVec3};
 
 use super::polygon::{HalfPlane, Pieces, clip_into, twice_area};
+use crate::render::math::avx2_dispatch;
 
 /// Nodes per axis of a cell (the fit has degree `ORDER − 1`).
 const ORDER: usize = 8;
@@ -51,23 +52,85 @@ impl Lobe {
     fn direction(&self, a: f64, b: f64) -> DVec3 {
         self.corner + self.edge_u * a + self.edge_v * b
     }
+}
 
-    /// The integrand at light point (a, b), in f64 (f32 rounding, ~1e-7
-    /// per value, would put a floor under the coefficients' estimate).
-    #[inline]
-    fn at(&self, a: f64, b: f64) -> f64 {
-        let d = self.direction(a, b);
-        let hv = d / d.length() + self.v;
-        let len2 = hv.length_squared();
-        if len2 == 0.0 {
-            return 0.0;
-        }
-        let c = self.n.dot(hv) / len2.sqrt();
-        if c <= 0.0 {
-            0.0
-        } else {
-            c.powf(self.shininess)
-        }
+/// Nodes of a cell.
+const NODES: usize = ORDER * ORDER;
+
+avx2_dispatch!(
+    /// The integrand at the light points (a\[j\], b\[j\]), in f64 (the
+    /// rounding of f32, ~1e-7 per value, would put a floor under the
+    /// coefficients' estimate), written for the vectorizer like the
+    /// `sampled` model's loops.
+    fn lobe_at_nodes(l: &Lobe, a: &[f64; NODES], b: &[f64; NODES], out: &mut [f64; NODES])
+        => lobe_at_nodes_generic
+);
+
+#[inline(always)]
+fn lobe_at_nodes_generic(l: &Lobe, a: &[f64; NODES], b: &[f64; NODES], out: &mut [f64; NODES]) {
+    let (c, u, w, n, v, s) = (l.corner, l.edge_u, l.edge_v, l.n, l.v, l.shininess);
+    for j in 0..NODES {
+        let x = c.x + u.x * a[j] + w.x * b[j];
+        let y = c.y + u.y * a[j] + w.y * b[j];
+        let z = c.z + u.z * a[j] + w.z * b[j];
+        let inv = 1.0 / (x * x + y * y + z * z).sqrt();
+        let (hx, hy, hz) = (x * inv + v.x, y * inv + v.y, z * inv + v.z);
+        let h2 = hx * hx + hy * hy + hz * hz;
+        // N·H / |H|; H = 0 (light exactly behind the viewer) gives 0.
+        let cs = ((n.x * hx + n.y * hy + n.z * hz) / h2.sqrt()).max(0.0);
+        let cs = if h2 > 0.0 { cs } else { 0.0 };
+        out[j] = pow64(cs, s);
+    }
+}
+
+/// x^y for x in [0, 1] and y > 0 in f64 without a libm call (so that the
+/// node loop vectorizes): exp2(y · log2 x) with series for both, relative
+/// error ~1e-14 · max(1, |y · log2 x|); inputs below the smallest normal
+/// give 0.
+#[inline(always)]
+fn pow64(x: f64, y: f64) -> f64 {
+    let bits = x.to_bits() as i64;
+    let mut e = ((bits >> 52) & 0x7ff) - 1023;
+    let mut m = f64::from_bits(((bits & 0x000f_ffff_ffff_ffff) | 0x3ff0_0000_0000_0000) as u64);
+    let big = m > std::f64::consts::SQRT_2;
+    m = if big { m * 0.5 } else { m };
+    e += big as i64;
+    // ln m = 2 atanh(t), t = (m − 1)/(m + 1), |t| ≤ 0.172.
+    let t = (m - 1.0) / (m + 1.0);
+    let t2 = t * t;
+    let mut series = 1.0 / 17.0;
+    for k in [15.0, 13.0, 11.0, 9.0, 7.0, 5.0, 3.0, 1.0] {
+        series = series * t2 + 1.0 / k;
+    }
+    let log2_x = e as f64 + 2.0 * t * series * std::f64::consts::LOG2_E;
+    let z = (y * log2_x).max(-1022.0);
+    // 2^z = 2^k · e^(f·ln 2), k = round(z) by adding and removing 1.5·2⁵².
+    const ROUNDER: f64 = 6_755_399_441_055_744.0;
+    let r = z + ROUNDER;
+    let k = r.to_bits() as i64 - ROUNDER.to_bits() as i64;
+    let f = (z - (r - ROUNDER)) * std::f64::consts::LN_2;
+    let mut p = 1.0 / 479_001_600.0;
+    for d in [
+        39_916_800.0,
+        3_628_800.0,
+        362_880.0,
+        40_320.0,
+        5_040.0,
+        720.0,
+        120.0,
+        24.0,
+        6.0,
+        2.0,
+        1.0,
+        1.0,
+    ] {
+        p = p * f + 1.0 / d;
+    }
+    let scaled = p * f64::from_bits(((k + 1023) << 52) as u64);
+    if x >= f64::MIN_POSITIVE && z > -1022.0 {
+        scaled
+    } else {
+        0.0
     }
 }
 
@@ -205,6 +268,8 @@ struct Ctx<'a> {
 
 /// ∫ over the visible part of the cell [lo, lo + size]² (its pieces in
 /// `s.levels[depth]`).
+// Tensor nodes and coefficients: index loops read best.
+#[allow(clippy::needless_range_loop)]
 fn cell(
     ctx: &Ctx,
     s: &mut CubatureScratch,
@@ -224,13 +289,16 @@ fn cell(
     let lobe = ctx.lobe;
 
     // The fit's coefficients c[k][l] (x along a, y along b).
-    let mut f = [[0.0; ORDER]; ORDER];
+    let (mut na, mut nb, mut nf) = ([0.0; NODES], [0.0; NODES], [0.0; NODES]);
     for i in 0..ORDER {
-        let a = lo.x + (r.x[i] + 1.0) * half;
         for j in 0..ORDER {
-            f[i][j] = lobe.at(a, lo.y + (r.x[j] + 1.0) * half);
+            na[i * ORDER + j] = lo.x + (r.x[i] + 1.0) * half;
+            nb[i * ORDER + j] = lo.y + (r.x[j] + 1.0) * half;
         }
     }
+    lobe_at_nodes(lobe, &na, &nb, &mut nf);
+    let f: [[f64; ORDER]; ORDER] =
+        std::array::from_fn(|i| std::array::from_fn(|j| nf[i * ORDER + j]));
     report.cells += 1;
     let mut t = [[0.0; ORDER]; ORDER];
     for i in 0..ORDER {
@@ -357,5 +425,33 @@ fn clip_level(s: &mut CubatureScratch, d: usize, lo: DVec2, size: f64) {
         if alive {
             out.push(&s.tmp, 0.0);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::pow64;
+
+    #[test]
+    fn pow64_matches_powf() {
+        let mut worst: f64 = 0.0;
+        for i in 1..=4000 {
+            let x = i as f64 / 4000.0;
+            for y in [0.5, 1.0, 3.0, 20.0, 100.0, 500.0, 1e4] {
+                let want = x.powf(y);
+                let got = pow64(x, y);
+                if want < 1e-300 {
+                    assert!(got < 1e-290, "{x}^{y}: {got}");
+                    continue;
+                }
+                let rel = (got - want).abs() / want;
+                let bound = 1e-13 * (1.0 + (y * x.log2()).abs());
+                assert!(rel < bound, "{x}^{y}: {got} vs {want} ({rel:e})");
+                worst = worst.max(rel);
+            }
+        }
+        assert_eq!(pow64(0.0, 20.0), 0.0);
+        assert_eq!(pow64(1.0, 500.0), 1.0);
+        eprintln!("pow64 worst relative error {worst:e}");
     }
 }

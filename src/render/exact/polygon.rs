@@ -288,13 +288,12 @@ mod tests {
             DVec2::new(2.0, 6.0),
         ];
         p.subtract(&tri, 0.0, &mut w);
-        // The triangle meets [0,4]² in {x, y ≥ 2, x + y ≤ 6} (area 2), of
-        // which [2,3]² (area 1) was already gone: 16 − 4 − 1 remain.
-        assert!(
-            (total_area(&p) - (16.0 - 4.0 - 1.0)).abs() < 1e-12,
-            "{}",
-            total_area(&p)
-        );
+        // The triangle (x, y ≥ 2, x + y ≤ 8) covers [2,4]² of the square
+        // (area 4), of which [2,3]² (area 1) was already gone: 16 − 4 − 3.
+        assert!((total_area(&p) - 9.0).abs() < 1e-12, "{}", total_area(&p));
+        for q in p.iter() {
+            assert!(twice_area(q) > 0.0);
+        }
     }
 
     #[test]

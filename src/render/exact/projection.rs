@@ -66,7 +66,8 @@ impl LightView {
         let e1 = light.edge_u.normalize();
         let e2 = m.cross(e1);
         let h = m.dot(q - light.corner);
-        if !(h > 0.0) {
+        // Also refuses a NaN height.
+        if h.is_nan() || h <= 0.0 {
             return None;
         }
         let local = |d: DVec3| DVec3::new(d.dot(e1), d.dot(e2), d.dot(m));

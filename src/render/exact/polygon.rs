@@ -204,6 +204,34 @@ pub struct Work {
     next: Vec<DVec2>,
 }
 
+/// Merges vertices closer than `1e-10` of the polygon's size (the
+/// rounding of clipping makes such pairs): the edge between two of them
+/// has a direction of rounding alone, and as a half-plane of a subtraction
+/// it would cut along that random line. Leaves an empty polygon if fewer
+/// than three vertices remain.
+pub fn merge_close_vertices(poly: &mut Vec<DVec2>) {
+    if poly.len() < 3 {
+        poly.clear();
+        return;
+    }
+    let (lo, hi) = bounds(poly);
+    let eps = 1e-10 * (hi - lo).max_element();
+    let mut kept = 0;
+    for i in 0..poly.len() {
+        if kept == 0 || (poly[i] - poly[kept - 1]).length() > eps {
+            poly[kept] = poly[i];
+            kept += 1;
+        }
+    }
+    while kept > 1 && (poly[kept - 1] - poly[0]).length() <= eps {
+        kept -= 1;
+    }
+    poly.truncate(kept);
+    if poly.len() < 3 {
+        poly.clear();
+    }
+}
+
 /// Axis-aligned bounds of a polygon.
 #[inline]
 pub fn bounds(poly: &[DVec2]) -> (DVec2, DVec2) {
@@ -294,6 +322,30 @@ mod tests {
         for q in p.iter() {
             assert!(twice_area(q) > 0.0);
         }
+    }
+
+    #[test]
+    fn vertices_a_rounding_apart_do_not_cut_along_a_random_line() {
+        // A triangle whose second vertex is doubled within rounding, in the
+        // direction that would cut the square in two (the case of a shadow
+        // clipped at the light's edge).
+        let mut s = vec![
+            DVec2::new(0.0, 4.0),
+            DVec2::new(2.0, 1.0),
+            DVec2::new(2.0 + 2e-17, 1.0 - 2e-16),
+            DVec2::new(2.0, 4.0),
+        ];
+        merge_close_vertices(&mut s);
+        assert_eq!(s.len(), 3);
+        let mut p = Pieces::default();
+        p.push(&square(-2.0, 4.0), 0.0);
+        let mut w = Work::default();
+        p.subtract(&s, 1e-12, &mut w);
+        assert!(
+            (total_area(&p) - (36.0 - 3.0)).abs() < 1e-9,
+            "{}",
+            total_area(&p)
+        );
     }
 
     #[test]

@@ -4,7 +4,7 @@
 
 use glam::DVec2;
 
-use super::polygon::{HalfPlane, Pieces, Work};
+use super::polygon::{HalfPlane, Pieces, Work, merge_close_vertices};
 use super::projection::{
     CircleFit, LightView, ProjectScratch, Unsupported, box_shadow, rect_shadow, sphere_shadow,
     triangle_shadow,
@@ -98,6 +98,7 @@ pub fn visible_region(
             }
         }
         .map_err(Fallback::Unsupported)?;
+        merge_close_vertices(shadow);
         if shadow.len() >= 3 {
             pieces.subtract(shadow, min_area, &mut s.work);
         }

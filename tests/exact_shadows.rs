@@ -406,3 +406,17 @@ fn a_shadow_clipped_at_the_lights_edge_cuts_nothing_else() {
     p.object = 0;
     check(&l, &p, "beside the sand box", 1e-9, 1e-6);
 }
+
+#[test]
+fn a_light_below_the_exact_size_falls_back() {
+    let l = scene_with_light("", "[-5e-5, 8, -5e-5]", "[1e-4, 0, 0]", "[0, 0, 1e-4]");
+    let p = point([0.3, 0.0, 0.2], [0.0, 1.0, 0.0], [0.1, 1.0, -0.7], 20.0);
+    let r = exact_factors(
+        &l.scene,
+        &p,
+        true,
+        CircleFit::SameArea,
+        &mut ExactScratch::default(),
+    );
+    assert_eq!(r.unwrap_err(), penumbra::render::exact::Fallback::TinyLight);
+}

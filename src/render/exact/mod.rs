@@ -26,7 +26,8 @@
 //! point inside an occluder (hit from inside), a sphere reaching within
 //! 10⁻⁴ of the ray's length of the light's plane, more than
 //! [`MAX_TRIANGLES`] triangles in the pyramid, more than [`MAX_PIECES`]
-//! visible pieces. Spheres: the polygon of [`SPHERE_EDGES`] edges with the
+//! visible pieces, a light smaller than [`TINY_LIGHT`] of its height above
+//! the point. Spheres: the polygon of [`SPHERE_EDGES`] edges with the
 //! silhouette's area (the inscribed and circumscribed polygons bracket the
 //! exact value; measured error in `tests/exact_shadows.rs`).
 
@@ -39,7 +40,7 @@ use glam::{DVec2, DVec3};
 
 pub use cubature::{CubatureReport, TOLERANCE};
 pub use projection::{CircleFit, Unsupported};
-pub use visible::{Fallback, MAX_PIECES, MAX_TRIANGLES, SPHERE_EDGES};
+pub use visible::{Fallback, MAX_PIECES, MAX_TRIANGLES, SPHERE_EDGES, TINY_LIGHT};
 
 use cubature::{CubatureScratch, Lobe, specular_factor};
 use polygon::{HalfPlane, Pieces};
@@ -108,6 +109,9 @@ pub fn exact_factors(
     let Some(view) = LightView::new(light, p.shadow_point) else {
         return Ok(ExactFactors::default());
     };
+    if view.area.sqrt() < TINY_LIGHT * view.h {
+        return Err(Fallback::TinyLight);
+    }
     let query = ShadowQuery {
         point: p.shadow_point,
         normal: p.geometric,

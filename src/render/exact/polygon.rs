@@ -204,7 +204,8 @@ pub struct Work {
     next: Vec<DVec2>,
 }
 
-/// Merges vertices closer than `1e-10` of the polygon's size (the
+/// Merges vertices closer than `1e-10` of the polygon's size or 16 ulps of
+/// its coordinates (the
 /// rounding of clipping makes such pairs): the edge between two of them
 /// has a direction of rounding alone, and as a half-plane of a subtraction
 /// it would cut along that random line. Leaves an empty polygon if fewer
@@ -215,7 +216,10 @@ pub fn merge_close_vertices(poly: &mut Vec<DVec2>) {
         return;
     }
     let (lo, hi) = bounds(poly);
-    let eps = 1e-10 * (hi - lo).max_element();
+    // Or 16 ulps of the coordinates, for a polygon small against its
+    // distance from the origin (a tiny light far from the point).
+    let magnitude = lo.abs().max(hi.abs()).max_element();
+    let eps = (1e-10 * (hi - lo).max_element()).max(16.0 * f64::EPSILON * magnitude);
     let mut kept = 0;
     for i in 0..poly.len() {
         if kept == 0 || (poly[i] - poly[kept - 1]).length() > eps {

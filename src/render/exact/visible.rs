@@ -29,7 +29,15 @@ pub enum Fallback {
     Unsupported(Unsupported),
     TooManyTriangles,
     TooManyPieces,
+    /// A light smaller than [`TINY_LIGHT`] of its height above the point:
+    /// the frustum's planes lose their digits (a known defect, left for
+    /// later), and the `analytic` estimate is exact wherever such a
+    /// near-point light is wholly visible or hidden.
+    TinyLight,
 }
+
+/// See [`Fallback::TinyLight`].
+pub const TINY_LIGHT: f64 = 1e-4;
 
 /// Scratch of [`visible_region`].
 #[derive(Debug, Clone, Default)]
@@ -51,7 +59,14 @@ pub fn visible_region(
     pieces: &mut Pieces,
     s: &mut RegionScratch,
 ) -> Result<(), Fallback> {
-    let min_area = 2e-14 * view.area;
+    // Pieces thinner than the rounding of the coordinates are dropped
+    // (twice their area is below this).
+    let magnitude = view
+        .rect
+        .iter()
+        .map(|p| p.abs().max_element())
+        .fold(0.0, f64::max);
+    let min_area = (2e-14 * view.area).max(64.0 * f64::EPSILON * magnitude * view.area.sqrt());
     pieces.clear();
     pieces.push(&view.rect, 0.0);
     pieces.clip(front, min_area, &mut s.work);

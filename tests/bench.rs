@@ -47,8 +47,9 @@ fn quick_sweep_writes_every_configuration() {
     let text = std::fs::read_to_string(dir.path().join("bench-seed-room.csv")).unwrap();
     let lines: Vec<&str> = text.lines().collect();
     assert_eq!(lines[0], csv_columns().join(","));
-    // Patterns × 2 counts × models × adaptive off and on.
-    let expected = Sampling::ALL.len() * 2 * AreaLightModel::ALL.len() * 2;
+    // Patterns × 2 counts × models × adaptive off and on, and one row of
+    // the exact model (it depends on neither).
+    let expected = Sampling::ALL.len() * 2 * (AreaLightModel::ALL.len() - 1) * 2 + 1;
     assert_eq!(lines.len(), 1 + expected);
     let col = |name: &str| csv_columns().iter().position(|c| *c == name).unwrap();
     // The bench renders on all cores; the process's other threads (the

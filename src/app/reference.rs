@@ -4,7 +4,7 @@
 //!
 //! A computed reference belongs to the image it was made for: it stays
 //! valid while only the estimator changes (shadow-ray count, pattern,
-//! adaptive, seed, `sampled` ↔ `analytic`, which share one limit), and is
+//! adaptive, seed, `sampled` ↔ `analytic` ↔ `exact`, which share one limit), and is
 //! shown as "settings differ" otherwise. A loaded one can only be checked
 //! for its size.
 
@@ -38,9 +38,12 @@ pub fn same_limit(a: &SceneDesc, b: &SceneDesc) -> bool {
         k.sampling = Sampling::default();
         k.adaptive = false;
         k.seed = 0;
-        // `analytic` is `sampled` in closed form; only the report's
-        // nearest-point heuristic converges elsewhere.
-        if k.area_light_model == AreaLightModel::Analytic {
+        // `analytic` and `exact` converge to `sampled`'s image; only the
+        // report's nearest-point heuristic converges elsewhere.
+        if matches!(
+            k.area_light_model,
+            AreaLightModel::Analytic | AreaLightModel::Exact
+        ) {
             k.area_light_model = AreaLightModel::Sampled;
         }
         k

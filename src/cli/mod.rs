@@ -235,6 +235,7 @@ pub enum ModelArg {
     #[value(alias = "nearest_point")]
     NearestPoint,
     Analytic,
+    Exact,
 }
 
 impl From<ModelArg> for AreaLightModel {
@@ -243,6 +244,7 @@ impl From<ModelArg> for AreaLightModel {
             ModelArg::Sampled => AreaLightModel::Sampled,
             ModelArg::NearestPoint => AreaLightModel::NearestPoint,
             ModelArg::Analytic => AreaLightModel::Analytic,
+            ModelArg::Exact => AreaLightModel::Exact,
         }
     }
 }

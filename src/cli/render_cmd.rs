@@ -225,8 +225,16 @@ pub fn summary(
     let s = &report.stats;
     let secs = report.elapsed.as_secs_f64();
     let threads = threads.unwrap_or_else(rayon::current_num_threads);
+    let exact = if s.exact_hits + s.exact_fallbacks > 0 {
+        format!(
+            "; exact model: {} hit points exact, {} fell back to the analytic estimate",
+            s.exact_hits, s.exact_fallbacks
+        )
+    } else {
+        String::new()
+    };
     format!(
-        "{}×{} in {:.3} s ({:.3} s loading, {:.3} s rendering, the rest writing): {} camera, {} shadow, {} reflected rays traced; {} shadow rays answered without tracing; {:.1} Mray/s traced ({:.1} Mray/s with skipped) on {} threads",
+        "{}×{} in {:.3} s ({:.3} s loading, {:.3} s rendering, the rest writing): {} camera, {} shadow, {} reflected rays traced; {} shadow rays answered without tracing; {:.1} Mray/s traced ({:.1} Mray/s with skipped) on {} threads{exact}",
         scene.camera.width,
         scene.camera.height,
         total.as_secs_f64(),

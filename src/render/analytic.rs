@@ -177,20 +177,31 @@ pub fn diffuse_area_average(
     if k < 3 {
         return 0.0;
     }
-    let poly = &poly[..k];
+    let integral = diffuse_polygon_integral(&poly[..k], a, b, h);
+    (integral / area).clamp(0.0, 1.0)
+}
 
+/// ∫_Ω (a·x + b)/√(|x|² + h²) dx over a counter-clockwise convex polygon Ω
+/// of the light's plane (in-plane coordinates about the foot of the hit
+/// point, h the plane's offset; see [`diffuse_area_average`]) on which
+/// a·x + b ≥ 0: the edge sum, or for a polygon small against its distance
+/// the quadrature that does not cancel.
+pub(crate) fn diffuse_polygon_integral(poly: &[DVec2], a: DVec2, b: f64, h: f64) -> f64 {
+    let k = poly.len();
+    if k < 3 {
+        return 0.0;
+    }
     let centroid = poly.iter().copied().sum::<DVec2>() / k as f64;
     let radius = poly
         .iter()
         .map(|q| (*q - centroid).length())
         .fold(0.0, f64::max);
     let dist = (centroid.length_squared() + h * h).sqrt();
-    let integral = if radius < SMALL_POLYGON * dist {
+    if radius < SMALL_POLYGON * dist {
         small_polygon_integral(poly, a, b, h)
     } else {
         edge_sum(poly, a, b, h)
-    };
-    (integral / area).clamp(0.0, 1.0)
+    }
 }
 
 /// Polygons whose radius is below this fraction of their distance use the

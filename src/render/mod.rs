@@ -22,6 +22,8 @@ pub mod scene_file;
 // Internals that the benchmarks and white-box tests reach into; not part of
 // the API.
 #[doc(hidden)]
+pub mod exact;
+#[doc(hidden)]
 pub mod math;
 #[doc(hidden)]
 pub mod rng;

@@ -282,13 +282,18 @@ pub enum AreaLightModel {
     /// over the light's area, the `sampled` model's limit), shadowed by the
     /// ratio estimator over the shadow rays; specular as `sampled`.
     Analytic,
+    /// No sampling: the visible part of the light computed from the
+    /// occluders' shadows, the diffuse term integrated over it in closed
+    /// form and the specular term by adaptive cubature (`sampled`'s limit).
+    Exact,
 }
 
 impl AreaLightModel {
-    pub const ALL: [AreaLightModel; 3] = [
+    pub const ALL: [AreaLightModel; 4] = [
         AreaLightModel::Sampled,
         AreaLightModel::NearestPoint,
         AreaLightModel::Analytic,
+        AreaLightModel::Exact,
     ];
 
     pub fn name(self) -> &'static str {
@@ -296,6 +301,7 @@ impl AreaLightModel {
             AreaLightModel::Sampled => "sampled",
             AreaLightModel::NearestPoint => "nearest_point",
             AreaLightModel::Analytic => "analytic",
+            AreaLightModel::Exact => "exact",
         }
     }
 }

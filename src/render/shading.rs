@@ -1,9 +1,11 @@
 //! How light is computed at one hit point: the report's Phong model with
-//! Blinn's half vector, under the two area-light models.
+//! Blinn's half vector, under the area-light models (`exact` in its own
+//! folder).
 
 use glam::{DVec3, Vec3};
 
 use super::analytic;
+use super::exact::{CircleFit, ExactPoint, exact_factors};
 use super::math::{avx2_dispatch, pow_approx};
 use super::rng::Rng;
 use super::sampling::Pattern;
@@ -117,6 +119,30 @@ pub fn light_terms(
         return LightTerms::default();
     }
 
+    if s.model == AreaLightModel::Exact {
+        let p = ExactPoint {
+            shadow_point: sp.shadow_point,
+            normal: sp.normal,
+            geometric: sp.geometric,
+            view: sp.view,
+            shininess: m.shininess as f64,
+            object: sp.object,
+            inside: sp.inside,
+            shadows: s.shadows,
+        };
+        match exact_factors(scene, &p, need_s, CircleFit::SameArea, &mut buf.exact) {
+            Ok(f) => {
+                stats.exact_hits += 1;
+                return LightTerms {
+                    diffuse: f.diffuse as f32,
+                    specular: f.specular as f32,
+                };
+            }
+            // Outside what the model does exactly: the `analytic` estimate.
+            Err(_) => stats.exact_fallbacks += 1,
+        }
+    }
+
     fill_light_points(pattern, rng, buf);
     let query = ShadowQuery {
         point: sp.shadow_point,
@@ -133,7 +159,7 @@ pub fn light_terms(
             let t = sampled_terms(n, v, m.shininess, need_s, count, buf);
             (t.diffuse, t.specular)
         }
-        AreaLightModel::Analytic => {
+        AreaLightModel::Analytic | AreaLightModel::Exact => {
             // Ratio estimator (Heitz, Hill & McGuire 2018): the exact
             // unshadowed diffuse average times the visible share of the
             // sampled integrand. Noise-free wherever the light is wholly

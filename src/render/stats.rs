@@ -25,6 +25,11 @@ pub struct RayStats {
     pub shadow_adaptive: u64,
     /// Reflected rays not traced: the path weight fell below 1/1024.
     pub reflected_culled: u64,
+    /// `exact` model: hit points whose visible light was computed exactly.
+    pub exact_hits: u64,
+    /// `exact` model: hit points that fell back to the `analytic` estimate
+    /// (see `exact/visible.rs`).
+    pub exact_fallbacks: u64,
 }
 
 /// One kind of work that skipping answered or saved, for reports.
@@ -108,5 +113,7 @@ impl AddAssign for RayStats {
         self.shadow_unneeded += o.shadow_unneeded;
         self.shadow_adaptive += o.shadow_adaptive;
         self.reflected_culled += o.reflected_culled;
+        self.exact_hits += o.exact_hits;
+        self.exact_fallbacks += o.exact_fallbacks;
     }
 }

@@ -7,6 +7,8 @@
 //!   ([`scaling`]);
 //! - `--target` measures the figures of the speed targets ([`target`]);
 //! - `--edits` times the viewer's answer to each class of edit ([`edits`]);
+//! - `--exact` measures the `exact` model's accuracy and cost targets
+//!   ([`exact`]);
 //! - `--spp-split` shares a pixel's rays between camera samples and shadow
 //!   rays ([`split`]).
 //!
@@ -15,6 +17,7 @@
 //! load, since the measurements share the machine with other work.
 
 pub mod edits;
+pub mod exact;
 pub mod plot;
 pub mod reference;
 pub mod scaling;
@@ -134,6 +137,11 @@ pub struct BenchArgs {
     /// split with an anti-aliased reference.
     #[arg(long)]
     pub spp_split: bool,
+    /// Measure the `exact` model's targets: RMSE against a 65 536-ray
+    /// stratified reference (the mean of 16 renders of 4096 rays), its
+    /// error image, and its time against 64 grid rays of `sampled`.
+    #[arg(long)]
+    pub exact: bool,
     /// Camera samples per pixel of the renders (anti-aliasing).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1024))]
     pub spp: Option<u32>,
@@ -152,7 +160,9 @@ pub fn bench(args: &BenchArgs) -> Result<(), CliError> {
     println!("load average at start: {}", load_average());
     let pool = thread_pool(args.threads)?;
     let result = pool.install(|| {
-        if args.edits {
+        if args.exact {
+            exact::run(args)
+        } else if args.edits {
             edits::run(args)
         } else if args.spp_split {
             split::run(args)

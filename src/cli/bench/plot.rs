@@ -1,5 +1,6 @@
 //! The sweep's plot: RMSE against time, both logarithmic, one panel per
-//! area-light model and one line per sampling pattern (and adaptive mode).
+//! area-light model and one line per sampling pattern (and adaptive mode);
+//! the `exact` model's single point is drawn in every panel.
 
 use std::path::Path;
 use std::sync::OnceLock;
@@ -94,11 +95,20 @@ pub fn plot(
     };
     let (t0, t1) = fold(&x_of);
     let (e0, e1) = fold(&|r| r.rmse);
+    // The exact model's one point goes into every panel (a black
+    // triangle), not a panel of its own.
+    let exact = points
+        .iter()
+        .find(|r| r.model == AreaLightModel::Exact)
+        .copied();
     let mut models: Vec<AreaLightModel> = Vec::new();
     for r in &points {
-        if !models.contains(&r.model) {
+        if !models.contains(&r.model) && (r.model != AreaLightModel::Exact || exact.is_none()) {
             models.push(r.model);
         }
+    }
+    if models.is_empty() {
+        models.push(AreaLightModel::Exact);
     }
     let cols = models.len().clamp(1, 3);
     let grid_rows = models.len().div_ceil(cols);
@@ -187,6 +197,14 @@ pub fn plot(
                         Circle::new(p, 4, marker)
                     }))
                     .map_err(|e| fail(&e))?;
+            }
+            if let Some(r) = exact {
+                let p = (x_of(r), r.rmse);
+                chart
+                    .draw_series(std::iter::once(TriangleMarker::new(p, 9, BLACK.filled())))
+                    .map_err(|e| fail(&e))?
+                    .label("exact (RMSE vs 4096 stratified rays)")
+                    .legend(|(x, y)| TriangleMarker::new((x + 12, y), 7, BLACK.filled()));
             }
             chart
                 .configure_series_labels()

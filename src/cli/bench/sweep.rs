@@ -122,33 +122,77 @@ pub fn run_sweep(
     progress: &mut dyn FnMut(Progress),
 ) -> Result<Vec<Row>, CliError> {
     let mut rows = Vec::new();
-    for &model in &plan.models {
-        let reference = reference(
-            desc,
-            model,
-            plan.reference_rays,
-            &plan.cache_dir,
-            plan.fresh_reference,
-        )?;
-        progress(Progress::Reference {
-            model,
-            path: &reference.path,
-            cached: reference.cached,
-            secs: reference.elapsed.as_secs_f64(),
+    // `sampled` and `analytic` converge to the `exact` model's image: it is
+    // their reference wherever the scene allows it (no hit point fell back
+    // to an estimate).
+    let exact_reference = if plan
+        .models
+        .iter()
+        .any(|m| matches!(m, AreaLightModel::Sampled | AreaLightModel::Analytic))
+    {
+        let mut d = desc.clone();
+        d.render.area_light_model = AreaLightModel::Exact;
+        let r = super::render_once(&build(&d, true)?);
+        let fallbacks = r.final_stats.exact_fallbacks;
+        progress(Progress::ExactReference {
+            fallbacks,
+            secs: r.elapsed.as_secs_f64(),
         });
-        for (&sampling, &adaptive) in plan
-            .samplings
+        (fallbacks == 0).then_some(r.film)
+    } else {
+        None
+    };
+    for &model in &plan.models {
+        // The exact model is measured against the stratified reference of
+        // `sampled` (its limit); the others against their own, or the
+        // exact image.
+        let reference_model = match model {
+            AreaLightModel::Exact => AreaLightModel::Sampled,
+            m => m,
+        };
+        let exact_ok = exact_reference.is_some()
+            && matches!(model, AreaLightModel::Sampled | AreaLightModel::Analytic);
+        let reference = if exact_ok {
+            None
+        } else {
+            let r = reference(
+                desc,
+                reference_model,
+                plan.reference_rays,
+                &plan.cache_dir,
+                plan.fresh_reference,
+            )?;
+            progress(Progress::Reference {
+                model: reference_model,
+                path: &r.path,
+                cached: r.cached,
+                secs: r.elapsed.as_secs_f64(),
+            });
+            Some(r.film)
+        };
+        let reference_film = match (&reference, &exact_reference) {
+            (Some(f), _) | (None, Some(f)) => f,
+            (None, None) => unreachable!("a reference is rendered when the exact one is not used"),
+        };
+        // The exact image does not depend on the pattern or the count: one
+        // configuration.
+        let (samplings, adaptives, counts) = if model == AreaLightModel::Exact {
+            (&plan.samplings[..1], &[false][..], &plan.counts[..1])
+        } else {
+            (&plan.samplings[..], &plan.adaptive[..], &plan.counts[..])
+        };
+        for (&sampling, &adaptive) in samplings
             .iter()
-            .flat_map(|s| plan.adaptive.iter().map(move |a| (s, a)))
+            .flat_map(|s| adaptives.iter().map(move |a| (s, a)))
         {
-            for &shadow_rays in &plan.counts {
+            for &shadow_rays in counts {
                 let mut d = desc.clone();
                 d.render.sampling = sampling;
                 d.render.shadow_rays = shadow_rays;
                 d.render.area_light_model = model;
                 d.render.adaptive = adaptive;
                 let on = timed(&build(&d, true)?, plan.runs);
-                let c = compare(&on.report.film, &reference.film).map_err(CliError::other)?;
+                let c = compare(&on.report.film, reference_film).map_err(CliError::other)?;
                 let no_skip = if plan.no_skip {
                     let off = timed(&build(&d, false)?, plan.runs);
                     let diff =
@@ -191,6 +235,12 @@ pub enum Progress<'a> {
         model: AreaLightModel,
         path: &'a Path,
         cached: bool,
+        secs: f64,
+    },
+    /// The exact image, rendered as the reference of `sampled` and
+    /// `analytic` (used only if no hit point fell back).
+    ExactReference {
+        fallbacks: u64,
         secs: f64,
     },
     Row(&'a Row),
@@ -389,7 +439,7 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
     for scene in &scenes {
         let d = &scene.desc;
         println!(
-            "{}: {}×{}, depth {}, {} objects; {} runs per configuration, reference {} stratified rays",
+            "{}: {}×{}, depth {}, {} objects; {} runs per configuration, reference: the exact model where the scene allows it, else {} stratified rays",
             scene.name,
             d.camera.width,
             d.camera.height,
@@ -412,6 +462,19 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
                         "reference ({}): rendered in {secs:.2} s, stored {}",
                         model.name(),
                         path.display()
+                    );
+                }
+            }
+            Progress::ExactReference { fallbacks, secs } => {
+                if fallbacks == 0 {
+                    println!(
+                        "reference (sampled, analytic): the exact model's image, rendered in {secs:.2} s"
+                    );
+                } else {
+                    println!(
+                        "reference (sampled, analytic): not the exact model ({fallbacks} hit points fell back to an estimate), \
+                         {} stratified rays",
+                        plan.reference_rays
                     );
                 }
             }

@@ -255,7 +255,9 @@ impl LiveRender {
                 Some(&budget),
             )
         })?;
-        let shapes = budget.shapes_allowed();
+        // The `exact` model records no visibility bits to recompute its
+        // specular factor from: a shininess edit traces again.
+        let shapes = budget.shapes_allowed() && settings.model != AreaLightModel::Exact;
         if !shapes {
             tiles.iter_mut().for_each(TileRecord::drop_shapes);
         }
@@ -400,7 +402,9 @@ fn respecular_tile(
                     nearest_point_specular(shape.normal, shape.to_light, shape.view, shininess)
                         * (seen as f32 / count as f32)
                 }
-                AreaLightModel::Sampled | AreaLightModel::Analytic => {
+                // `exact` frames keep no shininess tier (see `retrace`):
+                // their specular factors come from no visibility bits.
+                AreaLightModel::Sampled | AreaLightModel::Analytic | AreaLightModel::Exact => {
                     let mut rng = Rng::for_sample(settings.seed, x, y, sample, k as u32 + 1);
                     sampled_specular_again(
                         scene,

@@ -3,6 +3,7 @@
 use super::packet::PacketScratch;
 use super::ray_packet::{PACKET, RayBins};
 use super::visibility::Candidate;
+use crate::render::exact::ExactScratch;
 use crate::render::scene_file::Sampling;
 
 /// Per-thread buffers for one hit point's light points, reused from hit to
@@ -31,6 +32,8 @@ pub struct ShadowBuffers {
     pub(super) bins: Vec<RayBins>,
     pub(super) bins_for: Option<(Sampling, u32)>,
     pub(super) scratch: PacketScratch,
+    /// The `exact` model's polygons and cubature.
+    pub(crate) exact: ExactScratch,
 }
 
 impl ShadowBuffers {
@@ -55,6 +58,7 @@ impl ShadowBuffers {
             bins: Vec::with_capacity(points.div_ceil(PACKET)),
             bins_for: None,
             scratch: PacketScratch::default(),
+            exact: ExactScratch::default(),
         }
     }
 }

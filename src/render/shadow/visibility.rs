@@ -73,28 +73,8 @@ pub fn visibility(
         if i == q.object && object.shape.skips_itself(q.inside) {
             return None;
         }
-        if skip {
-            match &object.shape {
-                // A plane blocks only if some light point lies on its other
-                // side from p.
-                Shape::Plane(pl) => {
-                    let sp = pl.signed_distance(q.point);
-                    if corners.iter().all(|c| pl.signed_distance(*c) * sp > 0.0) {
-                        return None;
-                    }
-                }
-                // The sphere itself is a tighter test than its box.
-                Shape::Sphere(sp) => {
-                    if !pyramid.may_overlap_sphere(sp.centre, sp.radius) {
-                        return None;
-                    }
-                }
-                _ => {
-                    if object.bounds.is_some_and(|b| !pyramid.may_overlap(&b)) {
-                        return None;
-                    }
-                }
-            }
+        if skip && cannot_block(object, q.point, &corners, &pyramid) {
+            return None;
         }
         let umbra_test = !inside
             && object.shape.convex()
@@ -321,6 +301,57 @@ pub fn visibility(
     let tested = trace(rays, facing, bins);
     stats.shadow += tested;
     stats.shadow_unoccluded += facing - tested;
+}
+
+/// Whether `object` certainly blocks no shadow ray from `p` to the light
+/// (of corners `corners` and pyramid `pyramid` from p).
+fn cannot_block(
+    object: &crate::render::scene::Object,
+    p: DVec3,
+    corners: &[DVec3; 4],
+    pyramid: &ShadowPyramid,
+) -> bool {
+    match &object.shape {
+        // A plane blocks only if some light point lies on its other side
+        // from p.
+        Shape::Plane(pl) => {
+            let sp = pl.signed_distance(p);
+            corners.iter().all(|c| pl.signed_distance(*c) * sp > 0.0)
+        }
+        // The sphere itself is a tighter test than its box.
+        Shape::Sphere(sp) => !pyramid.may_overlap_sphere(sp.centre, sp.radius),
+        _ => object.bounds.is_some_and(|b| !pyramid.may_overlap(&b)),
+    }
+}
+
+/// The objects that may block a shadow ray of `q` (the culling of
+/// [`visibility`], without its rays), each with whether q lies inside it
+/// (hit from inside: the object is kept, and only its exit counts).
+pub(crate) fn possible_occluders(scene: &Scene, q: &ShadowQuery, out: &mut Vec<(u32, bool)>) {
+    out.clear();
+    let light = &scene.light.shape;
+    let corners = light.corners();
+    let pyramid = ShadowPyramid::new(q.point, &corners, light.normal, light.centre());
+    let mut consider = |i: u32| {
+        let object = &scene.objects[i as usize];
+        if i == q.object && object.shape.skips_itself(q.inside) {
+            return;
+        }
+        if !cannot_block(object, q.point, &corners, &pyramid) {
+            out.push((i, i == q.object && q.inside));
+        }
+    };
+    for &i in scene.unbounded.iter().chain(&scene.bounded) {
+        consider(i);
+    }
+    scene.bvh.visit_near_first(
+        q.point,
+        |b| pyramid.may_overlap(b),
+        |i| {
+            consider(i);
+            true
+        },
+    );
 }
 
 /// Shadow rays as parallel slices: light points, directions, visibility.

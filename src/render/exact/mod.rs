@@ -1,0 +1,184 @@
+//! The `exact` area-light model: the visible part of the light, without
+//! sampling.
+//!
+//! Every other model estimates the average over the light's area of
+//! visibility × the Phong factor. Here, from each shadow point:
+//! 1. the occluders are those the shadow rays' culling keeps (objects whose
+//!    bounds meet the pyramid from the point to the light);
+//! 2. each one's shadow on the light's plane is projected from the point
+//!    (`projection.rs`: boxes, rects and triangles exactly as convex
+//!    polygons, spheres as the polygon of their silhouette);
+//! 3. the visible region is the light in front of the surface, cut by the
+//!    planes and minus the shadows, as convex pieces (`visible.rs`,
+//!    `polygon.rs`);
+//! 4. the diffuse factor max(0, N·L) is integrated over the pieces in
+//!    closed form (the edge sums of `analytic.rs`), the specular factor
+//!    max(0, N·H)^s by an adaptive cubature with an error estimate below
+//!    1e-5 (`cubature.rs`).
+//!
+//! It is the integrand of `sampled` — the same directions (from the shadow
+//! point), the same visibility test (blocked at t in (0, `RAY_END`), light
+//! points behind the geometric normal hidden), the same factors — so
+//! `sampled` with many rays converges to it.
+//!
+//! Limits (the hit point then falls back to the `analytic` model's estimate
+//! with the scene's shadow rays, counted in `RayStats::exact_fallbacks`): a
+//! point inside an occluder (hit from inside), a sphere reaching within
+//! 10⁻⁴ of the ray's length of the light's plane, more than
+//! [`MAX_TRIANGLES`] triangles in the pyramid, more than [`MAX_PIECES`]
+//! visible pieces, a light smaller than [`TINY_LIGHT`] of its height above
+//! the point. Spheres: the polygon of [`SPHERE_EDGES`] edges with the
+//! silhouette's area (the inscribed and circumscribed polygons bracket the
+//! exact value; measured error in `tests/exact_shadows.rs`).
+
+mod cubature;
+mod polygon;
+mod projection;
+mod visible;
+
+use glam::{DVec2, DVec3};
+
+pub use cubature::{CubatureReport, TOLERANCE};
+pub use projection::{CircleFit, Unsupported};
+pub use visible::{Fallback, MAX_PIECES, MAX_TRIANGLES, SPHERE_EDGES, TINY_LIGHT};
+
+use cubature::{CubatureScratch, Lobe, specular_factor};
+use polygon::{HalfPlane, Pieces};
+use projection::LightView;
+use visible::{RegionScratch, visible_region};
+
+use crate::render::analytic::diffuse_polygon_integral;
+use crate::render::scene::Scene;
+use crate::render::shadow::{ShadowQuery, possible_occluders};
+
+/// A hit point as the exact model sees it.
+#[derive(Debug, Clone, Copy)]
+pub struct ExactPoint {
+    /// Where the shadow rays start (the shading point, lifted on smooth
+    /// triangles).
+    pub shadow_point: DVec3,
+    /// Unit shading normal (the factors' N).
+    pub normal: DVec3,
+    /// Unit geometric normal: light points behind it are hidden.
+    pub geometric: DVec3,
+    /// Unit direction to the viewer.
+    pub view: DVec3,
+    pub shininess: f64,
+    /// The hit object (left out of its own shadow test as the shadow rays
+    /// do), `u32::MAX` for none.
+    pub object: u32,
+    pub inside: bool,
+    /// `false`: shadows are off (`render.shadows`), only the surface's own
+    /// horizon hides part of the light.
+    pub shadows: bool,
+}
+
+/// The exact light factors of one point.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct ExactFactors {
+    /// Average over the light's area of visibility × max(0, N·L).
+    pub diffuse: f64,
+    /// Average of visibility × max(0, N·H)^s (0 unless asked for).
+    pub specular: f64,
+    /// Visible pieces.
+    pub pieces: usize,
+    pub cubature: CubatureReport,
+}
+
+/// Scratch of the exact model (one per thread, kept warm).
+#[derive(Debug, Clone, Default)]
+pub struct ExactScratch {
+    occluders: Vec<(u32, bool)>,
+    pieces: Pieces,
+    lit: Pieces,
+    ab: Pieces,
+    region: RegionScratch,
+    cubature: CubatureScratch,
+}
+
+/// The exact factors of `p`, or why the point falls back. `specular`:
+/// whether to compute the specular factor (the costly one).
+pub fn exact_factors(
+    scene: &Scene,
+    p: &ExactPoint,
+    specular: bool,
+    sphere: CircleFit,
+    s: &mut ExactScratch,
+) -> Result<ExactFactors, Fallback> {
+    let light = &scene.light.shape;
+    let Some(view) = LightView::new(light, p.shadow_point) else {
+        return Ok(ExactFactors::default());
+    };
+    if view.area.sqrt() < TINY_LIGHT * view.h {
+        return Err(Fallback::TinyLight);
+    }
+    let query = ShadowQuery {
+        point: p.shadow_point,
+        normal: p.geometric,
+        object: p.object,
+        inside: p.inside,
+    };
+    s.occluders.clear();
+    if p.shadows {
+        possible_occluders(scene, &query, &mut s.occluders);
+    }
+    let front = view.front_of(p.geometric);
+    visible_region(
+        scene,
+        &view,
+        front,
+        &s.occluders,
+        sphere,
+        &mut s.pieces,
+        &mut s.region,
+    )?;
+    let mut out = ExactFactors {
+        pieces: s.pieces.len(),
+        ..ExactFactors::default()
+    };
+    if s.pieces.is_empty() {
+        return Ok(out);
+    }
+
+    // Diffuse: (1/A) ∫ max(0, N·L) over the pieces, each clipped to the
+    // shading normal's horizon where N·L ≥ 0.
+    let n = view.local_dir(p.normal);
+    let (a, b, h) = (DVec2::new(n.x, n.y), -view.h * n.z, -view.h);
+    s.lit.clone_from(&s.pieces);
+    s.lit
+        .clip(HalfPlane { n: a, c: b }, 0.0, &mut s.region.work);
+    let diffuse: f64 = s
+        .lit
+        .iter()
+        .map(|poly| diffuse_polygon_integral(poly, a, b, h))
+        .sum();
+    out.diffuse = (diffuse / view.area).clamp(0.0, 1.0);
+
+    if specular {
+        // The pieces in the light's (a, b) coordinates: y = corner + a u + b v.
+        let (u, v) = (view.rect[1] - view.rect[0], view.rect[3] - view.rect[0]);
+        let det = u.perp_dot(v);
+        let o = view.rect[0];
+        let to_ab = |y: DVec2| {
+            let d = y - o;
+            DVec2::new(d.perp_dot(v) / det, u.perp_dot(d) / det)
+        };
+        s.ab.clear();
+        for poly in s.pieces.iter() {
+            s.ab.verts.extend(poly.iter().map(|&y| to_ab(y)));
+            s.ab.ends.push(s.ab.verts.len());
+        }
+        let lobe = Lobe {
+            n,
+            v: view.local_dir(p.view),
+            shininess: p.shininess,
+            corner: view.corner,
+            edge_u: view.edge_u,
+            edge_v: view.edge_v,
+        };
+        let (value, report) = specular_factor(&lobe, &s.ab, &mut s.cubature);
+        out.specular = value.clamp(0.0, 1.0);
+        out.cubature = report;
+    }
+    Ok(out)
+}

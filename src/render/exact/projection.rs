@@ -1,0 +1,387 @@
+//! Shadows on the light's plane: each occluder projected from the hit point.
+//!
+//! The light's frame seen from the shadow point q: q at the origin, x and y
+//! in the light's plane (x along `edge_u`), z along the light's normal, so
+//! the light's plane is z = −h. A shadow ray to the light point y meets an
+//! occluder point x at t = −x.z / h; the sampled model counts it blocked for
+//! t in (0, `RAY_END`), i.e. for −`RAY_END`·h < x.z < 0. So the shadow of an
+//! occluder is the central projection from q, x ↦ (x.x, x.y)·h/(−x.z), of
+//! its part inside the frustum K: that slab, cut by the four planes through
+//! q and the light's edges. K keeps every projection inside the light (no
+//! point at infinity), and the projection of a convex body is convex:
+//! - a box, rect or triangle: each face clipped to K (Sutherland–Hodgman),
+//!   projected, and the convex hull of all (plus the light's corners whose
+//!   rays run inside a box, the vertices of K inside it);
+//! - a sphere: its silhouette circle (the tangent points from q) as a
+//!   regular N-gon, clipped and projected likewise. The inscribed and the
+//!   circumscribed N-gons bracket the true shadow; the polygon of the same
+//!   area as the circle lies between them and is what shading uses (its
+//!   error falls as N⁻⁴, see `tests/exact_shadows.rs`);
+//! - an infinite plane: a half-plane of the light's plane.
+//!
+//! The slab's side near q stops at z = −`NEAR`·h rather than 0: the part
+//! of an occluder within 10⁻⁶·h of q's plane only blocks rays that graze it
+//! and would project arbitrarily far.
+
+use glam::{DVec2, DVec3};
+
+use super::polygon::{HalfPlane, hull_into};
+use crate::render::geometry::{Cuboid, Parallelogram, Plane, Sphere, Triangle};
+use crate::render::shadow::RAY_END;
+
+/// Relative height below q's plane where the frustum starts.
+const NEAR: f64 = 1e-6;
+
+/// The light's frame seen from one shadow point.
+#[derive(Debug, Clone)]
+pub struct LightView {
+    pub q: DVec3,
+    pub e1: DVec3,
+    pub e2: DVec3,
+    /// Unit normal of the light towards its lit side.
+    pub m: DVec3,
+    /// Height of q above the light's plane (> 0).
+    pub h: f64,
+    /// The light's corners in the plane, counter-clockwise.
+    pub rect: [DVec2; 4],
+    /// Area of the light.
+    pub area: f64,
+    /// The light's corner and edges in the frame (3-D).
+    pub corner: DVec3,
+    pub edge_u: DVec3,
+    pub edge_v: DVec3,
+    /// The light's corners in the frame (3-D), in the order of `rect`.
+    corners: [DVec3; 4],
+    /// The frustum's planes `n · x + c ≥ 0`.
+    planes: [(DVec3, f64); 6],
+    /// Cut-off of `RAY_END` (f32) as f64.
+    ray_end: f64,
+}
+
+impl LightView {
+    /// The frame of `light` seen from `q`, or `None` if q is not strictly
+    /// on the lit side.
+    pub fn new(light: &Parallelogram, q: DVec3) -> Option<LightView> {
+        let m = light.normal;
+        let e1 = light.edge_u.normalize();
+        let e2 = m.cross(e1);
+        let h = m.dot(q - light.corner);
+        // Also refuses a NaN height.
+        if h.is_nan() || h <= 0.0 {
+            return None;
+        }
+        let local = |d: DVec3| DVec3::new(d.dot(e1), d.dot(e2), d.dot(m));
+        let corner = local(light.corner - q);
+        let (edge_u, edge_v) = (local(light.edge_u), local(light.edge_v));
+        let c3 = [
+            corner,
+            corner + edge_u,
+            corner + edge_u + edge_v,
+            corner + edge_v,
+        ];
+        let rect = c3.map(|c| DVec2::new(c.x, c.y));
+        let centre = corner + (edge_u + edge_v) * 0.5;
+        let ray_end = RAY_END as f64;
+        let mut planes = [(DVec3::ZERO, 0.0); 6];
+        for i in 0..4 {
+            let mut n = c3[i].cross(c3[(i + 1) % 4]);
+            if n.dot(centre) < 0.0 {
+                n = -n;
+            }
+            planes[i] = (n, 0.0);
+        }
+        planes[4] = (DVec3::Z, ray_end * h);
+        planes[5] = (-DVec3::Z, -NEAR * h);
+        Some(LightView {
+            q,
+            e1,
+            e2,
+            m,
+            h,
+            rect,
+            area: light.edge_u.cross(light.edge_v).length(),
+            corner,
+            edge_u,
+            edge_v,
+            corners: c3,
+            planes,
+            ray_end,
+        })
+    }
+
+    /// A world point in the frame.
+    #[inline]
+    pub fn local(&self, x: DVec3) -> DVec3 {
+        let d = x - self.q;
+        DVec3::new(d.dot(self.e1), d.dot(self.e2), d.dot(self.m))
+    }
+
+    /// A world direction in the frame.
+    #[inline]
+    pub fn local_dir(&self, d: DVec3) -> DVec3 {
+        DVec3::new(d.dot(self.e1), d.dot(self.e2), d.dot(self.m))
+    }
+
+    /// A frame point back in the world.
+    #[inline]
+    fn world(&self, x: DVec3) -> DVec3 {
+        self.q + self.e1 * x.x + self.e2 * x.y + self.m * x.z
+    }
+
+    /// Where the ray from q through a frame point (z < 0) meets the plane.
+    #[inline]
+    fn project(&self, x: DVec3) -> DVec2 {
+        DVec2::new(x.x, x.y) * (self.h / -x.z)
+    }
+
+    #[inline]
+    fn inside_frustum(&self, x: DVec3) -> bool {
+        self.planes.iter().all(|&(n, c)| n.dot(x) + c >= 0.0)
+    }
+
+    /// The half-plane of light points in front of a surface of unit normal
+    /// `n` (world) through q: n · (y − q) > 0.
+    pub fn front_of(&self, n: DVec3) -> HalfPlane {
+        let l = self.local_dir(n);
+        HalfPlane {
+            n: DVec2::new(l.x, l.y),
+            c: -self.h * l.z,
+        }
+    }
+
+    /// Light points whose shadow rays an infinite plane does not cut (the
+    /// sampled test: q and the ray's end `RAY_END` of the way to y on the
+    /// same side), or `None` if q lies in the plane (it blocks nothing).
+    pub fn plane_clear(&self, plane: &Plane) -> Option<HalfPlane> {
+        let s = plane.signed_distance(self.q);
+        if s == 0.0 {
+            return None;
+        }
+        let l = self.local_dir(plane.normal);
+        let sign = s.signum();
+        let re = self.ray_end;
+        Some(HalfPlane {
+            n: DVec2::new(l.x, l.y) * (sign * re),
+            c: sign * (s - re * self.h * l.z),
+        })
+    }
+}
+
+/// How a sphere's silhouette circle is turned into a polygon.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CircleFit {
+    /// Vertices on the circle: a shadow inside the true one.
+    Inscribed,
+    /// Edges tangent to it: a shadow containing the true one.
+    Circumscribed,
+    /// The N-gon of the circle's area, between the two (what shading uses).
+    SameArea,
+}
+
+/// Why a shadow cannot be computed exactly.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Unsupported {
+    /// q lies inside the occluder.
+    Inside,
+    /// A sphere reaching below the rays' end near the light's plane (its
+    /// silhouette no longer bounds its shadow there).
+    SphereAtLight,
+}
+
+/// Scratch of the projections.
+#[derive(Debug, Clone, Default)]
+pub struct ProjectScratch {
+    face: Vec<DVec3>,
+    clipped: Vec<DVec3>,
+    points: Vec<DVec2>,
+}
+
+/// Clips a planar polygon (frame coordinates) to the frustum, appending
+/// its projection to `points`.
+fn clip_and_project(
+    view: &LightView,
+    face: &mut Vec<DVec3>,
+    tmp: &mut Vec<DVec3>,
+    points: &mut Vec<DVec2>,
+) {
+    for &(n, c) in &view.planes {
+        tmp.clear();
+        let k = face.len();
+        for i in 0..k {
+            let (a, b) = (face[i], face[(i + 1) % k]);
+            let (da, db) = (n.dot(a) + c, n.dot(b) + c);
+            if da >= 0.0 {
+                tmp.push(a);
+            }
+            if (da >= 0.0) != (db >= 0.0) {
+                tmp.push(a + (b - a) * (da / (da - db)));
+            }
+        }
+        std::mem::swap(face, tmp);
+        if face.len() < 3 {
+            return;
+        }
+    }
+    points.extend(face.iter().map(|&x| view.project(x)));
+}
+
+/// The shadow of the convex polygons `faces` (world vertices), into `out`
+/// (counter-clockwise; empty if none). `extra` are points of the plane
+/// known to be in the shadow (the light's corners inside a solid).
+fn faces_shadow(
+    view: &LightView,
+    faces: &[&[DVec3]],
+    extra: &[DVec2],
+    s: &mut ProjectScratch,
+    out: &mut Vec<DVec2>,
+) {
+    s.points.clear();
+    s.points.extend_from_slice(extra);
+    for f in faces {
+        s.face.clear();
+        s.face.extend(f.iter().map(|&x| view.local(x)));
+        clip_and_project(view, &mut s.face, &mut s.clipped, &mut s.points);
+    }
+    hull_into(&mut s.points, out);
+}
+
+/// The box's faces as corner indices (bit 0: x, 1: y, 2: z high).
+const BOX_FACES: [[usize; 4]; 6] = [
+    [0, 2, 6, 4],
+    [1, 5, 7, 3],
+    [0, 4, 5, 1],
+    [2, 3, 7, 6],
+    [0, 1, 3, 2],
+    [4, 6, 7, 5],
+];
+
+pub fn box_shadow(
+    view: &LightView,
+    c: &Cuboid,
+    s: &mut ProjectScratch,
+    out: &mut Vec<DVec2>,
+) -> Result<(), Unsupported> {
+    let h = c.half;
+    let corners: [DVec3; 8] = std::array::from_fn(|i| {
+        let sx = if i & 1 == 0 { -1.0 } else { 1.0 };
+        let sy = if i & 2 == 0 { -1.0 } else { 1.0 };
+        let sz = if i & 4 == 0 { -1.0 } else { 1.0 };
+        c.centre + c.to_world(h * DVec3::new(sx, sy, sz))
+    });
+    let inside = |world: DVec3| {
+        let l = c.to_local(world - c.centre).abs();
+        l.cmple(h).all()
+    };
+    if c.to_local(view.q - c.centre).abs().cmplt(h).all() {
+        return Err(Unsupported::Inside);
+    }
+    let local = corners.map(|x| view.local(x));
+    out.clear();
+    // Wholly beyond one plane of the frustum: no shadow.
+    if view
+        .planes
+        .iter()
+        .any(|&(n, k)| local.iter().all(|&x| n.dot(x) + k < 0.0))
+    {
+        return Ok(());
+    }
+    if local.iter().all(|&x| view.inside_frustum(x)) {
+        s.points.clear();
+        s.points.extend(local.iter().map(|&x| view.project(x)));
+        hull_into(&mut s.points, out);
+        return Ok(());
+    }
+    // The frustum's vertices inside the box: its corner rays at both ends.
+    let mut extra = [DVec2::ZERO; 4];
+    let mut n_extra = 0;
+    for (r, &ray) in view.rect.iter().zip(&view.corners) {
+        if inside(view.world(ray * view.ray_end)) || inside(view.world(ray * NEAR)) {
+            extra[n_extra] = *r;
+            n_extra += 1;
+        }
+    }
+    let faces: [[DVec3; 4]; 6] = BOX_FACES.map(|f| f.map(|i| corners[i]));
+    let refs: [&[DVec3]; 6] = std::array::from_fn(|i| &faces[i][..]);
+    faces_shadow(view, &refs, &extra[..n_extra], s, out);
+    Ok(())
+}
+
+pub fn rect_shadow(
+    view: &LightView,
+    r: &Parallelogram,
+    s: &mut ProjectScratch,
+    out: &mut Vec<DVec2>,
+) {
+    faces_shadow(view, &[&r.corners()], &[], s, out);
+}
+
+pub fn triangle_shadow(
+    view: &LightView,
+    t: &Triangle,
+    s: &mut ProjectScratch,
+    out: &mut Vec<DVec2>,
+) {
+    faces_shadow(view, &[&t.vertices()], &[], s, out);
+}
+
+/// The shadow of a sphere from its silhouette as an `n`-gon.
+pub fn sphere_shadow(
+    view: &LightView,
+    sphere: &Sphere,
+    n: usize,
+    fit: CircleFit,
+    s: &mut ProjectScratch,
+    out: &mut Vec<DVec2>,
+) -> Result<(), Unsupported> {
+    out.clear();
+    let oc = view.local(sphere.centre);
+    let r = sphere.radius;
+    let d2 = oc.length_squared();
+    if d2 <= r * r {
+        return Err(Unsupported::Inside);
+    }
+    if oc.z - r < -view.ray_end * view.h {
+        return Err(Unsupported::SphereAtLight);
+    }
+    // Wholly behind q's plane or outside a side of the pyramid.
+    if view.planes.iter().any(|&(pn, c)| {
+        let len = pn.length();
+        pn.dot(oc) + c < -r * len
+    }) {
+        return Ok(());
+    }
+    let k = r * r / d2;
+    let centre = oc * (1.0 - k);
+    let rho = r * (1.0 - k).sqrt();
+    let axis = oc / d2.sqrt();
+    let u = axis.any_orthonormal_vector();
+    let w = axis.cross(u);
+    let step = std::f64::consts::TAU / n as f64;
+    let scale = match fit {
+        CircleFit::Inscribed => 1.0,
+        CircleFit::Circumscribed => 1.0 / (step * 0.5).cos(),
+        CircleFit::SameArea => (step / step.sin()).sqrt(),
+    };
+    s.face.clear();
+    s.face.extend((0..n).map(|i| {
+        let (sn, cs) = (i as f64 * step).sin_cos();
+        centre + (u * cs + w * sn) * (rho * scale)
+    }));
+    s.points.clear();
+    let ProjectScratch {
+        face,
+        clipped,
+        points,
+    } = s;
+    clip_and_project(view, face, clipped, points);
+    // The projection of a convex polygon is convex and keeps its order;
+    // only the winding may turn.
+    out.extend_from_slice(points);
+    if out.len() >= 3 && super::polygon::twice_area(out) < 0.0 {
+        out.reverse();
+    }
+    if out.len() < 3 {
+        out.clear();
+    }
+    Ok(())
+}

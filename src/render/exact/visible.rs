@@ -1,0 +1,125 @@
+//! The visible part of the light from one shadow point: the light's
+//! rectangle in front of the surface, cut by the planes that hide part of
+//! it, minus the union of the other occluders' shadows, as convex pieces.
+
+use glam::DVec2;
+
+use super::polygon::{HalfPlane, Pieces, Work, merge_close_vertices};
+use super::projection::{
+    CircleFit, LightView, ProjectScratch, Unsupported, box_shadow, rect_shadow, sphere_shadow,
+    triangle_shadow,
+};
+use crate::render::geometry::Shape;
+use crate::render::scene::Scene;
+
+/// Edges of a sphere's silhouette polygon.
+pub const SPHERE_EDGES: usize = 128;
+
+/// Occluding triangles in a hit point's pyramid above which the exact model
+/// stops (each adds a shadow to subtract, and the pieces multiply): the
+/// hit point falls back to the `analytic` estimate.
+pub const MAX_TRIANGLES: usize = 48;
+
+/// Visible pieces above which the hit point falls back likewise.
+pub const MAX_PIECES: usize = 4096;
+
+/// Why a hit point falls back to the `analytic` estimate.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Fallback {
+    Unsupported(Unsupported),
+    TooManyTriangles,
+    TooManyPieces,
+    /// A light smaller than [`TINY_LIGHT`] of its height above the point:
+    /// the frustum's planes lose their digits (a known defect, left for
+    /// later), and the `analytic` estimate is exact wherever such a
+    /// near-point light is wholly visible or hidden.
+    TinyLight,
+}
+
+/// See [`Fallback::TinyLight`].
+pub const TINY_LIGHT: f64 = 1e-4;
+
+/// Scratch of [`visible_region`].
+#[derive(Debug, Clone, Default)]
+pub struct RegionScratch {
+    pub work: Work,
+    pub project: ProjectScratch,
+    pub shadow: Vec<DVec2>,
+}
+
+/// The visible part of the light into `pieces` (the plane's coordinates of
+/// `view`): the rectangle where `front` ≥ 0, minus what the `occluders`
+/// (object index, and whether the point is inside it) hide.
+pub fn visible_region(
+    scene: &Scene,
+    view: &LightView,
+    front: HalfPlane,
+    occluders: &[(u32, bool)],
+    sphere: CircleFit,
+    pieces: &mut Pieces,
+    s: &mut RegionScratch,
+) -> Result<(), Fallback> {
+    // Pieces thinner than the rounding of the coordinates are dropped
+    // (twice their area is below this).
+    let magnitude = view
+        .rect
+        .iter()
+        .map(|p| p.abs().max_element())
+        .fold(0.0, f64::max);
+    let min_area = (2e-14 * view.area).max(64.0 * f64::EPSILON * magnitude * view.area.sqrt());
+    pieces.clear();
+    pieces.push(&view.rect, 0.0);
+    pieces.clip(front, min_area, &mut s.work);
+    if occluders.iter().any(|&(_, inside)| inside) {
+        return Err(Fallback::Unsupported(Unsupported::Inside));
+    }
+    let triangles = occluders
+        .iter()
+        .filter(|&&(i, _)| matches!(scene.objects[i as usize].shape, Shape::Triangle(_)))
+        .count();
+    if triangles > MAX_TRIANGLES {
+        return Err(Fallback::TooManyTriangles);
+    }
+    // Planes first: a clip is cheaper than a subtraction, and it leaves
+    // fewer pieces to subtract from.
+    for &(i, _) in occluders {
+        if pieces.is_empty() {
+            return Ok(());
+        }
+        if let Shape::Plane(pl) = &scene.objects[i as usize].shape
+            && let Some(h) = view.plane_clear(pl)
+        {
+            pieces.clip(h, min_area, &mut s.work);
+        }
+    }
+    for &(i, _) in occluders {
+        if pieces.is_empty() {
+            return Ok(());
+        }
+        let shadow = &mut s.shadow;
+        match &scene.objects[i as usize].shape {
+            Shape::Plane(_) => continue,
+            Shape::Cuboid(c) => box_shadow(view, c, &mut s.project, shadow),
+            Shape::Parallelogram(r) => {
+                rect_shadow(view, r, &mut s.project, shadow);
+                Ok(())
+            }
+            Shape::Triangle(t) => {
+                triangle_shadow(view, t, &mut s.project, shadow);
+                Ok(())
+            }
+            Shape::Sphere(sp) => {
+                sphere_shadow(view, sp, SPHERE_EDGES, sphere, &mut s.project, shadow)
+            }
+        }
+        .map_err(Fallback::Unsupported)?;
+        merge_close_vertices(shadow);
+        if shadow.len() >= 3 {
+            pieces.subtract(shadow, min_area, &mut s.work);
+        }
+        if pieces.len() > MAX_PIECES {
+            return Err(Fallback::TooManyPieces);
+        }
+    }
+    Ok(())
+}

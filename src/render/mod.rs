@@ -13,6 +13,7 @@ pub mod film;
 pub mod generate;
 pub mod geometry;
 pub mod mesh;
+mod mesh_obj;
 mod mesh_ply;
 pub mod output;
 pub mod scene_file;

@@ -9,7 +9,7 @@ use super::occluder::{Dirs, Occluder};
 use super::packet::{PacketScratch, Packets, packet};
 use super::pyramid::ShadowPyramid;
 use super::ray_packet::{PACKET, RayBins};
-use crate::render::geometry::Shape;
+use crate::render::geometry::{Primitive, Shape};
 use crate::render::math::avx2_dispatch;
 use crate::render::scene::Scene;
 use crate::render::settings::RenderSettings;
@@ -68,37 +68,38 @@ pub fn visibility(
     // An object as a possible occluder of this hit point, unless it can
     // certainly block nothing.
     let candidate = |i: u32| -> Option<Candidate> {
-        let object = &scene.objects[i as usize];
+        let prim = scene.primitive(i);
         let inside = i == q.object && q.inside;
-        if i == q.object && object.shape.skips_itself(q.inside) {
+        if i == q.object && prim.skips_itself(q.inside) {
             return None;
         }
+        let bounds = scene.bounds_of(i);
         if skip {
-            match &object.shape {
+            match prim {
                 // A plane blocks only if some light point lies on its other
                 // side from p.
-                Shape::Plane(pl) => {
+                Primitive::Shape(Shape::Plane(pl)) => {
                     let sp = pl.signed_distance(q.point);
                     if corners.iter().all(|c| pl.signed_distance(*c) * sp > 0.0) {
                         return None;
                     }
                 }
                 // The sphere itself is a tighter test than its box.
-                Shape::Sphere(sp) => {
+                Primitive::Shape(Shape::Sphere(sp)) => {
                     if !pyramid.may_overlap_sphere(sp.centre, sp.radius) {
                         return None;
                     }
                 }
                 _ => {
-                    if object.bounds.is_some_and(|b| !pyramid.may_overlap(&b)) {
+                    if bounds.is_some_and(|b| !pyramid.may_overlap(&b)) {
                         return None;
                     }
                 }
             }
         }
         let umbra_test = !inside
-            && object.shape.convex()
-            && match object.bounds {
+            && prim.convex()
+            && match bounds {
                 // Planes block a light point iff it lies on their other side:
                 // all four corners there means the whole light.
                 None => true,
@@ -108,7 +109,7 @@ pub fn visibility(
                 }
             };
         Some(Candidate {
-            occ: Occluder::new(&object.shape, q.point, inside),
+            occ: Occluder::new(prim, q.point, inside),
             umbra_test,
         })
     };
@@ -119,7 +120,7 @@ pub fn visibility(
         scene
             .unbounded
             .iter()
-            .chain(&scene.bounded)
+            .chain(scene.bounded.iter())
             .filter_map(|&i| candidate(i)),
     );
     if buf.occluders.is_empty() && scene.bvh.is_empty() {

@@ -11,6 +11,7 @@ fn main() {
         Command::Render(args) => cli::render(&args),
         Command::Compare(args) => cli::compare(&args),
         Command::Bench(args) => cli::bench(&args),
+        Command::Generate(args) => cli::generate(&args),
     };
     if let Err(e) = result {
         eprintln!("penumbra: {}", e.message);

@@ -11,6 +11,7 @@
 pub mod compare;
 pub mod film;
 pub mod generate;
+pub mod generate_mesh;
 pub mod geometry;
 pub mod mesh;
 mod mesh_obj;

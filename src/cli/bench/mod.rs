@@ -6,6 +6,7 @@
 //! - `--spheres N,… --scaling` times generated scenes of N spheres
 //!   ([`scaling`]);
 //! - `--target` measures the figures of the speed targets ([`target`]);
+//! - `--meshes N,…` times meshes of N triangles in the room ([`meshes`]);
 //! - `--edits` times the viewer's answer to each class of edit ([`edits`]);
 //! - `--spp-split` shares a pixel's rays between camera samples and shadow
 //!   rays ([`split`]).
@@ -15,6 +16,7 @@
 //! load, since the measurements share the machine with other work.
 
 pub mod edits;
+pub mod meshes;
 pub mod plot;
 pub mod reference;
 pub mod scaling;
@@ -136,6 +138,10 @@ pub struct BenchArgs {
     /// Camera samples per pixel of the renders (anti-aliasing).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1024))]
     pub spp: Option<u32>,
+    /// Time the seed room, the bunny room and the room with a generated
+    /// torus of each of these triangle counts (load and render).
+    #[arg(long, value_delimiter = ',', value_parser = clap::value_parser!(u32).range(18..=20_000_000))]
+    pub meshes: Option<Vec<u32>>,
 }
 
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, clap::ValueEnum)]
@@ -155,6 +161,8 @@ pub fn bench(args: &BenchArgs) -> Result<(), CliError> {
             edits::run(args)
         } else if args.spp_split {
             split::run(args)
+        } else if args.meshes.is_some() {
+            meshes::run(args)
         } else if args.target {
             target::run(args)
         } else if args.slopes {

@@ -5,6 +5,7 @@
 //!   streaming; [`worker`]: the thread-and-mailbox pattern it shares with
 //!   the error readout.
 //! - [`controls`], [`camera_control`], [`status`]: the panels and the mouse.
+//! - [`object_list`]: the objects' visibility and materials, adding meshes.
 //! - [`settings`]: viewer toggles that map onto the scene description.
 //! - [`file_dialog`], [`export`], [`watch`]: files in and out.
 //! - [`timings`]: the `--log-timings` figures.
@@ -17,6 +18,7 @@ pub mod error_view;
 pub mod export;
 pub mod file_dialog;
 pub mod history;
+pub mod object_list;
 pub mod reference;
 pub mod render_job;
 pub mod settings;

@@ -673,3 +673,21 @@ fn the_fast_obj_reader_agrees_with_tobj() {
     let colours = "v 0 0 0 1 0 0\nv 1 0 0 1 0 0\nv 0 1 0 1 0 0\nf 1 2 3\n";
     assert_eq!(read_obj(colours.as_bytes()).unwrap().faces.len(), 1);
 }
+
+/// Found by the `read_gltf` fuzz target: a GLB header claiming a length
+/// below its own 12 bytes made the gltf crate subtract past zero (a panic
+/// where overflow is checked). It is one clear error naming the header.
+#[test]
+fn a_glb_header_shorter_than_itself_is_refused() {
+    let mut glb = box_glb([1.0, 1.0, 1.0], 0.0);
+    for length in [0u32, 11, glb.len() as u32 + 1] {
+        glb[8..12].copy_from_slice(&length.to_le_bytes());
+        let e = penumbra::render::mesh::read_gltf(&glb, None).unwrap_err();
+        assert!(
+            e.contains(&format!(
+                "GLB header gives the file's length as {length} bytes"
+            )),
+            "{e}"
+        );
+    }
+}

@@ -691,3 +691,17 @@ fn a_glb_header_shorter_than_itself_is_refused() {
         );
     }
 }
+
+/// Found by the `read_gltf` fuzz target: the glTF crate's error quotes an
+/// offending JSON string whole; the message stays short.
+#[test]
+fn a_glb_with_a_huge_bad_value_gives_a_short_error() {
+    let long = "7".repeat(100_000);
+    let json = format!("{{\"asset\": {{\"version\": \"2.0\"}}, \"scenes\": \"{long}\"}}");
+    let e = penumbra::render::mesh::read_gltf(json.as_bytes(), None).unwrap_err();
+    assert!(
+        e.starts_with("not a valid glTF file") && e.len() < 1000,
+        "{} characters",
+        e.len()
+    );
+}

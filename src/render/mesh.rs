@@ -367,7 +367,14 @@ pub fn read_gltf(bytes: &[u8], dir: Option<&Path>) -> Result<RawMesh, String> {
     // by the mutation test): caught and reported as a refusal.
     let g = std::panic::catch_unwind(|| gltf::Gltf::from_slice(bytes))
         .map_err(|_| "not a valid glTF file (its validation failed)".to_string())?
-        .map_err(|e| format!("not a valid glTF file: {e}"))?;
+        // The crate quotes the offending JSON value whole (found by the
+        // fuzz target): long ones are cut.
+        .map_err(|e| {
+            format!(
+                "not a valid glTF file: {}",
+                super::error::cut_quoted(&e.to_string())
+            )
+        })?;
     let mut buffers: Vec<Vec<u8>> = Vec::new();
     for b in g.buffers() {
         let data = match b.source() {

@@ -99,7 +99,7 @@ fn outside_bvh(scene: &Scene, ray: &Ray) -> Option<(HitTarget, f64)> {
         best = Some((HitTarget::Light, t));
         t_max = t;
     }
-    for &i in &scene.unbounded {
+    for &i in scene.unbounded.iter() {
         if let Some(t) = scene.objects[i as usize].shape.intersect(ray, t_max) {
             best = Some((HitTarget::Object(i), t));
             t_max = t;

@@ -20,8 +20,7 @@ fn hit(loaded: &Loaded, x: u32, y: u32) -> Option<ShadingPoint<'_>> {
     let Some((HitTarget::Object(object), t)) = scene.closest_hit(&ray) else {
         return None;
     };
-    let obj = &scene.objects[object as usize];
-    let surface = obj.shape.surface(&ray, t);
+    let surface = scene.surface(object, &ray, t);
     let inside = surface.normal.dot(ray.dir) > 0.0;
     let normal = if inside {
         -surface.normal
@@ -36,7 +35,7 @@ fn hit(loaded: &Loaded, x: u32, y: u32) -> Option<ShadingPoint<'_>> {
         view: -ray.dir,
         object,
         inside,
-        material: &loaded.shading.materials[obj.material as usize],
+        material: &loaded.shading.materials[scene.material_of(object) as usize],
     })
 }
 

@@ -12,6 +12,7 @@ fn main() {
         Command::Compare(args) => cli::compare(&args),
         Command::Merge(args) => cli::merge(&args),
         Command::Bench(args) => cli::bench(&args),
+        Command::Generate(args) => cli::generate(&args),
     };
     if let Err(e) = result {
         eprintln!("penumbra: {}", e.message);

@@ -368,13 +368,10 @@ fn the_transform_scales_then_rotates_then_translates() {
     let mut d = small_room();
     d.objects.push(ObjectDesc::Mesh(m));
     let loaded = Loaded::new(&d).unwrap();
-    let obj = loaded.scene.objects.last().unwrap();
-    let penumbra::render::geometry::Shape::Triangle(t) = &obj.shape else {
-        panic!("a triangle")
-    };
+    assert_eq!(loaded.scene.meshes.len(), 1);
     // R_y(90°) maps x to −z and z to x (as the box's rotation does).
     let want = [[10.0, 20.0, 28.0], [10.0, 23.0, 30.0], [14.0, 20.0, 30.0]];
-    for (v, w) in t.vertices().iter().zip(want) {
+    for (v, w) in loaded.scene.meshes.vertices(0).iter().zip(want) {
         assert!((*v - glam::DVec3::from(w)).length() < 1e-12, "{v} {w:?}");
     }
 }
@@ -633,4 +630,78 @@ fn a_glb_box_with_a_node_transform_renders_as_the_obj_box() {
     let glb = box_glb(h, 0.5);
     let e = penumbra::render::mesh::read_gltf(&glb[..glb.len() - 40], None).unwrap_err();
     assert!(!e.is_empty() && e.len() < 300, "{e}");
+}
+
+/// The fast reader of plain OBJ and `tobj` give the same triangles (the
+/// same vertices, normals and order; only the vertex numbering differs).
+#[test]
+fn the_fast_obj_reader_agrees_with_tobj() {
+    use penumbra::render::mesh::{RawMesh, read_obj, read_obj_tobj};
+    let corners = |r: &RawMesh| -> Vec<[glam::DVec3; 3]> {
+        r.faces
+            .iter()
+            .map(|f| f.map(|i| r.positions[i as usize]))
+            .collect()
+    };
+    let normals = |r: &RawMesh| -> Option<Vec<[glam::DVec3; 3]>> {
+        r.face_normals
+            .as_ref()
+            .map(|f| f.iter().map(|f| f.map(|i| r.normals[i as usize])).collect())
+    };
+    let bunny = std::fs::read("scenes/models/bunny.obj").unwrap();
+    let crafted = "# a quad, a pentagon, negative indices, groups and normals\n\
+        mtllib none.mtl\no thing\nv 0 0 0\nv 1 0 0\nv 1 1 0\r\nv 0 1 0\nv 0.5 2 0.25\n\
+        vn 0 0 1\nvn 0 0.6 0.8\nvt 0 0\ng a\nusemtl m\ns off\n\
+        f 1//1 2//1 3//2 4//2\nf -5/1/1 -4/1/1 -3/1/2 -1/1/2 4/1/1\n\
+        g b\nf 2//1 3//1 5//2\nl 1 2\n";
+    let no_normals = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\nf 4 3 2\n";
+    for (name, text) in [
+        ("bunny", bunny),
+        ("crafted", crafted.as_bytes().to_vec()),
+        ("no normals", no_normals.as_bytes().to_vec()),
+    ] {
+        let fast = read_obj(&text).unwrap();
+        let slow = read_obj_tobj(&text).unwrap();
+        assert!(!fast.faces.is_empty(), "{name}");
+        assert_eq!(corners(&fast), corners(&slow), "{name}");
+        assert_eq!(normals(&fast), normals(&slow), "{name}");
+    }
+    // Outside the plain subset (vertex colours), or wrong: tobj decides
+    // and the error names the line.
+    let e = read_obj(b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n").unwrap_err();
+    assert!(e.contains("line 4"), "{e}");
+    let colours = "v 0 0 0 1 0 0\nv 1 0 0 1 0 0\nv 0 1 0 1 0 0\nf 1 2 3\n";
+    assert_eq!(read_obj(colours.as_bytes()).unwrap().faces.len(), 1);
+}
+
+/// Found by the `read_gltf` fuzz target: a GLB header claiming a length
+/// below its own 12 bytes made the gltf crate subtract past zero (a panic
+/// where overflow is checked). It is one clear error naming the header.
+#[test]
+fn a_glb_header_shorter_than_itself_is_refused() {
+    let mut glb = box_glb([1.0, 1.0, 1.0], 0.0);
+    for length in [0u32, 11, glb.len() as u32 + 1] {
+        glb[8..12].copy_from_slice(&length.to_le_bytes());
+        let e = penumbra::render::mesh::read_gltf(&glb, None).unwrap_err();
+        assert!(
+            e.contains(&format!(
+                "GLB header gives the file's length as {length} bytes"
+            )),
+            "{e}"
+        );
+    }
+}
+
+/// Found by the `read_gltf` fuzz target: the glTF crate's error quotes an
+/// offending JSON string whole; the message stays short.
+#[test]
+fn a_glb_with_a_huge_bad_value_gives_a_short_error() {
+    let long = "7".repeat(100_000);
+    let json = format!("{{\"asset\": {{\"version\": \"2.0\"}}, \"scenes\": \"{long}\"}}");
+    let e = penumbra::render::mesh::read_gltf(json.as_bytes(), None).unwrap_err();
+    assert!(
+        e.starts_with("not a valid glTF file") && e.len() < 1000,
+        "{} characters",
+        e.len()
+    );
 }

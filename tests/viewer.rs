@@ -1352,4 +1352,86 @@ fn a_recombine_or_reshade_edit_keeps_the_refined_samples() {
         }
         other => panic!("{other:?}"),
     }
+
+/// A dropped mesh file joins the scene standing on the floor, in the
+/// object list's material; its toggle in the list hides it again (the
+/// image is the room's once more), and undo brings it back.
+#[test]
+fn a_dropped_mesh_joins_the_scene_and_its_toggle_hides_it() {
+    let dir = std::env::temp_dir().join(format!("penumbra-viewer-mesh-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("box.obj");
+    let mut obj = String::new();
+    for i in 0..8 {
+        let c = |bit: usize| if i & bit == 0 { -1.0 } else { 1.0 };
+        obj += &format!("v {} {} {}\n", c(1), c(2), c(4));
+    }
+    for q in [
+        [1, 3, 7, 5],
+        [2, 6, 8, 4],
+        [1, 5, 6, 2],
+        [3, 4, 8, 7],
+        [1, 2, 4, 3],
+        [5, 7, 8, 6],
+    ] {
+        obj += &format!("f {} {} {} {}\n", q[0], q[1], q[2], q[3]);
+    }
+    std::fs::write(&file, obj).unwrap();
+
+    let mut h = harness(ViewerOptions::new(small_room()));
+    settle(&mut h);
+    let room = finished(h.state());
+    let before = h.state().desc().objects.len();
+    h.state_mut().add_mesh(&file);
+    h.step();
+    let desc = h.state().desc().clone();
+    assert_eq!(desc.objects.len(), before + 1);
+    let penumbra::render::scene_file::ObjectDesc::Mesh(m) = desc.objects.last().unwrap() else {
+        panic!("a mesh")
+    };
+    assert_eq!(m.material, "white");
+    // On the floor (y = 0): its lowest corner a hair above it; 40 % of the
+    // room's smallest side (8, floor to ceiling) wide.
+    let penumbra::render::scene_file::MeshScale::Uniform(s) = m.scale else {
+        panic!("uniform")
+    };
+    assert!((s * 2.0 - 0.4 * 8.0).abs() < 1e-9, "{s}");
+    assert!(
+        m.translate[1] - s > 0.0 && m.translate[1] - s < 0.01,
+        "{:?}",
+        m.translate
+    );
+    settle(&mut h);
+    let with_mesh = finished(h.state());
+    assert_ne!(with_mesh, room, "the mesh shows");
+
+    // Its toggle in the object list: the room's image again, bit for bit.
+    h.get_by_label("Objects").click();
+    h.step();
+    let label = format!("{before}: mesh box.obj");
+    h.get_by_role_and_label(Role::CheckBox, &label)
+        .click_accesskit();
+    h.step();
+    assert_eq!(h.state().view_settings().hidden, vec![before]);
+    settle(&mut h);
+    assert_eq!(finished(h.state()), room);
+
+    // Undo: shown again.
+    assert!(h.state_mut().undo());
+    h.step();
+    assert!(h.state().view_settings().hidden.is_empty());
+    settle(&mut h);
+    assert_eq!(finished(h.state()), with_mesh);
+
+    // A file that is not a mesh is a banner, and the scene stays.
+    let bad = dir.join("bad.obj");
+    std::fs::write(&bad, "v 0 0 0\nf 1 2 3\n").unwrap();
+    h.state_mut().add_mesh(&bad);
+    h.step();
+    assert!(
+        h.state().banner().is_some_and(|b| b.contains("bad.obj")),
+        "{:?}",
+        h.state().banner()
+    );
+    assert_eq!(h.state().desc().objects.len(), before + 1);
 }

@@ -12,6 +12,8 @@ pub enum Purpose {
     SaveScene,
     /// A reference image (PNG or EXR) for the error readout.
     OpenReference,
+    /// A mesh file to add to the scene.
+    AddMesh,
 }
 
 impl Purpose {
@@ -21,12 +23,14 @@ impl Purpose {
             Purpose::SavePng => "Save PNG",
             Purpose::SaveScene => "Save scene",
             Purpose::OpenReference => "Load reference",
+            Purpose::AddMesh => "Add mesh",
         }
     }
     fn button(self) -> &'static str {
         match self {
             Purpose::OpenScene => "Open",
             Purpose::OpenReference => "Load",
+            Purpose::AddMesh => "Add",
             _ => "Save",
         }
     }
@@ -35,11 +39,15 @@ impl Purpose {
         match self {
             Purpose::SavePng => &["png", "exr"],
             Purpose::OpenReference => &["exr", "png"],
+            Purpose::AddMesh => &super::object_list::MESH_EXTENSIONS,
             _ => &["json"],
         }
     }
     fn opens(self) -> bool {
-        matches!(self, Purpose::OpenScene | Purpose::OpenReference)
+        matches!(
+            self,
+            Purpose::OpenScene | Purpose::OpenReference | Purpose::AddMesh
+        )
     }
 }
 

@@ -5,6 +5,7 @@
 //!   streaming; [`worker`]: the thread-and-mailbox pattern it shares with
 //!   the error readout.
 //! - [`controls`], [`camera_control`], [`status`]: the panels and the mouse.
+//! - [`object_list`]: the objects' visibility and materials, adding meshes.
 //! - [`settings`]: viewer toggles that map onto the scene description.
 //! - [`file_dialog`], [`export`], [`scene_loader`], [`watch`]: files in and
 //!   out, off the UI thread.
@@ -23,6 +24,7 @@ pub mod history;
 pub mod image_toolbar;
 pub mod image_view;
 pub mod pinned;
+pub mod object_list;
 pub mod reference;
 pub mod render_job;
 pub mod scene_loader;

@@ -1,7 +1,8 @@
 //! Viewer toggles that are not fields of the scene file but map onto it:
 //! the term checkboxes keep the slider's strength while a term is off,
 //! "reflections" keeps the chosen depth, and the resolution scale shrinks
-//! the image for a faster preview. [`ViewSettings::apply`] is the only place
+//! the image for a faster preview; hidden objects (the object list's
+//! toggles) are left out. [`ViewSettings::apply`] is the only place
 //! they meet the scene.
 
 use crate::render::SceneDesc;
@@ -17,6 +18,8 @@ pub struct ViewSettings {
     pub resolution_scale: f64,
     /// The shininess override's slider value, kept while it is switched off.
     pub shininess: f64,
+    /// Indices of the objects hidden in the object list (sorted).
+    pub hidden: Vec<usize>,
 }
 
 impl ViewSettings {
@@ -31,6 +34,7 @@ impl ViewSettings {
             reflections: true,
             resolution_scale: 1.0,
             shininess: desc.render.shininess_override.unwrap_or(50.0),
+            hidden: Vec::new(),
         }
     }
 
@@ -68,6 +72,13 @@ impl ViewSettings {
         }
         if !self.reflections {
             d.render.max_depth = 1;
+        }
+        if !self.hidden.is_empty() {
+            let mut i = 0;
+            d.objects.retain(|_| {
+                i += 1;
+                !self.hidden.contains(&(i - 1))
+            });
         }
         if !full {
             let s = self.resolution_scale;

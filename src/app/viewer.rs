@@ -131,6 +131,7 @@ pub struct Viewer {
     home_camera: CameraDesc,
     view: ViewSettings,
     controls: ControlsState,
+    objects: super::object_list::ObjectListState,
     scene_path: Option<PathBuf>,
     watcher: Option<SceneWatcher>,
     job: Option<RenderJob>,
@@ -276,6 +277,7 @@ impl Viewer {
             last_dir: None,
             desc,
             controls: ControlsState::default(),
+            objects: Default::default(),
             scene_path: options.scene_path,
             watcher: None,
             job: None,
@@ -1219,6 +1221,19 @@ impl Viewer {
         }
     }
 
+    /// Adds a mesh file to the scene, on the floor and scaled to the room,
+    /// in the object list's material; a file that cannot be read is a
+    /// banner.
+    pub fn add_mesh(&mut self, path: &Path) {
+        match super::object_list::add_mesh(&self.objects, &mut self.desc, path) {
+            Ok(()) => {
+                self.notice = Some(format!("added {}", path.display()));
+                self.restart();
+            }
+            Err(e) => self.show_error(e),
+        }
+    }
+
     /// Opens the path dialog. It starts in the folder last used in it;
     /// before that, in the scene's folder (the current one for the seed
     /// room).
@@ -1248,6 +1263,7 @@ impl Viewer {
                 .and_then(|p| p.file_name())
                 .map(|n| n.to_string_lossy().into_owned())
                 .unwrap_or_default(),
+            Purpose::AddMesh => String::new(),
             Purpose::OpenReference => match self.reference.as_ref().map(|r| &r.origin) {
                 Some(Origin::Loaded(p)) => p
                     .file_name()
@@ -1292,6 +1308,7 @@ impl Viewer {
         let mut changed = false;
         let mut action = None;
         let mut ref_action = None;
+        let mut add_mesh = false;
         let mut exposure_changed = false;
         // A modal question or a dialog has the keyboard: only Escape.
         let typing =
@@ -1347,6 +1364,14 @@ impl Viewer {
                             controls_ui(ui, &mut self.controls, &mut self.desc, &mut self.view);
                         changed |= out.changed;
                         action = out.action;
+                        let (edited, add) = super::object_list::object_list_ui(
+                            ui,
+                            &mut self.objects,
+                            &mut self.desc,
+                            &mut self.view,
+                        );
+                        changed |= edited;
+                        add_mesh |= add.is_some();
                         let panel = RefPanel {
                             task: self.ref_task.as_ref(),
                             reference: self.reference.as_ref(),
@@ -1392,6 +1417,9 @@ impl Viewer {
         for c in commands {
             self.execute(&ctx, c);
         }
+        if add_mesh {
+            self.open_dialog(Purpose::AddMesh);
+        }
         match ref_action {
             Some(RefAction::Compute) => self.compute_reference(&ctx),
             Some(RefAction::Load) => self.open_dialog(Purpose::OpenReference),
@@ -1418,6 +1446,7 @@ impl Viewer {
                         Purpose::SavePng => self.save_png(&ctx, path),
                         Purpose::SaveScene => self.save_scene(&ctx, path),
                         Purpose::OpenReference => self.load_reference(&ctx, path),
+                        Purpose::AddMesh => self.add_mesh(&path),
                     }
                 }
             }
@@ -1627,6 +1656,8 @@ impl Viewer {
             if ext.as_ref().is_some_and(|e| e == "png" || e == "exr") {
                 // An image dropped on the window is a reference.
                 self.load_reference(ctx, path.clone());
+            } else if super::object_list::is_mesh_file(path) {
+                self.add_mesh(path);
             } else {
                 self.request_open(ctx, path);
             }

@@ -48,6 +48,9 @@ pub enum Command {
     /// Run time against error: sweep sampling patterns, shadow-ray counts
     /// and area-light models against a converged reference.
     Bench(BenchArgs),
+    /// Write a generated mesh for scale tests: a bumpy torus of N
+    /// triangles, as OBJ.
+    Generate(GenerateArgs),
 }
 
 #[derive(Debug, Args, Default)]
@@ -194,6 +197,24 @@ pub struct MergeArgs {
 
 fn parse_region(s: &str) -> Result<TileRect, String> {
     crate::render::region::parse_region(s)
+}
+
+#[derive(Debug, Args)]
+pub struct GenerateArgs {
+    /// About this many triangles (the torus has 2 · around · across).
+    #[arg(long, default_value_t = 1_000_000, value_parser = clap::value_parser!(u32).range(18..=20_000_000))]
+    pub triangles: u32,
+    /// The OBJ file to write.
+    #[arg(short, long)]
+    pub output: PathBuf,
+}
+
+/// `penumbra generate`.
+pub fn generate(args: &GenerateArgs) -> Result<(), CliError> {
+    let n = crate::render::generate_mesh::write_torus_obj(&args.output, args.triangles as usize)
+        .map_err(|e| CliError::other(format!("{}: {e}", args.output.display())))?;
+    println!("{}: a torus of {n} triangles", args.output.display());
+    Ok(())
 }
 
 #[derive(Debug, Args)]

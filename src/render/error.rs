@@ -77,7 +77,7 @@ fn cut_path(path: &str) -> String {
 /// A message with every over-long quoted value (between backticks, as
 /// serde quotes keys and variants, or double quotes, as `{:?}` and serde's
 /// "invalid value" quote strings) cut; the quotes are kept.
-fn cut_quoted(msg: &str) -> String {
+pub fn cut_quoted(msg: &str) -> String {
     if msg.len() <= MAX_QUOTED {
         return msg.to_string();
     }

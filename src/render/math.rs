@@ -139,6 +139,22 @@ pub fn pow_approx(x: f32, y: f32) -> f32 {
     }
 }
 
+/// Hands memory freed by a large build back to the system. glibc raises
+/// its threshold for mapping blocks of their own after each large block is
+/// freed, up to 32 MiB, and keeps what is freed below it in its per-thread
+/// arenas: a build of millions of triangles then held its scratch space
+/// after use, and the next build came on top of it. A fixed threshold
+/// (which also stops the raising) and a trim avoid both.
+pub fn release_free_memory() {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    // SAFETY: both calls only change how the allocator obtains and returns
+    // pages; they are safe at any time, from any thread.
+    unsafe {
+        libc::mallopt(libc::M_MMAP_THRESHOLD, 1 << 20);
+        libc::malloc_trim(0);
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::pow_approx;

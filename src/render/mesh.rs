@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 
 use glam::DVec3;
 
-use super::geometry::Triangle;
+use super::geometry::MeshPart;
 pub use super::mesh_ply::read_ply;
 use super::scene_file::{MeshDesc, MeshShading, read_regular};
 
@@ -30,14 +30,6 @@ pub struct RawMesh {
     pub face_normals: Option<Vec<[u32; 3]>>,
 }
 
-/// A loaded mesh object: its triangles in world space.
-#[derive(Debug, Clone)]
-pub struct LoadedMesh {
-    pub triangles: Vec<Triangle>,
-    /// Zero-area faces left out.
-    pub degenerate: usize,
-}
-
 /// The file of a mesh object: relative paths are resolved against the
 /// scene file's folder.
 pub fn resolve(file: &str, base_dir: Option<&Path>) -> Result<PathBuf, String> {
@@ -55,7 +47,7 @@ pub fn resolve(file: &str, base_dir: Option<&Path>) -> Result<PathBuf, String> {
 
 /// Reads, checks and transforms a mesh object's file. `budget`: the most
 /// triangles it may add to the scene.
-pub fn load(desc: &MeshDesc, base_dir: Option<&Path>, budget: usize) -> Result<LoadedMesh, String> {
+pub fn load(desc: &MeshDesc, base_dir: Option<&Path>, budget: usize) -> Result<MeshPart, String> {
     let path = resolve(&desc.file, base_dir)?;
     let name = desc.file.as_str();
     let ext = path
@@ -84,7 +76,7 @@ pub fn load(desc: &MeshDesc, base_dir: Option<&Path>, budget: usize) -> Result<L
             limits::MAX_TRIANGLES
         ));
     }
-    Ok(build(&raw, desc))
+    Ok(build(raw, desc))
 }
 
 /// The transform of the format: `translate + R_y · (scale ∘ v)`.
@@ -127,20 +119,27 @@ impl Transform {
     }
 }
 
-/// The triangles of a checked raw mesh under the object's transform and
-/// shading.
-pub fn build(raw: &RawMesh, desc: &MeshDesc) -> LoadedMesh {
+/// The faces of a checked raw mesh under the object's transform and
+/// shading (degenerate ones still in: the scene leaves them out).
+pub fn build(raw: RawMesh, desc: &MeshDesc) -> MeshPart {
     let tf = Transform::of(desc);
-    let pos: Vec<DVec3> = raw.positions.iter().map(|&v| tf.point(v)).collect();
-    let smooth: Option<Vec<DVec3>> = match desc.shading {
-        MeshShading::Flat => None,
-        MeshShading::Auto => None,
+    let RawMesh {
+        mut positions,
+        faces,
+        normals: file_normals,
+        face_normals,
+    } = raw;
+    for p in &mut positions {
+        *p = tf.point(*p);
+    }
+    let normals = match desc.shading {
+        MeshShading::Flat => Vec::new(),
         MeshShading::Smooth => {
             // Area-weighted: the unnormalized face normal is twice the area
             // times the unit normal.
-            let mut acc = vec![DVec3::ZERO; pos.len()];
-            for f in &raw.faces {
-                let [a, b, c] = f.map(|i| pos[i as usize]);
+            let mut acc = vec![DVec3::ZERO; positions.len()];
+            for f in &faces {
+                let [a, b, c] = f.map(|i| positions[i as usize]);
                 let n = (b - a).cross(c - a);
                 if n.is_finite() {
                     for &i in f {
@@ -148,43 +147,68 @@ pub fn build(raw: &RawMesh, desc: &MeshDesc) -> LoadedMesh {
                     }
                 }
             }
-            Some(acc)
+            acc
         }
+        MeshShading::Auto => match face_normals {
+            None => Vec::new(),
+            Some(fnorm) if fnorm == faces => {
+                // Normals indexed as the positions: one per vertex.
+                let mut n = vec![DVec3::ZERO; positions.len()];
+                for (n, &q) in n.iter_mut().zip(&file_normals) {
+                    *n = tf.normal(q);
+                }
+                n
+            }
+            Some(fnorm) => {
+                return split_vertices(positions, faces, &fnorm, &file_normals, &tf);
+            }
+        },
     };
-    let file_normals = match (desc.shading, &raw.face_normals) {
-        (MeshShading::Auto, Some(fnorm)) => {
-            let n: Vec<DVec3> = raw.normals.iter().map(|&n| tf.normal(n)).collect();
-            Some((n, fnorm))
-        }
-        _ => None,
-    };
-    let mut triangles = Vec::with_capacity(raw.faces.len());
-    let mut degenerate = 0;
-    for (k, f) in raw.faces.iter().enumerate() {
-        let [a, b, c] = f.map(|i| pos[i as usize]);
-        let Some(t) = Triangle::new(a, b, c) else {
-            degenerate += 1;
-            continue;
-        };
-        let t = if let Some(acc) = &smooth {
-            t.with_normals(f.map(|i| acc[i as usize]))
-        } else if let Some((n, fnorm)) = &file_normals {
-            t.with_normals(fnorm[k].map(|i| n[i as usize]))
-        } else {
-            t
-        };
-        triangles.push(t);
-    }
-    LoadedMesh {
-        triangles,
-        degenerate,
+    MeshPart {
+        positions,
+        normals,
+        faces,
     }
 }
 
-/// Wavefront OBJ through `tobj` (polygons as fans, points and lines
-/// ignored, `mtllib` not read). When `tobj` refuses the file or a vertex is
-/// not finite, a scan of the text finds the line to name.
+/// A mesh whose faces index positions and normals apart (OBJ's `f 1//7`):
+/// one vertex per pair of indices used, so that normals can be shared by
+/// position index.
+fn split_vertices(
+    positions: Vec<DVec3>,
+    faces: Vec<[u32; 3]>,
+    fnorm: &[[u32; 3]],
+    file_normals: &[DVec3],
+    tf: &Transform,
+) -> MeshPart {
+    let mut index = std::collections::HashMap::new();
+    let mut part = MeshPart::default();
+    for (f, nf) in faces.iter().zip(fnorm) {
+        let face = std::array::from_fn(|k| {
+            *index.entry((f[k], nf[k])).or_insert_with(|| {
+                part.positions.push(positions[f[k] as usize]);
+                part.normals.push(tf.normal(file_normals[nf[k] as usize]));
+                (part.positions.len() - 1) as u32
+            })
+        });
+        part.faces.push(face);
+    }
+    part
+}
+
+/// Wavefront OBJ: plain files through the fast reader of `mesh_obj.rs`,
+/// any other through `tobj` (polygons as fans, points and lines ignored,
+/// `mtllib` not read). When `tobj` refuses the file or a vertex is not
+/// finite, a scan of the text finds the line to name.
 pub fn read_obj(bytes: &[u8]) -> Result<RawMesh, String> {
+    if let Some(raw) = super::mesh_obj::read_plain_obj(bytes) {
+        return Ok(raw);
+    }
+    read_obj_tobj(bytes)
+}
+
+/// Wavefront OBJ through `tobj` alone (see [`read_obj`]).
+pub fn read_obj_tobj(bytes: &[u8]) -> Result<RawMesh, String> {
     let options = tobj::LoadOptions {
         single_index: false,
         triangulate: true,
@@ -325,11 +349,32 @@ fn obj_diagnosis(bytes: &[u8]) -> Option<String> {
 /// `data:` URIs are not supported.
 pub fn read_gltf(bytes: &[u8], dir: Option<&Path>) -> Result<RawMesh, String> {
     use glam::{DMat3, DMat4};
+    // A GLB header whose length is below its own 12 bytes makes the crate
+    // subtract past zero (found by the `read_gltf` fuzz target): refused
+    // here, by name.
+    if let Some(length) = bytes
+        .strip_prefix(b"glTF")
+        .and_then(|rest| rest.get(4..8))
+        .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+        && (length < 12 || length as usize > bytes.len())
+    {
+        return Err(format!(
+            "the GLB header gives the file's length as {length} bytes, expected 12 to {} (the file's size)",
+            bytes.len()
+        ));
+    }
     // gltf-json's validation can panic on some malformed documents (found
     // by the mutation test): caught and reported as a refusal.
     let g = std::panic::catch_unwind(|| gltf::Gltf::from_slice(bytes))
         .map_err(|_| "not a valid glTF file (its validation failed)".to_string())?
-        .map_err(|e| format!("not a valid glTF file: {e}"))?;
+        // The crate quotes the offending JSON value whole (found by the
+        // fuzz target): long ones are cut.
+        .map_err(|e| {
+            format!(
+                "not a valid glTF file: {}",
+                super::error::cut_quoted(&e.to_string())
+            )
+        })?;
     let mut buffers: Vec<Vec<u8>> = Vec::new();
     for b in g.buffers() {
         let data = match b.source() {

@@ -13,8 +13,8 @@ use super::camera::Camera;
 use super::error::SceneError;
 use super::film::Film;
 use super::geometry::{
-    Aabb, Bvh, Cuboid, Parallelogram, Plane, Ray, Shape, Sphere, SurfacePoint, Triangle,
-    spawn_origin,
+    Aabb, Bvh, Cuboid, Meshes, Parallelogram, Plane, Primitive, Ray, Shape, Sphere, SurfacePoint,
+    Triangle, spawn_origin,
 };
 use super::light::AreaLight;
 use super::mesh;
@@ -36,6 +36,10 @@ pub struct Object {
 }
 
 /// What a ray met first.
+///
+/// Primitive ids: `0..objects.len()` are the objects, in the order of the
+/// description without its meshes; from `objects.len()` on, the faces of
+/// every mesh, in order.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum HitTarget {
     Object(u32),
@@ -52,24 +56,29 @@ const BVH_THRESHOLD: usize = 8;
 /// (measured on generated rooms: the two meet between 200 and 300).
 pub const PACKET_THRESHOLD: usize = 256;
 
+/// What a camera or light edit leaves as it is: objects, meshes and their
+/// trees, shared between the scenes of one description's views.
 #[derive(Debug, Clone)]
 pub struct Scene {
     pub camera: Camera,
     pub light: AreaLight,
     /// Material names, in the order of `materials`.
-    pub material_names: Vec<String>,
-    pub objects: Vec<Object>,
-    /// Objects without bounds (planes), always tested one by one.
-    pub unbounded: Vec<u32>,
-    /// Bounded objects when there are few of them.
-    pub bounded: Vec<u32>,
-    /// BVH over bounded objects when there are many (`bounded` is then
+    pub material_names: Arc<[String]>,
+    /// The objects that are not meshes.
+    pub objects: Arc<[Object]>,
+    /// Every mesh face, after the objects in the id space.
+    pub meshes: Arc<Meshes>,
+    /// Primitives without bounds (planes), always tested one by one.
+    pub unbounded: Arc<[u32]>,
+    /// Bounded primitives when there are few of them.
+    pub bounded: Arc<[u32]>,
+    /// BVH over bounded primitives when there are many (`bounded` is then
     /// empty).
-    pub bvh: Bvh,
-    /// The same objects in a BVH built in the light's frame, for shadow-ray
-    /// packets (from [`PACKET_THRESHOLD`] objects on).
-    pub shadow_bvh: Option<OccluderBvh>,
-    /// Union of the bounded objects' bounds.
+    pub bvh: Arc<Bvh>,
+    /// The same primitives in a BVH built in the light's frame, for
+    /// shadow-ray packets (from [`PACKET_THRESHOLD`] of them on).
+    pub shadow_bvh: Option<Arc<OccluderBvh>>,
+    /// Union of the bounded primitives' bounds.
     pub object_bounds: Option<Aabb>,
     /// Size of the scene's finite part (bounded objects, light, camera):
     /// the floor of ray offsets near the origin.
@@ -84,22 +93,17 @@ impl Scene {
     /// Builds the runtime scene of a description that
     /// [`SceneDesc::validate`] accepted (see [`Loaded`] for both steps).
     pub fn build(desc: &SceneDesc) -> Result<Scene, SceneError> {
+        use rayon::prelude::*;
+        super::math::release_free_memory();
         let material_names: Vec<String> = desc.materials.keys().cloned().collect();
         let mut objects: Vec<Object> = Vec::with_capacity(desc.objects.len());
+        let mut meshes = Meshes::default();
         let mut triangles = 0usize;
         let mut degenerate = 0usize;
         for (index, o) in desc.objects.iter().enumerate() {
             let material = material_names
                 .binary_search_by(|n| n.as_str().cmp(o.material()))
                 .expect("validated material name") as u32;
-            let mut push = |shape: Shape| {
-                let bounds = shape.bounds();
-                objects.push(Object {
-                    shape,
-                    material,
-                    bounds,
-                });
-            };
             let shape = match o {
                 ObjectDesc::Plane(p) => Shape::Plane(Plane::new(p.point.into(), p.normal.into())),
                 ObjectDesc::Rect(r) => Shape::Parallelogram(Parallelogram::new(
@@ -132,60 +136,96 @@ impl Scene {
                 }
                 ObjectDesc::Mesh(m) => {
                     let budget = mesh::limits::MAX_TRIANGLES.saturating_sub(triangles);
-                    let loaded = mesh::load(m, desc.base_dir.as_deref(), budget)
+                    let part = mesh::load(m, desc.base_dir.as_deref(), budget)
                         .map_err(|e| SceneError::new(format!("objects[{index}].file"), e))?;
-                    if let Err(e) = check_mesh_range(&loaded.triangles) {
-                        return Err(SceneError::new(
-                            format!("objects[{index}]"),
-                            format!("{}: {e}", m.file),
-                        ));
-                    }
-                    triangles += loaded.triangles.len();
-                    degenerate += loaded.degenerate;
-                    for t in loaded.triangles {
-                        push(Shape::Triangle(t));
-                    }
+                    let first = meshes.len();
+                    let skipped = meshes
+                        .add(part, material)
+                        .and_then(|n| {
+                            use super::scene_file::limits::MAX_COORD;
+                            meshes.check_range(first, MAX_COORD).map(|()| n)
+                        })
+                        .map_err(|e| {
+                            SceneError::new(format!("objects[{index}]"), format!("{}: {e}", m.file))
+                        })?;
+                    triangles += meshes.len() - first;
+                    degenerate += skipped;
                     continue;
                 }
             };
-            push(shape);
+            let bounds = shape.bounds();
+            objects.push(Object {
+                shape,
+                material,
+                bounds,
+            });
         }
-        if objects.len() > u32::MAX as usize / 2 {
+        if objects.len() + meshes.len() > u32::MAX as usize / 4 {
             return Err(SceneError::new("objects", "too many objects"));
         }
+        let objects: Arc<[Object]> = objects.into();
+        let meshes = Arc::new(meshes);
 
+        let n = objects.len() as u32;
         let mut unbounded = Vec::new();
-        let mut with_bounds = Vec::new();
+        let mut bounded_objects = Vec::new();
+        let mut object_bounds: Option<Aabb> = None;
         for (i, o) in objects.iter().enumerate() {
             match o.bounds {
-                Some(b) => with_bounds.push((i as u32, b)),
+                Some(b) => {
+                    bounded_objects.push(i as u32);
+                    object_bounds = Some(object_bounds.map_or(b, |a| a.union(b)));
+                }
                 None => unbounded.push(i as u32),
             }
         }
+        let face_bounds = (0..meshes.len() as u32)
+            .into_par_iter()
+            .map(|f| meshes.bounds(f))
+            .reduce(|| Aabb::EMPTY, Aabb::union);
+        if !meshes.is_empty() {
+            object_bounds = Some(object_bounds.map_or(face_bounds, |a| a.union(face_bounds)));
+        }
         let light = AreaLight::new(&desc.light);
         let camera = Camera::new(&desc.camera);
-        let object_bounds = with_bounds.iter().map(|o| o.1).reduce(|a, b| a.union(b));
         let scale = scale_of(object_bounds, &light, &camera);
-        // The two trees are independent: built side by side (a mesh's
-        // load time is mostly theirs).
-        let ((bounded, bvh), shadow_bvh) = rayon::join(
-            || {
-                if with_bounds.len() > BVH_THRESHOLD {
-                    (Vec::new(), Bvh::build(&with_bounds))
-                } else {
-                    (with_bounds.iter().map(|o| o.0).collect(), Bvh::default())
+        let with_bounds = bounded_objects.len() + meshes.len();
+        let faces = n..n + meshes.len() as u32;
+        // One tree after the other: the records of one build, the tree
+        // being built and the finished one are what is held at most.
+        let shadow_bvh = (with_bounds >= PACKET_THRESHOLD).then(|| {
+            Arc::new(OccluderBvh::new(
+                &light,
+                &bounded_objects,
+                faces.clone(),
+                |i| primitive(&objects, &meshes, i),
+            ))
+        });
+        let (bounded, bvh): (Vec<u32>, Bvh) = if with_bounds > BVH_THRESHOLD {
+            let item = |k: usize| match bounded_objects.get(k) {
+                Some(&i) => (i, objects[i as usize].bounds.expect("bounded")),
+                None => {
+                    let f = (k - bounded_objects.len()) as u32;
+                    (n + f, meshes.bounds(f))
                 }
-            },
-            || shadow_bvh(&objects, &light),
-        );
+            };
+            let b = Bvh::build_with(with_bounds, item, DVec3::ONE);
+            (Vec::new(), b)
+        } else {
+            let mut ids = bounded_objects.clone();
+            ids.extend(faces.clone());
+            (ids, Bvh::default())
+        };
+        super::math::release_free_memory();
         Ok(Scene {
             camera,
             light,
-            material_names,
+            material_names: material_names.into(),
             objects,
-            unbounded,
-            bounded,
-            bvh,
+            meshes,
+            unbounded: unbounded.into(),
+            bounded: bounded.into(),
+            bvh: Arc::new(bvh),
             shadow_bvh,
             object_bounds,
             scale,
@@ -195,9 +235,9 @@ impl Scene {
     }
 
     /// The same objects seen by `desc`'s camera under `desc`'s light: the
-    /// objects and their BVH are kept, the light-frame BVH is built again
-    /// only if the light moved (a camera or light edit is a re-trace, not a
-    /// rebuild).
+    /// objects, meshes and their BVH are shared, the light-frame BVH is
+    /// built again only if the light moved (a camera or light edit is a
+    /// re-trace, not a rebuild).
     pub fn with_view(&self, desc: &SceneDesc) -> Scene {
         let light = AreaLight::new(&desc.light);
         let camera = Camera::new(&desc.camera);
@@ -206,21 +246,76 @@ impl Scene {
         Scene {
             scale: scale_of(self.object_bounds, &light, &camera),
             shadow_bvh: if moved {
-                shadow_bvh(&self.objects, &light)
+                self.build_shadow_bvh(&light)
             } else {
                 self.shadow_bvh.clone()
             },
             camera,
             light,
-            material_names: self.material_names.clone(),
-            objects: self.objects.clone(),
-            unbounded: self.unbounded.clone(),
-            bounded: self.bounded.clone(),
-            bvh: self.bvh.clone(),
-            object_bounds: self.object_bounds,
-            triangles: self.triangles,
-            degenerate_triangles: self.degenerate_triangles,
+            ..self.clone()
         }
+    }
+
+    /// Primitive `id` (an object's shape or a mesh face).
+    #[inline]
+    pub fn primitive(&self, id: u32) -> Primitive<'_> {
+        primitive(&self.objects, &self.meshes, id)
+    }
+
+    /// Nearest intersection of primitive `id` with `t` in (0, t_max).
+    #[inline]
+    pub fn intersect(&self, id: u32, ray: &Ray, t_max: f64) -> Option<f64> {
+        match self.objects.get(id as usize) {
+            Some(o) => o.shape.intersect(ray, t_max),
+            None => self
+                .meshes
+                .intersect(id - self.objects.len() as u32, ray, t_max),
+        }
+    }
+
+    /// The surface point of a hit on primitive `id` found by
+    /// [`Scene::intersect`].
+    pub fn surface(&self, id: u32, ray: &Ray, t: f64) -> SurfacePoint {
+        match self.objects.get(id as usize) {
+            Some(o) => o.shape.surface(ray, t),
+            None => self.meshes.surface(id - self.objects.len() as u32, ray, t),
+        }
+    }
+
+    /// Bounds of primitive `id` (`None` for planes).
+    #[inline]
+    pub fn bounds_of(&self, id: u32) -> Option<Aabb> {
+        match self.objects.get(id as usize) {
+            Some(o) => o.bounds,
+            None => Some(self.meshes.bounds(id - self.objects.len() as u32)),
+        }
+    }
+
+    /// Material index of primitive `id`.
+    pub fn material_of(&self, id: u32) -> u32 {
+        match self.objects.get(id as usize) {
+            Some(o) => o.material,
+            None => self.meshes.material(id - self.objects.len() as u32),
+        }
+    }
+
+    /// Primitives in the scene (objects and mesh faces).
+    pub fn primitive_count(&self) -> usize {
+        self.objects.len() + self.meshes.len()
+    }
+
+    /// The light-frame BVH of the bounded primitives under `light`, from
+    /// [`PACKET_THRESHOLD`] of them on.
+    fn build_shadow_bvh(&self, light: &AreaLight) -> Option<Arc<OccluderBvh>> {
+        let n = self.objects.len() as u32;
+        let bounded: Vec<u32> = (0..n)
+            .filter(|&i| self.objects[i as usize].bounds.is_some())
+            .collect();
+        (bounded.len() + self.meshes.len() >= PACKET_THRESHOLD).then(|| {
+            let faces = n..n + self.meshes.len() as u32;
+            let prim = |i| self.primitive(i);
+            Arc::new(OccluderBvh::new(light, &bounded, faces, prim))
+        })
     }
 
     /// Nearest object or light along the ray, with its distance.
@@ -237,14 +332,15 @@ impl Scene {
             t_max = t;
         }
         for &i in self.unbounded.iter().chain(self.bounded.iter()) {
-            if let Some(t) = self.objects[i as usize].shape.intersect(ray, t_max) {
+            if let Some(t) = self.intersect(i, ray, t_max) {
                 best = Some((HitTarget::Object(i), t));
                 t_max = t;
             }
         }
-        if let Some((i, t)) = self.bvh.closest(ray, t_max, |i, t_max| {
-            self.objects[i as usize].shape.intersect(ray, t_max)
-        }) {
+        if let Some((i, t)) = self
+            .bvh
+            .closest(ray, t_max, |i, t_max| self.intersect(i, ray, t_max))
+        {
             best = Some((HitTarget::Object(i), t));
         }
         best
@@ -265,20 +361,20 @@ impl Scene {
             t_max = t;
         }
         for &i in self.unbounded.iter().chain(self.bounded.iter()) {
-            let shape = &self.objects[i as usize].shape;
-            if let Shape::Plane(p) = shape
+            if let Primitive::Shape(Shape::Plane(p)) = self.primitive(i)
                 && p.normal.dot(ray.dir) > 0.0
             {
                 continue;
             }
-            if let Some(t) = shape.intersect(ray, t_max) {
+            if let Some(t) = self.intersect(i, ray, t_max) {
                 best = Some((HitTarget::Object(i), t));
                 t_max = t;
             }
         }
-        if let Some((i, t)) = self.bvh.closest(ray, t_max, |i, t_max| {
-            self.objects[i as usize].shape.intersect(ray, t_max)
-        }) {
+        if let Some((i, t)) = self
+            .bvh
+            .closest(ray, t_max, |i, t_max| self.intersect(i, ray, t_max))
+        {
             best = Some((HitTarget::Object(i), t));
         }
         best
@@ -306,7 +402,19 @@ impl Scene {
 
     /// Name of an object's material.
     pub fn material_name(&self, object: u32) -> &str {
-        &self.material_names[self.objects[object as usize].material as usize]
+        &self.material_names[self.material_of(object) as usize]
+    }
+}
+
+/// Primitive `id` of a scene with these objects and meshes.
+#[inline]
+fn primitive<'a>(objects: &'a [Object], meshes: &'a Meshes, id: u32) -> Primitive<'a> {
+    match objects.get(id as usize) {
+        Some(o) => Primitive::Shape(&o.shape),
+        None => Primitive::Face {
+            meshes,
+            face: id - objects.len() as u32,
+        },
     }
 }
 
@@ -320,18 +428,6 @@ fn scale_of(object_bounds: Option<Aabb>, light: &AreaLight, camera: &Camera) -> 
         .extent()
         .max_element()
         .max(finite.min.abs().max(finite.max.abs()).max_element())
-}
-
-/// The light-frame BVH of the bounded objects, from [`PACKET_THRESHOLD`] of
-/// them on.
-fn shadow_bvh(objects: &[Object], light: &AreaLight) -> Option<OccluderBvh> {
-    let ids: Vec<u32> = (0..objects.len() as u32)
-        .filter(|&i| objects[i as usize].bounds.is_some())
-        .collect();
-    (ids.len() >= PACKET_THRESHOLD).then(|| {
-        let shapes: Vec<&Shape> = objects.iter().map(|o| &o.shape).collect();
-        OccluderBvh::new(light, &shapes, &ids)
-    })
 }
 
 /// A loaded scene: the immutable part and the two editable parts, as the
@@ -411,19 +507,4 @@ impl Loaded {
     pub fn render_image(&self) -> Film {
         progressive::render_image(&self.scene, &self.settings, &self.shading)
     }
-}
-
-/// A mesh's vertices within the coordinates the renderer supports.
-fn check_mesh_range(triangles: &[Triangle]) -> Result<(), String> {
-    use super::scene_file::limits::MAX_COORD;
-    for (i, t) in triangles.iter().enumerate() {
-        for v in t.vertices() {
-            if v.abs().max_element() > MAX_COORD {
-                return Err(format!(
-                    "triangle {i} has the vertex {v} after the transform, expected coordinates within ±{MAX_COORD:e}"
-                ));
-            }
-        }
-    }
-    Ok(())
 }

@@ -189,8 +189,8 @@ impl<'a> Tracer<'a> {
                 }
                 HitTarget::Object(i) => i,
             };
-            let obj = &scene.objects[object as usize];
-            let surface = obj.shape.surface(&ray, t);
+            let surface = scene.surface(object, &ray, t);
+            let material_index = scene.material_of(object);
             let inside = surface.normal.dot(ray.dir) > 0.0;
             let (normal, shading_normal) = if inside {
                 (-surface.normal, -surface.shading)
@@ -202,7 +202,7 @@ impl<'a> Tracer<'a> {
             } else {
                 scene.lifted_shadow_point(&surface, normal)
             };
-            let material = &shading.materials[obj.material as usize];
+            let material = &shading.materials[material_index as usize];
             let sp = ShadingPoint {
                 point: surface.point,
                 normal: shading_normal,
@@ -240,7 +240,7 @@ impl<'a> Tracer<'a> {
                 };
                 sink.hit(
                     HitRecord {
-                        material: obj.material,
+                        material: material_index,
                         factors,
                         to_light,
                         normal: shading_normal.as_vec3(),

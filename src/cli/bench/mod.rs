@@ -6,6 +6,7 @@
 //! - `--spheres N,… --scaling` times generated scenes of N spheres
 //!   ([`scaling`]);
 //! - `--target` measures the figures of the speed targets ([`target`]);
+//! - `--meshes N,…` times meshes of N triangles in the room ([`meshes`]);
 //! - `--edits` times the viewer's answer to each class of edit ([`edits`]);
 //! - `--exact` measures the `exact` model's accuracy and cost targets
 //!   ([`exact`]);
@@ -18,6 +19,7 @@
 
 pub mod edits;
 pub mod exact;
+pub mod meshes;
 pub mod plot;
 pub mod reference;
 pub mod scaling;
@@ -145,6 +147,10 @@ pub struct BenchArgs {
     /// Camera samples per pixel of the renders (anti-aliasing).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1024))]
     pub spp: Option<u32>,
+    /// Time the seed room, the bunny room and the room with a generated
+    /// torus of each of these triangle counts (load and render).
+    #[arg(long, value_delimiter = ',', value_parser = clap::value_parser!(u32).range(18..=20_000_000))]
+    pub meshes: Option<Vec<u32>>,
 }
 
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, clap::ValueEnum)]
@@ -166,6 +172,8 @@ pub fn bench(args: &BenchArgs) -> Result<(), CliError> {
             edits::run(args)
         } else if args.spp_split {
             split::run(args)
+        } else if args.meshes.is_some() {
+            meshes::run(args)
         } else if args.target {
             target::run(args)
         } else if args.slopes {

@@ -90,7 +90,7 @@ fn penumbra_mask(loaded: &Loaded) -> Vec<bool> {
             let ray = scene.camera.pixel_ray(x, y);
             let partial = match scene.closest_hit(&ray) {
                 Some((HitTarget::Object(object), t)) if scene.light.illuminates(ray.at(t)) => {
-                    let surface = scene.objects[object as usize].shape.surface(&ray, t);
+                    let surface = scene.surface(object, &ray, t);
                     let inside = surface.normal.dot(ray.dir) > 0.0;
                     let query = ShadowQuery {
                         point: surface.point,

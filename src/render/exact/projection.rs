@@ -26,7 +26,7 @@
 use glam::{DVec2, DVec3};
 
 use super::polygon::{HalfPlane, hull_into};
-use crate::render::geometry::{Cuboid, Parallelogram, Plane, Sphere, Triangle};
+use crate::render::geometry::{Cuboid, Parallelogram, Plane, Sphere};
 use crate::render::shadow::RAY_END;
 
 /// Relative height below q's plane where the frustum starts.
@@ -317,11 +317,11 @@ pub fn rect_shadow(
 
 pub fn triangle_shadow(
     view: &LightView,
-    t: &Triangle,
+    vertices: [DVec3; 3],
     s: &mut ProjectScratch,
     out: &mut Vec<DVec2>,
 ) {
-    faces_shadow(view, &[&t.vertices()], &[], s, out);
+    faces_shadow(view, &[&vertices], &[], s, out);
 }
 
 /// The shadow of a sphere from its silhouette as an `n`-gon.

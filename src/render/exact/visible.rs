@@ -9,7 +9,7 @@ use super::projection::{
     CircleFit, LightView, ProjectScratch, Unsupported, box_shadow, rect_shadow, sphere_shadow,
     triangle_shadow,
 };
-use crate::render::geometry::Shape;
+use crate::render::geometry::{Primitive, Shape};
 use crate::render::scene::Scene;
 
 /// Edges of a sphere's silhouette polygon.
@@ -75,7 +75,12 @@ pub fn visible_region(
     }
     let triangles = occluders
         .iter()
-        .filter(|&&(i, _)| matches!(scene.objects[i as usize].shape, Shape::Triangle(_)))
+        .filter(|&&(i, _)| {
+            matches!(
+                scene.primitive(i),
+                Primitive::Shape(Shape::Triangle(_)) | Primitive::Face { .. }
+            )
+        })
         .count();
     if triangles > MAX_TRIANGLES {
         return Err(Fallback::TooManyTriangles);
@@ -86,7 +91,7 @@ pub fn visible_region(
         if pieces.is_empty() {
             return Ok(());
         }
-        if let Shape::Plane(pl) = &scene.objects[i as usize].shape
+        if let Primitive::Shape(Shape::Plane(pl)) = scene.primitive(i)
             && let Some(h) = view.plane_clear(pl)
         {
             pieces.clip(h, min_area, &mut s.work);
@@ -97,18 +102,22 @@ pub fn visible_region(
             return Ok(());
         }
         let shadow = &mut s.shadow;
-        match &scene.objects[i as usize].shape {
-            Shape::Plane(_) => continue,
-            Shape::Cuboid(c) => box_shadow(view, c, &mut s.project, shadow),
-            Shape::Parallelogram(r) => {
+        match scene.primitive(i) {
+            Primitive::Shape(Shape::Plane(_)) => continue,
+            Primitive::Shape(Shape::Cuboid(c)) => box_shadow(view, c, &mut s.project, shadow),
+            Primitive::Shape(Shape::Parallelogram(r)) => {
                 rect_shadow(view, r, &mut s.project, shadow);
                 Ok(())
             }
-            Shape::Triangle(t) => {
-                triangle_shadow(view, t, &mut s.project, shadow);
+            Primitive::Shape(Shape::Triangle(t)) => {
+                triangle_shadow(view, t.vertices(), &mut s.project, shadow);
                 Ok(())
             }
-            Shape::Sphere(sp) => {
+            Primitive::Face { meshes, face } => {
+                triangle_shadow(view, meshes.vertices(face), &mut s.project, shadow);
+                Ok(())
+            }
+            Primitive::Shape(Shape::Sphere(sp)) => {
                 sphere_shadow(view, sp, SPHERE_EDGES, sphere, &mut s.project, shadow)
             }
         }

@@ -1,10 +1,11 @@
 //! A 4-wide BVH: every node keeps the boxes of its (up to) four children
 //! side by side, one array per axis and side, so that one pass of vector
 //! code handles all four. Built by collapsing a binary [`Bvh`]; a child is
-//! either a node or a single object, so objects need no separate leaf pass.
+//! a node, a single object or a small leaf of objects (a binary leaf that
+//! did not fit into its parent), so most objects need no node of their own.
 
 use super::Aabb;
-use super::bvh::{Bvh, NodeContent};
+use super::bvh::{Bvh, NodeContent, round_down, round_up};
 
 /// One child of a [`Node4`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -14,6 +15,11 @@ pub enum Slot {
     Node(u32),
     /// Object id.
     Object(u32),
+    /// Objects `items[first..first + count]` of the tree.
+    Leaf {
+        first: u32,
+        count: u32,
+    },
 }
 
 /// Four child boxes in f32 (rounded outwards, so each holds what its f64
@@ -29,8 +35,14 @@ pub struct Node4 {
     slots: [u32; 4],
 }
 
-/// Packing of a [`Slot`] in a `u32`: objects have the top bit set.
+/// Packing of a [`Slot`] in a `u32`: nodes have the top bit clear, objects
+/// the top bit alone, leaves the top two bits, their count − 1 in the next
+/// three and their first item in the rest.
 const OBJECT: u32 = 1 << 31;
+const LEAF: u32 = 1 << 30;
+const LEAF_FIRST_BITS: u32 = 27;
+/// Most objects in one leaf slot.
+pub const LEAF_MAX: usize = 8;
 const EMPTY: u32 = u32::MAX;
 
 impl Node4 {
@@ -47,6 +59,10 @@ impl Node4 {
     pub fn slot(&self, s: usize) -> Slot {
         match self.slots[s] {
             EMPTY => Slot::Empty,
+            v if v & (OBJECT | LEAF) == OBJECT | LEAF => Slot::Leaf {
+                first: v & ((1 << LEAF_FIRST_BITS) - 1),
+                count: ((v >> LEAF_FIRST_BITS) & 7) + 1,
+            },
             v if v & OBJECT != 0 => Slot::Object(v & !OBJECT),
             v => Slot::Node(v),
         }
@@ -61,8 +77,15 @@ impl Node4 {
                 n
             }
             Slot::Object(o) => {
-                assert!(o < OBJECT - 1, "object id {o} out of range");
+                assert!(o < LEAF, "object id {o} out of range");
                 o | OBJECT
+            }
+            Slot::Leaf { first, count } => {
+                assert!(
+                    first < (1 << LEAF_FIRST_BITS) - 1 && (1..=LEAF_MAX as u32).contains(&count),
+                    "leaf {first}+{count} out of range"
+                );
+                OBJECT | LEAF | ((count - 1) << LEAF_FIRST_BITS) | first
             }
         };
         for axis in 0..3 {
@@ -72,22 +95,12 @@ impl Node4 {
     }
 }
 
-/// The largest f32 ≤ x (x itself if it is ±∞).
-fn round_down(x: f64) -> f32 {
-    let y = x as f32;
-    if (y as f64) > x { y.next_down() } else { y }
-}
-
-/// The smallest f32 ≥ x.
-fn round_up(x: f64) -> f32 {
-    let y = x as f32;
-    if (y as f64) < x { y.next_up() } else { y }
-}
-
 #[derive(Debug, Clone, Default)]
 pub struct Bvh4 {
     /// The root is node 0 (none for an empty tree).
     pub nodes: Vec<Node4>,
+    /// Object ids of the leaf slots.
+    pub items: Vec<u32>,
 }
 
 /// A child while collapsing: a node of the binary tree, an object, or a
@@ -100,21 +113,32 @@ enum Pending {
 }
 
 impl Bvh4 {
-    /// Collapses `bvh`; `object_bounds[id]` are the boxes it was built from.
-    pub fn from_binary(bvh: &Bvh, object_bounds: &[Aabb]) -> Bvh4 {
-        let mut tree = Bvh4::default();
+    /// Collapses `bvh`; `object_bounds(id)` is the box it was built from.
+    pub fn from_binary(bvh: &Bvh, object_bounds: impl Fn(u32) -> Aabb) -> Bvh4 {
+        // Every node stands for at least one inner binary node: reserved
+        // at once, since a node's 128-byte alignment makes every regrowth
+        // a copy (the pages never written are not taken from the system).
+        let mut tree = Bvh4 {
+            nodes: Vec::with_capacity(bvh.node_count() / 2 + 1),
+            items: Vec::new(),
+        };
         if !bvh.is_empty() {
-            tree.collapse(bvh, object_bounds, Self::expand(bvh, object_bounds, 0));
+            tree.collapse(bvh, &object_bounds, Self::expand(bvh, &object_bounds, 0));
         }
         tree
     }
 
+    /// Nodes and items, for memory figures.
+    pub fn size_bytes(&self) -> usize {
+        self.nodes.len() * std::mem::size_of::<Node4>() + self.items.len() * 4
+    }
+
     /// The children a binary node stands for.
-    fn expand(bvh: &Bvh, object_bounds: &[Aabb], node: u32) -> Vec<(Aabb, Pending)> {
+    fn expand(bvh: &Bvh, object_bounds: &impl Fn(u32) -> Aabb, node: u32) -> Vec<(Aabb, Pending)> {
         match bvh.node(node).1 {
             NodeContent::Leaf(objects) => objects
                 .iter()
-                .map(|&o| (object_bounds[o as usize], Pending::Object(o)))
+                .map(|&o| (object_bounds(o), Pending::Object(o)))
                 .collect(),
             NodeContent::Inner(children) => children
                 .iter()
@@ -127,7 +151,7 @@ impl Bvh4 {
     fn collapse(
         &mut self,
         bvh: &Bvh,
-        object_bounds: &[Aabb],
+        object_bounds: &impl Fn(u32) -> Aabb,
         mut children: Vec<(Aabb, Pending)>,
     ) -> u32 {
         if children.len() > 4 {
@@ -174,10 +198,21 @@ impl Bvh4 {
         for (s, (b, p)) in children.into_iter().enumerate() {
             let slot = match p {
                 Pending::Object(o) => Slot::Object(o),
-                Pending::Node(n) => {
-                    let content = Self::expand(bvh, object_bounds, n);
-                    Slot::Node(self.collapse(bvh, object_bounds, content))
-                }
+                Pending::Node(n) => match bvh.node(n).1 {
+                    // A small binary leaf that did not fit: a leaf slot.
+                    NodeContent::Leaf(objects) if objects.len() <= LEAF_MAX => {
+                        let first = self.items.len() as u32;
+                        self.items.extend_from_slice(objects);
+                        Slot::Leaf {
+                            first,
+                            count: objects.len() as u32,
+                        }
+                    }
+                    _ => {
+                        let content = Self::expand(bvh, object_bounds, n);
+                        Slot::Node(self.collapse(bvh, object_bounds, content))
+                    }
+                },
                 Pending::Group(g) => Slot::Node(self.collapse(bvh, object_bounds, g)),
             };
             self.nodes[index as usize].set(s, slot, &b);
@@ -199,7 +234,7 @@ mod tests {
             .enumerate()
             .map(|(i, b)| (i as u32, *b))
             .collect();
-        Bvh4::from_binary(&Bvh::build(&items), bounds)
+        Bvh4::from_binary(&Bvh::build(&items), |i| bounds[i as usize])
     }
 
     /// Many objects with one centre make one binary leaf; the 4-wide tree
@@ -214,9 +249,12 @@ mod tests {
             .nodes
             .iter()
             .flat_map(|n| (0..4).map(|s| n.slot(s)))
-            .filter_map(|s| match s {
-                Slot::Object(o) => Some(o),
-                _ => None,
+            .flat_map(|s| match s {
+                Slot::Object(o) => vec![o],
+                Slot::Leaf { first, count } => {
+                    tree.items[first as usize..(first + count) as usize].to_vec()
+                }
+                _ => vec![],
             })
             .collect();
         assert_eq!(objects.len(), 300);
@@ -224,6 +262,28 @@ mod tests {
         sorted.sort_unstable();
         sorted.dedup();
         assert_eq!(sorted.len(), 300);
+    }
+
+    #[test]
+    fn slots_pack_and_unpack() {
+        let mut n = Node4::empty();
+        let b = Aabb::new(DVec3::ZERO, DVec3::ONE);
+        let slots = [
+            Slot::Node(7),
+            Slot::Object((1 << 30) - 1),
+            Slot::Leaf {
+                first: (1 << 27) - 2,
+                count: 8,
+            },
+            Slot::Leaf { first: 0, count: 1 },
+        ];
+        for (s, slot) in slots.iter().enumerate() {
+            n.set(s, *slot, &b);
+        }
+        for (s, slot) in slots.iter().enumerate() {
+            assert_eq!(n.slot(s), *slot);
+        }
+        assert_eq!(Node4::empty().slot(0), Slot::Empty);
     }
 
     #[test]
@@ -261,6 +321,13 @@ mod tests {
                     Slot::Object(o) => {
                         seen[o as usize] += 1;
                         bounds[o as usize]
+                    }
+                    Slot::Leaf { first, count } => {
+                        let ids = &tree.items[first as usize..(first + count) as usize];
+                        ids.iter().fold(Aabb::EMPTY, |b, &o| {
+                            seen[o as usize] += 1;
+                            b.union(bounds[o as usize])
+                        })
                     }
                     Slot::Node(c) => walk(tree, c, bounds, seen),
                 };

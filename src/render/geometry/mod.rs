@@ -7,6 +7,7 @@ mod aabb;
 mod bvh;
 mod bvh4;
 mod cuboid;
+mod meshes;
 mod offset;
 mod parallelogram;
 mod plane;
@@ -18,6 +19,7 @@ pub use aabb::Aabb;
 pub use bvh::{Bvh, NodeContent};
 pub use bvh4::{Bvh4, Node4, Slot};
 pub use cuboid::Cuboid;
+pub use meshes::{MeshPart, Meshes};
 pub use offset::spawn_origin;
 pub use parallelogram::Parallelogram;
 pub use plane::Plane;
@@ -39,6 +41,34 @@ pub enum Shape {
     Cuboid(Cuboid),
     Sphere(Sphere),
     Triangle(Triangle),
+}
+
+/// A primitive of a scene, by id: an object's shape or a face of a mesh
+/// (see `Scene::primitive`).
+#[derive(Debug, Clone, Copy)]
+pub enum Primitive<'a> {
+    Shape(&'a Shape),
+    Face { meshes: &'a Meshes, face: u32 },
+}
+
+impl Primitive<'_> {
+    /// See [`Shape::convex`].
+    #[inline]
+    pub fn convex(&self) -> bool {
+        match self {
+            Primitive::Shape(s) => s.convex(),
+            Primitive::Face { .. } => Triangle::CONVEX,
+        }
+    }
+
+    /// See [`Shape::skips_itself`].
+    #[inline]
+    pub fn skips_itself(&self, inside: bool) -> bool {
+        match self {
+            Primitive::Shape(s) => s.skips_itself(inside),
+            Primitive::Face { .. } => Triangle::FLAT || (Triangle::CONVEX && !inside),
+        }
+    }
 }
 
 /// Where a ray meets a surface.

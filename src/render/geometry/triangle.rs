@@ -38,19 +38,26 @@ impl Triangle {
     /// The triangle, or `None` if it is degenerate (zero area, or so thin
     /// that its normal is undefined in f64).
     pub fn new(v0: DVec3, v1: DVec3, v2: DVec3) -> Option<Triangle> {
-        let n = (v1 - v0).cross(v2 - v0);
-        let len = n.length();
-        if !(len > 0.0 && len.is_finite()) {
-            return None;
-        }
-        let normal = n / len;
-        normal.is_finite().then_some(Triangle {
+        Triangle::face_normal(&[v0, v1, v2]).map(|normal| Triangle {
             v0,
             v1,
             v2,
             normal,
             smooth: None,
         })
+    }
+
+    /// Unit normal along `(v1 − v0) × (v2 − v0)`, or `None` for a
+    /// degenerate triangle.
+    #[inline]
+    pub fn face_normal([v0, v1, v2]: &[DVec3; 3]) -> Option<DVec3> {
+        let n = (*v1 - *v0).cross(*v2 - *v0);
+        let len = n.length();
+        if !(len > 0.0 && len.is_finite()) {
+            return None;
+        }
+        let normal = n / len;
+        normal.is_finite().then_some(normal)
     }
 
     /// With vertex normals (any length, not zero); normals that point
@@ -75,81 +82,17 @@ impl Triangle {
     /// Möller–Trumbore in f64, edges inclusive, both sides.
     #[inline]
     pub fn intersect(&self, ray: &Ray, t_max: f64) -> Option<f64> {
-        let e1 = self.v1 - self.v0;
-        let e2 = self.v2 - self.v0;
-        let p = ray.dir.cross(e2);
-        let det = e1.dot(p);
-        if det == 0.0 {
-            return None;
-        }
-        let inv = 1.0 / det;
-        let s = ray.origin - self.v0;
-        let u = s.dot(p) * inv;
-        if !(0.0..=1.0).contains(&u) {
-            return None;
-        }
-        let q = s.cross(e1);
-        let v = ray.dir.dot(q) * inv;
-        if !(v >= 0.0 && u + v <= 1.0) {
-            return None;
-        }
-        let t = e2.dot(q) * inv;
-        (t > 0.0 && t < t_max).then_some(t)
-    }
-
-    /// Barycentric weights (w0, w1, w2) of a point in the plane.
-    #[inline]
-    fn barycentric(&self, p: DVec3) -> [f64; 3] {
-        let (e1, e2) = (self.v1 - self.v0, self.v2 - self.v0);
-        let n = e1.cross(e2);
-        let inv = 1.0 / n.length_squared();
-        let d = p - self.v0;
-        let w1 = d.cross(e2).dot(n) * inv;
-        let w2 = e1.cross(d).dot(n) * inv;
-        [1.0 - w1 - w2, w1, w2]
+        intersect(&self.vertices(), ray, t_max)
     }
 
     pub fn surface(&self, ray: &Ray, t: f64) -> SurfacePoint {
-        let hit = ray.at(t);
-        let point = hit - self.normal * self.normal.dot(hit - self.v0);
-        let Some(vn) = &self.smooth else {
-            return SurfacePoint {
-                point,
-                normal: self.normal,
-                shading: self.normal,
-                shadow_offset: DVec3::ZERO,
-            };
-        };
-        let w = self.barycentric(point).map(|w| w.clamp(0.0, 1.0));
-        let vn = &vn.0;
-        let shading = (vn[0] * w[0] + vn[1] * w[1] + vn[2] * w[2]).normalize_or(self.normal);
-        // Hanika, "Hacking the shadow terminator" (Ray Tracing Gems II,
-        // ch. 4): the point lifted onto the curved surface the vertex
-        // normals describe (the barycentric blend of its projections onto
-        // the three tangent planes, each only lifted, never lowered), on the
-        // side the ray came from. Shadow rays start there.
-        let side = if self.normal.dot(ray.dir) > 0.0 {
-            -1.0
-        } else {
-            1.0
-        };
-        let verts = self.vertices();
-        let mut offset = DVec3::ZERO;
-        for k in 0..3 {
-            let n = vn[k] * side;
-            let d = (point - verts[k]).dot(n).min(0.0);
-            offset -= n * (d * w[k]);
-        }
-        // Never below the flat surface.
-        if !offset.is_finite() || offset.dot(self.normal * side) <= 0.0 {
-            offset = DVec3::ZERO;
-        }
-        SurfacePoint {
-            point,
-            normal: self.normal,
-            shading,
-            shadow_offset: offset,
-        }
+        surface(
+            &self.vertices(),
+            self.normal,
+            self.smooth.as_ref().map(|n| &n.0),
+            ray,
+            t,
+        )
     }
 
     pub fn bounds(&self) -> Aabb {
@@ -163,15 +106,104 @@ impl Triangle {
 
     /// The shadow-ray form seen from `p`.
     pub fn occluder(&self, p: DVec3) -> TriangleOccluder {
-        let [a, b, c] = self.vertices().map(|v| (v - p).as_vec3());
-        let n = (b - a).cross(c - a);
-        TriangleOccluder {
-            ab: a.cross(b),
-            bc: b.cross(c),
-            ca: c.cross(a),
-            n,
-            dist: n.dot(a),
-        }
+        occluder(&self.vertices(), p)
+    }
+}
+
+/// Möller–Trumbore in f64 on the vertices `v`, edges inclusive, both sides
+/// (for `triangle` objects and mesh faces alike).
+#[inline]
+pub fn intersect(v: &[DVec3; 3], ray: &Ray, t_max: f64) -> Option<f64> {
+    let e1 = v[1] - v[0];
+    let e2 = v[2] - v[0];
+    let p = ray.dir.cross(e2);
+    let det = e1.dot(p);
+    if det == 0.0 {
+        return None;
+    }
+    let inv = 1.0 / det;
+    let s = ray.origin - v[0];
+    let u = s.dot(p) * inv;
+    if !(0.0..=1.0).contains(&u) {
+        return None;
+    }
+    let q = s.cross(e1);
+    let v = ray.dir.dot(q) * inv;
+    if !(v >= 0.0 && u + v <= 1.0) {
+        return None;
+    }
+    let t = e2.dot(q) * inv;
+    (t > 0.0 && t < t_max).then_some(t)
+}
+
+/// Barycentric weights (w0, w1, w2) of a point in the plane of `v`.
+#[inline]
+fn barycentric(v: &[DVec3; 3], p: DVec3) -> [f64; 3] {
+    let (e1, e2) = (v[1] - v[0], v[2] - v[0]);
+    let n = e1.cross(e2);
+    let inv = 1.0 / n.length_squared();
+    let d = p - v[0];
+    let w1 = d.cross(e2).dot(n) * inv;
+    let w2 = e1.cross(d).dot(n) * inv;
+    [1.0 - w1 - w2, w1, w2]
+}
+
+/// The surface point of a hit at `t` on the triangle `v` with unit normal
+/// `normal` and, when smooth, unit vertex normals on the normal's side.
+pub fn surface(
+    v: &[DVec3; 3],
+    normal: DVec3,
+    smooth: Option<&[DVec3; 3]>,
+    ray: &Ray,
+    t: f64,
+) -> SurfacePoint {
+    let hit = ray.at(t);
+    let point = hit - normal * normal.dot(hit - v[0]);
+    let Some(vn) = smooth else {
+        return SurfacePoint {
+            point,
+            normal,
+            shading: normal,
+            shadow_offset: DVec3::ZERO,
+        };
+    };
+    let w = barycentric(v, point).map(|w| w.clamp(0.0, 1.0));
+    let shading = (vn[0] * w[0] + vn[1] * w[1] + vn[2] * w[2]).normalize_or(normal);
+    // Hanika, "Hacking the shadow terminator" (Ray Tracing Gems II,
+    // ch. 4): the point lifted onto the curved surface the vertex
+    // normals describe (the barycentric blend of its projections onto
+    // the three tangent planes, each only lifted, never lowered), on the
+    // side the ray came from. Shadow rays start there.
+    let side = if normal.dot(ray.dir) > 0.0 { -1.0 } else { 1.0 };
+    let mut offset = DVec3::ZERO;
+    for k in 0..3 {
+        let n = vn[k] * side;
+        let d = (point - v[k]).dot(n).min(0.0);
+        offset -= n * (d * w[k]);
+    }
+    // Never below the flat surface.
+    if !offset.is_finite() || offset.dot(normal * side) <= 0.0 {
+        offset = DVec3::ZERO;
+    }
+    SurfacePoint {
+        point,
+        normal,
+        shading,
+        shadow_offset: offset,
+    }
+}
+
+/// The shadow-ray form of the triangle `v` seen from `p`.
+#[inline]
+pub fn occluder(v: &[DVec3; 3], p: DVec3) -> TriangleOccluder {
+    let [a, b, c] = v.map(|v| (v - p).as_vec3());
+    let n = (b - a).cross(c - a);
+    TriangleOccluder {
+        ab: a.cross(b),
+        bc: b.cross(c),
+        ca: c.cross(a),
+        n,
+        dist: n.dot(a),
     }
 }
 

@@ -3,7 +3,7 @@
 use glam::{DVec3, Vec3};
 
 use super::RAY_END;
-use crate::render::geometry::{Shape, TriangleOccluder};
+use crate::render::geometry::{Primitive, Shape, TriangleOccluder};
 use crate::render::math::avx2_dispatch;
 
 /// An object as seen from one hit point, in f32 relative to it.
@@ -34,7 +34,13 @@ pub(super) enum Occluder {
 }
 
 impl Occluder {
-    pub(super) fn new(shape: &Shape, p: DVec3, inside: bool) -> Occluder {
+    pub(super) fn new(prim: Primitive, p: DVec3, inside: bool) -> Occluder {
+        let shape = match prim {
+            Primitive::Shape(s) => s,
+            Primitive::Face { meshes, face } => {
+                return Occluder::Triangle(meshes.occluder(face, p));
+            }
+        };
         match shape {
             Shape::Sphere(s) => Occluder::Sphere {
                 oc: (s.centre - p).as_vec3(),

@@ -61,13 +61,13 @@ fn packet_generic(
     // of 8); returns the rays still live. Every answer is the exact f32
     // test, so the order of the tests changes nothing but the time.
     let mut test = |i: u32, m: u64, live: u64| -> u64 {
-        let shape = &scene.objects[i as usize].shape;
+        let prim = scene.primitive(i);
         let inside = i == pk.q.object && pk.q.inside;
-        if i == pk.q.object && shape.skips_itself(pk.q.inside) {
+        if i == pk.q.object && prim.skips_itself(pk.q.inside) {
             return live;
         }
         tested |= m;
-        let occ = Occluder::new(shape, pk.q.point, inside);
+        let occ = Occluder::new(prim, pk.q.point, inside);
         if let Occluder::Sphere { oc, r2, inside } = occ
             && m.count_ones() <= 4
         {
@@ -141,6 +141,17 @@ fn packet_generic(
                                     break 'walk;
                                 }
                             }
+                            Slot::Leaf { first, count } => {
+                                for &i in &tree.items[first as usize..(first + count) as usize] {
+                                    live = test(i, 1 << j, live);
+                                    if live == 0 {
+                                        return tested;
+                                    }
+                                    if live & (1 << j) == 0 {
+                                        break 'walk;
+                                    }
+                                }
+                            }
                         }
                     }
                     let next = &mut next[..n_next];
@@ -170,6 +181,17 @@ fn packet_generic(
                     live = test(i, m, live);
                     if live == 0 {
                         return tested;
+                    }
+                }
+                Slot::Leaf { first, count } => {
+                    for &i in &tree.items[first as usize..(first + count) as usize] {
+                        live = test(i, m & live, live);
+                        if live == 0 {
+                            return tested;
+                        }
+                        if m & live == 0 {
+                            break;
+                        }
                     }
                 }
             }

@@ -9,7 +9,7 @@ use super::occluder::{Dirs, Occluder};
 use super::packet::{PacketScratch, Packets, packet};
 use super::pyramid::ShadowPyramid;
 use super::ray_packet::{PACKET, RayBins};
-use crate::render::geometry::Shape;
+use crate::render::geometry::{Aabb, Primitive, Shape};
 use crate::render::math::avx2_dispatch;
 use crate::render::scene::Scene;
 use crate::render::settings::RenderSettings;
@@ -68,17 +68,18 @@ pub fn visibility(
     // An object as a possible occluder of this hit point, unless it can
     // certainly block nothing.
     let candidate = |i: u32| -> Option<Candidate> {
-        let object = &scene.objects[i as usize];
+        let prim = scene.primitive(i);
         let inside = i == q.object && q.inside;
-        if i == q.object && object.shape.skips_itself(q.inside) {
+        if i == q.object && prim.skips_itself(q.inside) {
             return None;
         }
-        if skip && cannot_block(object, q.point, &corners, &pyramid) {
+        let bounds = scene.bounds_of(i);
+        if skip && cannot_block(prim, bounds, q.point, &corners, &pyramid) {
             return None;
         }
         let umbra_test = !inside
-            && object.shape.convex()
-            && match object.bounds {
+            && prim.convex()
+            && match bounds {
                 // Planes block a light point iff it lies on their other side:
                 // all four corners there means the whole light.
                 None => true,
@@ -88,7 +89,7 @@ pub fn visibility(
                 }
             };
         Some(Candidate {
-            occ: Occluder::new(&object.shape, q.point, inside),
+            occ: Occluder::new(prim, q.point, inside),
             umbra_test,
         })
     };
@@ -99,7 +100,7 @@ pub fn visibility(
         scene
             .unbounded
             .iter()
-            .chain(&scene.bounded)
+            .chain(scene.bounded.iter())
             .filter_map(|&i| candidate(i)),
     );
     if buf.occluders.is_empty() && scene.bvh.is_empty() {
@@ -303,24 +304,26 @@ pub fn visibility(
     stats.shadow_unoccluded += facing - tested;
 }
 
-/// Whether `object` certainly blocks no shadow ray from `p` to the light
-/// (of corners `corners` and pyramid `pyramid` from p).
+/// Whether primitive `prim` (of bounds `bounds`) certainly blocks no
+/// shadow ray from `p` to the light (of corners `corners` and pyramid
+/// `pyramid` from p).
 fn cannot_block(
-    object: &crate::render::scene::Object,
+    prim: Primitive,
+    bounds: Option<Aabb>,
     p: DVec3,
     corners: &[DVec3; 4],
     pyramid: &ShadowPyramid,
 ) -> bool {
-    match &object.shape {
+    match prim {
         // A plane blocks only if some light point lies on its other side
         // from p.
-        Shape::Plane(pl) => {
+        Primitive::Shape(Shape::Plane(pl)) => {
             let sp = pl.signed_distance(p);
             corners.iter().all(|c| pl.signed_distance(*c) * sp > 0.0)
         }
         // The sphere itself is a tighter test than its box.
-        Shape::Sphere(sp) => !pyramid.may_overlap_sphere(sp.centre, sp.radius),
-        _ => object.bounds.is_some_and(|b| !pyramid.may_overlap(&b)),
+        Primitive::Shape(Shape::Sphere(sp)) => !pyramid.may_overlap_sphere(sp.centre, sp.radius),
+        _ => bounds.is_some_and(|b| !pyramid.may_overlap(&b)),
     }
 }
 
@@ -333,15 +336,15 @@ pub(crate) fn possible_occluders(scene: &Scene, q: &ShadowQuery, out: &mut Vec<(
     let corners = light.corners();
     let pyramid = ShadowPyramid::new(q.point, &corners, light.normal, light.centre());
     let mut consider = |i: u32| {
-        let object = &scene.objects[i as usize];
-        if i == q.object && object.shape.skips_itself(q.inside) {
+        let prim = scene.primitive(i);
+        if i == q.object && prim.skips_itself(q.inside) {
             return;
         }
-        if !cannot_block(object, q.point, &corners, &pyramid) {
+        if !cannot_block(prim, scene.bounds_of(i), q.point, &corners, &pyramid) {
             out.push((i, i == q.object && q.inside));
         }
     };
-    for &i in scene.unbounded.iter().chain(&scene.bounded) {
+    for &i in scene.unbounded.iter().chain(scene.bounded.iter()) {
         consider(i);
     }
     scene.bvh.visit_near_first(

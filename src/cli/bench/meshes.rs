@@ -1,0 +1,123 @@
+//! `--meshes N,…`: how load and render time grow with a mesh's triangle
+//! count. Measures the seed room, the bunny room (the seed room with the
+//! Stanford bunny in place of its boxes, as `scenes/bunny.json`, when
+//! `scenes/models/bunny.obj` is found from the current folder) and the same
+//! room with a generated bumpy torus of N triangles in place of the bunny
+//! (same silhouette at every N), each at the same settings.
+
+use std::path::Path;
+use std::time::{Duration, Instant};
+
+use super::{BenchArgs, CliError, build, median, scenes, timed};
+use crate::render::generate_mesh::{TORUS_HALF_HEIGHT, write_torus_obj};
+use crate::render::scene_file::{MeshDesc, MeshScale, MeshShading, ObjectDesc, SceneDesc};
+
+/// The torus is scaled to the bunny's width (about 4).
+const TORUS_SCALE: f64 = 1.4;
+
+/// The room with `mesh` in place of the boxes (where the bunny stands).
+fn room_with(base: &SceneDesc, mesh: MeshDesc) -> SceneDesc {
+    let mut d = base.clone();
+    d.objects.retain(|o| !matches!(o, ObjectDesc::Box(_)));
+    d.objects.push(ObjectDesc::Mesh(mesh));
+    d
+}
+
+fn mesh_desc(file: &Path, scale: f64, translate: [f64; 3], rotate: f64) -> MeshDesc {
+    MeshDesc {
+        file: file.to_string_lossy().into_owned(),
+        material: "sand".into(),
+        scale: MeshScale::Uniform(scale),
+        rotate_y_deg: rotate,
+        translate,
+        shading: MeshShading::Smooth,
+    }
+}
+
+pub fn run(args: &BenchArgs) -> Result<(), CliError> {
+    let Some(counts) = &args.meshes else {
+        return Err(CliError::input(
+            "--meshes needs counts, e.g. --meshes 10000,1000000",
+        ));
+    };
+    let runs = args.runs.unwrap_or(if args.quick { 1 } else { 5 });
+    let base = scenes(&BenchArgs {
+        scene: None,
+        spheres: None,
+        ..args.clone()
+    })?
+    .remove(0)
+    .desc;
+    let dir = tempfile::tempdir().map_err(CliError::other)?;
+    let mut rooms: Vec<(String, SceneDesc, usize)> = vec![("seed room".into(), base.clone(), 0)];
+    let bunny = std::env::current_dir()
+        .map_err(CliError::other)?
+        .join("scenes/models/bunny.obj");
+    if bunny.exists() {
+        let m = mesh_desc(&bunny, 0.4, [0.0, 0.0013, 0.5], 180.0);
+        rooms.push(("bunny room".into(), room_with(&base, m), 3_674));
+    } else {
+        println!("(no scenes/models/bunny.obj here: the bunny room is left out)");
+    }
+    for &n in counts {
+        let file = dir.path().join(format!("torus-{n}.obj"));
+        let exact = write_torus_obj(&file, n as usize)
+            .map_err(|e| CliError::other(format!("{}: {e}", file.display())))?;
+        let lift = TORUS_HALF_HEIGHT * TORUS_SCALE + 0.0013;
+        let m = mesh_desc(&file, TORUS_SCALE, [0.0, lift, 0.5], 0.0);
+        rooms.push((format!("torus {exact}"), room_with(&base, m), exact));
+    }
+    let r = &base.render;
+    println!(
+        "{}×{}, {} {} shadow rays, depth {}; median of {runs} runs (load: reading the files and building the scene)",
+        base.camera.width,
+        base.camera.height,
+        r.shadow_rays,
+        r.sampling.name(),
+        r.max_depth
+    );
+    println!(
+        "{:<16} {:>10} {:>10} {:>11} {:>12}",
+        "scene", "triangles", "load ms", "render ms", "vs seed room"
+    );
+    let mut seed_s = f64::NAN;
+    let mut torus: Vec<(usize, f64)> = Vec::new();
+    for (name, desc, triangles) in &rooms {
+        let mut loads: Vec<Duration> = Vec::new();
+        let mut loaded = None;
+        for _ in 0..runs.max(1) {
+            drop(loaded.take());
+            let start = Instant::now();
+            loaded = Some(build(desc, true)?);
+            loads.push(start.elapsed());
+        }
+        loads.sort();
+        let t = timed(loaded.as_ref().expect("built"), runs);
+        let render_s = t.median().as_secs_f64();
+        if seed_s.is_nan() {
+            seed_s = render_s;
+        }
+        if name.starts_with("torus") {
+            torus.push((*triangles, render_s));
+        }
+        println!(
+            "{:<16} {:>10} {:>10.1} {:>11.1} {:>11.2}×",
+            name,
+            triangles,
+            median(&loads).as_secs_f64() * 1e3,
+            render_s * 1e3,
+            render_s / seed_s
+        );
+    }
+    if let (Some(first), Some(last)) = (torus.first(), torus.last())
+        && torus.len() > 1
+    {
+        println!(
+            "render time from {} to {} triangles: {:.2}×",
+            first.0,
+            last.0,
+            last.1 / first.1
+        );
+    }
+    Ok(())
+}

@@ -1352,6 +1352,7 @@ fn a_recombine_or_reshade_edit_keeps_the_refined_samples() {
         }
         other => panic!("{other:?}"),
     }
+}
 
 /// A dropped mesh file joins the scene standing on the floor, in the
 /// object list's material; its toggle in the list hides it again (the

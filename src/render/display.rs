@@ -49,8 +49,13 @@ impl DisplayTransform {
 
     /// Linear light to display light (before the sRGB encoding).
     pub fn map(&self, p: Vec3) -> Vec3 {
-        // 2^0 is exactly 1: the identity leaves every value as it is.
-        let p = p * self.exposure.exp2();
+        // 2^0 is exactly 1, so the identity leaves every value as it is;
+        // skipping the product spares a libm call per pixel at 0 EV.
+        let p = if self.exposure == 0.0 {
+            p
+        } else {
+            p * self.exposure.exp2()
+        };
         match self.curve {
             ToneCurve::Srgb => p,
             ToneCurve::Filmic => {

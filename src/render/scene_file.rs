@@ -64,7 +64,6 @@ pub mod limits {
 /// (`/dev/zero`, `/dev/stdin`, a FIFO). The message says what went wrong,
 /// without the file name.
 pub fn read_bounded(path: &Path, limit: u64) -> Result<Vec<u8>, String> {
-    use std::io::Read;
     let file = std::fs::File::open(path).map_err(|e| format!("cannot read: {e}"))?;
     let meta = file.metadata().map_err(|e| format!("cannot read: {e}"))?;
     if meta.is_dir() {
@@ -77,16 +76,7 @@ pub fn read_bounded(path: &Path, limit: u64) -> Result<Vec<u8>, String> {
         ));
     }
     let hint = if meta.is_file() { meta.len() } else { 0 };
-    let mut bytes = Vec::with_capacity(hint.min(limit) as usize);
-    file.take(limit + 1)
-        .read_to_end(&mut bytes)
-        .map_err(|e| format!("cannot read: {e}"))?;
-    if bytes.len() as u64 > limit {
-        return Err(format!(
-            "more than {limit} bytes (at most {limit} are read; stopped there)"
-        ));
-    }
-    Ok(bytes)
+    read_all_bounded(file, limit, hint)
 }
 
 /// Reads a scene or mesh file of at most `limit` bytes: a regular file,

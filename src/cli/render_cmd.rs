@@ -12,8 +12,11 @@ use crate::render::{
 };
 
 /// Loads and builds a scene (the built-in seed room for `None`) with
-/// overrides.
-pub fn load_scene(path: Option<&Path>, overrides: &SceneOverrides) -> Result<Loaded, CliError> {
+/// overrides; also returns the description it was built from.
+pub fn load_scene(
+    path: Option<&Path>,
+    overrides: &SceneOverrides,
+) -> Result<(SceneDesc, Loaded), CliError> {
     let desc = load_desc(path, overrides)?;
     let o = overrides;
     // --scale and --translate go through the same validation as the file;
@@ -53,10 +56,11 @@ pub fn load_scene(path: Option<&Path>, overrides: &SceneOverrides) -> Result<Loa
             l.scene.triangles, l.scene.degenerate_triangles
         );
     }
-    match path {
+    let loaded = match path {
         Some(p) => loaded.map_err(|e| CliError::input(e.in_file(p))),
         None => loaded.map_err(CliError::input),
-    }
+    }?;
+    Ok((desc, loaded))
 }
 
 /// Loads a scene description (the built-in seed room for `None`) and
@@ -127,7 +131,7 @@ pub fn render(args: &RenderArgs) -> Result<(), CliError> {
             args.output.display()
         )));
     }
-    let mut loaded = load_scene(args.scene.as_deref(), &args.overrides)?;
+    let (desc, mut loaded) = load_scene(args.scene.as_deref(), &args.overrides)?;
     loaded.settings.skip = !args.no_skip;
     let scene = loaded.scene.clone();
     if let Some(region) = args.region {
@@ -186,7 +190,6 @@ pub fn render(args: &RenderArgs) -> Result<(), CliError> {
     }
     let written = match args.region {
         Some(region) => {
-            let desc = load_desc(args.scene.as_deref(), &args.overrides)?;
             let part = Part {
                 region,
                 full: (whole.w, whole.h),

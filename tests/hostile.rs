@@ -587,3 +587,39 @@ fn extreme_but_valid_scenes_render_finite_pixels() {
         assert!(!film.has_non_finite(), "{what}: non-finite pixels");
     }
 }
+
+/// Found by the `read_obj` fuzz target: a face's bad index was quoted whole
+/// (a 4 KB token gave a 20 KB message); every value a mesh error quotes is
+/// cut, and so is a long file name.
+#[test]
+fn mesh_errors_quote_long_values_cut() {
+    use penumbra::render::Loaded;
+    use penumbra::render::mesh::read_obj;
+    let long = "7x".repeat(50_000);
+    let e = read_obj(format!("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 {long}\n").as_bytes()).unwrap_err();
+    assert!(e.starts_with("line 4: malformed face"), "{e:.200}");
+    assert!(
+        e.contains("(100000 characters)") && e.len() < 400,
+        "{} characters",
+        e.len()
+    );
+
+    let dir = scratch("long-mesh-name");
+    let mut v = seed();
+    let name = format!("{}.obj", "m".repeat(100_000));
+    v["objects"]
+        .as_array_mut()
+        .unwrap()
+        .push(json!({"type": "mesh", "file": name, "material": "white"}));
+    let mut desc = SceneDesc::from_json(&v.to_string()).unwrap();
+    desc.base_dir = Some(dir);
+    let e = Loaded::new(&desc)
+        .err()
+        .expect("no such mesh file")
+        .to_string();
+    assert!(
+        e.contains("(100004 characters)") && e.len() < 1000,
+        "{} characters: {e:.200}",
+        e.len()
+    );
+}

@@ -40,7 +40,8 @@ pub fn resolve(file: &str, base_dir: Option<&Path>) -> Result<PathBuf, String> {
     match base_dir {
         Some(dir) => Ok(dir.join(path)),
         None => Err(format!(
-            "{file:?} is a relative path, but the scene has no folder (it was not read from a file): give an absolute path"
+            "{:?} is a relative path, but the scene has no folder (it was not read from a file): give an absolute path",
+            super::error::cut(file)
         )),
     }
 }
@@ -49,7 +50,7 @@ pub fn resolve(file: &str, base_dir: Option<&Path>) -> Result<PathBuf, String> {
 /// triangles it may add to the scene.
 pub fn load(desc: &MeshDesc, base_dir: Option<&Path>, budget: usize) -> Result<MeshPart, String> {
     let path = resolve(&desc.file, base_dir)?;
-    let name = desc.file.as_str();
+    let name = super::error::cut(&desc.file);
     let ext = path
         .extension()
         .and_then(|e| e.to_str())
@@ -64,7 +65,11 @@ pub fn load(desc: &MeshDesc, base_dir: Option<&Path>, budget: usize) -> Result<M
         "gltf" | "glb" => read_gltf(&read("")?, path.parent()),
         other => Err(format!(
             "unsupported mesh format {:?}, expected a file ending in .obj, .ply, .gltf or .glb",
-            if other.is_empty() { "(none)" } else { other }
+            if other.is_empty() {
+                "(none)".to_string()
+            } else {
+                super::error::cut(other)
+            }
         )),
     }
     .map_err(|e| format!("{name}: {e}"))?;
@@ -311,6 +316,7 @@ fn obj_diagnosis(bytes: &[u8]) -> Option<String> {
                     let v = parts.next().unwrap_or("");
                     let check = |s: &str, total: i64, what: &str, plural: &str| -> Option<String> {
                         let Ok(i) = s.parse::<i64>() else {
+                            let s = super::error::cut(s);
                             return Some(format!(
                                 "line {line_no}: malformed face {shown:?}: {what} index {s:?} is not a number"
                             ));

@@ -7,6 +7,17 @@ use penumbra::render::{CancelToken, Loaded, RenderOptions, SceneDesc};
 /// depth 4 (so each run takes microseconds) and returns the first pixel
 /// that is not finite, if any.
 pub fn first_non_finite_pixel(mut desc: SceneDesc) -> Option<(usize, [f32; 3])> {
+    // One worker in rayon's global pool, made once, before anything
+    // uses the pool (the scene's build does), and that worker is this
+    // thread: a pool per run (as `threads: Some(1)` builds) costs more than
+    // the render itself, and handing each run to another thread a tenth.
+    static POOL: std::sync::Once = std::sync::Once::new();
+    POOL.call_once(|| {
+        let _ = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .use_current_thread()
+            .build_global();
+    });
     desc.camera.width = desc.camera.width.min(8);
     desc.camera.height = desc.camera.height.min(8);
     desc.render.shadow_rays = desc.render.shadow_rays.min(16);
@@ -20,12 +31,6 @@ pub fn first_non_finite_pixel(mut desc: SceneDesc) -> Option<(usize, [f32; 3])> 
         Err(_) if has_mesh => return None,
         Err(e) => panic!("a validated scene stays valid with smaller caps: {e}"),
     };
-    // One worker in rayon's global pool, made once: a pool per run (as
-    // `threads: Some(1)` builds) costs more than the render itself.
-    static POOL: std::sync::Once = std::sync::Once::new();
-    POOL.call_once(|| {
-        let _ = rayon::ThreadPoolBuilder::new().num_threads(1).build_global();
-    });
     let options = RenderOptions::default();
     let report = loaded
         .render(&options, &CancelToken::new(), &|_| {})

@@ -739,23 +739,13 @@ fn compare_decodes_by_content_and_exits_2_for_a_bad_diff_name() {
         assert_eq!(r.status.code(), Some(2), "{name}: {}", stderr(&r));
         assert!(!d.join(name).exists());
     }
-    let r = penumbra(&[
-        "render",
-        "-o",
-        d.join("x.jpg").to_str().unwrap(),
-        "--width",
-        "8",
-        "--height",
-        "8",
-    ]);
+    let r = render_tiny(&d.join("x.jpg"));
     assert_eq!(r.status.code(), Some(2));
 }
 
-#[test]
-fn a_missing_output_folder_is_named_without_the_temporary_file() {
-    let dir = scratch();
-    let out = dir.path().join("no/such/folder/x.png");
-    let r = penumbra(&[
+/// The built-in seed room rendered 8×8 to `out`.
+fn render_tiny(out: &Path) -> std::process::Output {
+    penumbra(&[
         "render",
         "-o",
         out.to_str().unwrap(),
@@ -763,7 +753,14 @@ fn a_missing_output_folder_is_named_without_the_temporary_file() {
         "8",
         "--height",
         "8",
-    ]);
+    ])
+}
+
+#[test]
+fn a_missing_output_folder_is_named_without_the_temporary_file() {
+    let dir = scratch();
+    let out = dir.path().join("no/such/folder/x.png");
+    let r = render_tiny(&out);
     let err = stderr(&r);
     assert_eq!(r.status.code(), Some(1), "{err}");
     assert!(err.contains("no/such/folder"), "{err}");
@@ -778,15 +775,7 @@ fn a_missing_output_folder_is_named_without_the_temporary_file() {
 fn the_summary_line_counts_loading() {
     let dir = scratch();
     let out = dir.path().join("x.png");
-    let r = penumbra(&[
-        "render",
-        "-o",
-        out.to_str().unwrap(),
-        "--width",
-        "8",
-        "--height",
-        "8",
-    ]);
+    let r = render_tiny(&out);
     let err = stderr(&r);
     assert!(r.status.success(), "{err}");
     // "8×8 in T s (L s loading, R s rendering, ...)" with T >= L + R.

@@ -118,6 +118,23 @@ impl BuildRef {
     }
 
     /// `hi − lo` per axis (0 for the empty box), exact.
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    fn extent(&self) -> Vec3 {
+        use std::arch::x86_64::*;
+        // SAFETY: SSE2 is part of x86_64, and the lanes are 16 aligned
+        // bytes.
+        let e = unsafe {
+            let x = _mm_load_si128(self.lanes.as_ptr() as *const __m128i);
+            let lo = _mm_srai_epi32(_mm_unpacklo_epi16(x, x), 16);
+            let neg_hi = _mm_srai_epi32(_mm_unpackhi_epi16(x, x), 16);
+            let e = _mm_sub_epi32(_mm_set1_epi32(-1), _mm_add_epi32(lo, neg_hi));
+            Vec4::from(_mm_cvtepi32_ps(e))
+        };
+        e.truncate().max(Vec3::ZERO)
+    }
+
+    #[cfg(not(target_arch = "x86_64"))]
     #[inline(always)]
     fn extent(&self) -> Vec3 {
         let e = |a: usize| ((-1 - self.lanes[a] as i32 - self.lanes[a + 4] as i32) as f32).max(0.0);

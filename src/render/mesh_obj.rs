@@ -134,13 +134,47 @@ fn three_numbers(rest: &[u8]) -> Option<DVec3> {
         .filter(|w| !w.is_empty());
     let mut v = [0.0; 3];
     for x in &mut v {
-        *x = std::str::from_utf8(words.next()?).ok()?.parse().ok()?;
+        let w = words.next()?;
+        *x = match decimal(w) {
+            Some(x) => x,
+            None => std::str::from_utf8(w).ok()?.parse().ok()?,
+        };
     }
     if words.next().is_some() {
         return None;
     }
     let v = DVec3::from(v);
     v.is_finite().then_some(v)
+}
+
+/// A plain decimal `[-]digits.digits` of at most 15 digits, read exactly
+/// as `str::parse` reads it, and fast: the digits are an integer m < 2⁵³
+/// and the divisor 10^k (k ≤ 15) is exact, so m / 10^k is one correctly
+/// rounded division (Clinger's fast path). Anything else is left to
+/// `str::parse` (`None`).
+#[inline]
+fn decimal(word: &[u8]) -> Option<f64> {
+    const POW10: [f64; 16] = [
+        1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15,
+    ];
+    let (neg, digits) = match word.first()? {
+        b'-' => (true, &word[1..]),
+        _ => (false, word),
+    };
+    let dot = digits.iter().position(|&b| b == b'.')?;
+    let (int, frac) = (&digits[..dot], &digits[dot + 1..]);
+    if int.is_empty() || frac.is_empty() || int.len() + frac.len() > 15 {
+        return None;
+    }
+    let mut m: u64 = 0;
+    for &d in int.iter().chain(frac) {
+        if !d.is_ascii_digit() {
+            return None;
+        }
+        m = m * 10 + (d - b'0') as u64;
+    }
+    let x = m as f64 / POW10[frac.len()];
+    Some(if neg { -x } else { x })
 }
 
 /// A 1-based or negative (relative) index among `total` earlier items, as
@@ -230,4 +264,50 @@ fn parse(bytes: &[u8], before: Counts) -> Option<Chunk> {
         }
     }
     Some(c)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::decimal;
+
+    /// The fast path reads every number it takes as `str::parse` does, bit
+    /// for bit, and leaves the rest to it.
+    #[test]
+    fn decimals_read_as_str_parse_reads_them() {
+        let mut state = 7u64;
+        for _ in 0..200_000 {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            let int = (state >> 40) % 100_000;
+            let frac_digits = ((state >> 20) % 11) as usize;
+            let frac = (state >> 8) % 10u64.pow(frac_digits as u32).max(1);
+            let sign = if state & 1 == 0 { "" } else { "-" };
+            let text = if frac_digits == 0 {
+                format!("{sign}{int}.0")
+            } else {
+                format!("{sign}{int}.{frac:0frac_digits$}")
+            };
+            let fast = decimal(text.as_bytes()).expect(&text);
+            let std: f64 = text.parse().unwrap();
+            assert_eq!(fast.to_bits(), std.to_bits(), "{text}");
+        }
+        for text in [
+            "1",
+            ".5",
+            "5.",
+            "1e3",
+            "+1.0",
+            "1.0e2",
+            "nan",
+            "0x1.0",
+            "1234567890.1234567",
+        ] {
+            assert_eq!(decimal(text.as_bytes()), None, "{text}");
+        }
+        assert_eq!(
+            decimal(b"-0.000000").unwrap().to_bits(),
+            (-0.0f64).to_bits()
+        );
+    }
 }

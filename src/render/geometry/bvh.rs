@@ -41,31 +41,116 @@ impl Node {
 }
 
 /// One primitive as the build sees it: its box snapped outwards to the
-/// build's [`Grid`] (16-bit coordinates) and its id: 16 bytes, so that the
+/// build's [`Grid`] (16-bit coordinates) and its id, 16 bytes, so that the
 /// records of millions of triangles cost little beside the tree.
+///
+/// The lanes are i16 with a bias: 0–2 the box's lower corner (`lo − 32768`),
+/// 4–6 its upper corner negated (`32767 − hi`), 3 and 7 the id's halves.
+/// The union of two boxes is then the lane-wise minimum of their lanes (one
+/// vector instruction; the id lanes of a union mean nothing), which is what
+/// the binning does millions of times.
 #[derive(Debug, Clone, Copy)]
-#[repr(C)]
+#[repr(C, align(16))]
 struct BuildRef {
-    lo: [u16; 3],
-    hi: [u16; 3],
-    id: u32,
+    lanes: [i16; 8],
 }
 
 impl BuildRef {
-    #[inline(always)]
-    fn min(&self) -> Vec4 {
-        Vec4::new(self.lo[0] as f32, self.lo[1] as f32, self.lo[2] as f32, 0.0)
+    /// The box holding nothing (its union with a box is that box).
+    const EMPTY: BuildRef = BuildRef {
+        lanes: [i16::MAX; 8],
+    };
+
+    fn new(lo: [u16; 3], hi: [u16; 3], id: u32) -> BuildRef {
+        let l = |v: u16| (v as i32 - 32768) as i16;
+        let h = |v: u16| (32767 - v as i32) as i16;
+        BuildRef {
+            lanes: [
+                l(lo[0]),
+                l(lo[1]),
+                l(lo[2]),
+                id as u16 as i16,
+                h(hi[0]),
+                h(hi[1]),
+                h(hi[2]),
+                (id >> 16) as u16 as i16,
+            ],
+        }
     }
 
     #[inline(always)]
-    fn max(&self) -> Vec4 {
-        Vec4::new(self.hi[0] as f32, self.hi[1] as f32, self.hi[2] as f32, 0.0)
+    fn id(&self) -> u32 {
+        self.lanes[3] as u16 as u32 | (self.lanes[7] as u16 as u32) << 16
     }
 
-    /// Twice the centre (the scale does not matter for binning).
+    /// The box holding both (the id lanes are left meaningless).
+    #[inline(always)]
+    fn union(self, o: BuildRef) -> BuildRef {
+        let mut lanes = self.lanes;
+        for (a, b) in lanes.iter_mut().zip(o.lanes) {
+            *a = (*a).min(b);
+        }
+        BuildRef { lanes }
+    }
+
+    /// Twice the centre (the scale does not matter for binning), exact:
+    /// `lo + hi` of the grid coordinates (the w lane is some other integer).
+    #[cfg(target_arch = "x86_64")]
     #[inline(always)]
     fn centre2(&self) -> Vec4 {
-        self.min() + self.max()
+        use std::arch::x86_64::*;
+        // SAFETY: SSE2 is part of x86_64, and the lanes are 16 aligned
+        // bytes.
+        unsafe {
+            let x = _mm_load_si128(self.lanes.as_ptr() as *const __m128i);
+            let lo = _mm_srai_epi32(_mm_unpacklo_epi16(x, x), 16);
+            let neg_hi = _mm_srai_epi32(_mm_unpackhi_epi16(x, x), 16);
+            let c = _mm_add_epi32(_mm_sub_epi32(lo, neg_hi), _mm_set1_epi32(65535));
+            Vec4::from(_mm_cvtepi32_ps(c))
+        }
+    }
+
+    #[cfg(not(target_arch = "x86_64"))]
+    #[inline(always)]
+    fn centre2(&self) -> Vec4 {
+        let c = |a: usize| (self.lanes[a] as i32 - self.lanes[a + 4] as i32 + 65535) as f32;
+        Vec4::new(c(0), c(1), c(2), c(3))
+    }
+
+    /// `hi − lo` per axis (0 for the empty box), exact.
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    fn extent(&self) -> Vec3 {
+        use std::arch::x86_64::*;
+        // SAFETY: SSE2 is part of x86_64, and the lanes are 16 aligned
+        // bytes.
+        let e = unsafe {
+            let x = _mm_load_si128(self.lanes.as_ptr() as *const __m128i);
+            let lo = _mm_srai_epi32(_mm_unpacklo_epi16(x, x), 16);
+            let neg_hi = _mm_srai_epi32(_mm_unpackhi_epi16(x, x), 16);
+            let e = _mm_sub_epi32(_mm_set1_epi32(-1), _mm_add_epi32(lo, neg_hi));
+            Vec4::from(_mm_cvtepi32_ps(e))
+        };
+        e.truncate().max(Vec3::ZERO)
+    }
+
+    #[cfg(not(target_arch = "x86_64"))]
+    #[inline(always)]
+    fn extent(&self) -> Vec3 {
+        let e = |a: usize| ((-1 - self.lanes[a] as i32 - self.lanes[a + 4] as i32) as f32).max(0.0);
+        Vec3::new(e(0), e(1), e(2))
+    }
+
+    /// The box in grid coordinates as f32 (empty: lower corner 65535,
+    /// upper 0).
+    #[inline]
+    fn decode(&self) -> Box3 {
+        let lo = |a: usize| (self.lanes[a] as i32 + 32768) as f32;
+        let hi = |a: usize| (32767 - self.lanes[a + 4] as i32) as f32;
+        Box3 {
+            min: Vec4::new(lo(0), lo(1), lo(2), 0.0),
+            max: Vec4::new(hi(0), hi(1), hi(2), 0.0),
+        }
     }
 }
 
@@ -101,15 +186,12 @@ impl Grid {
         let lo = ((b.min - self.origin) * self.inv_step).floor() - 1.0;
         let hi = ((b.max - self.origin) * self.inv_step).ceil() + 1.0;
         let q = |x: f64| x.clamp(0.0, u16::MAX as f64) as u16;
-        BuildRef {
-            lo: [q(lo.x), q(lo.y), q(lo.z)],
-            hi: [q(hi.x), q(hi.y), q(hi.z)],
-            id,
-        }
+        BuildRef::new([q(lo.x), q(lo.y), q(lo.z)], [q(hi.x), q(hi.y), q(hi.z)], id)
     }
 
     /// A box of grid coordinates in the world, rounded outwards to f32.
-    fn world(&self, b: &Box3) -> (Vec3, Vec3) {
+    fn world(&self, b: &BuildRef) -> (Vec3, Vec3) {
+        let b = b.decode();
         let lo = self.origin + b.min.truncate().as_dvec3() * self.step;
         let hi = self.origin + b.max.truncate().as_dvec3() * self.step;
         (
@@ -139,25 +221,6 @@ struct Box3 {
 }
 
 impl Box3 {
-    const EMPTY: Box3 = Box3 {
-        min: Vec4::splat(f32::INFINITY),
-        max: Vec4::splat(f32::NEG_INFINITY),
-    };
-
-    #[inline(always)]
-    fn add(&mut self, r: &BuildRef) {
-        self.min = self.min.min(r.min());
-        self.max = self.max.max(r.max());
-    }
-
-    #[inline]
-    fn union(self, o: Box3) -> Box3 {
-        Box3 {
-            min: self.min.min(o.min),
-            max: self.max.max(o.max),
-        }
-    }
-
     #[inline]
     fn extent(&self) -> Vec3 {
         (self.max - self.min).truncate().max(Vec3::ZERO)
@@ -201,7 +264,17 @@ struct Metric {
 impl Metric {
     #[inline]
     fn area(&self, b: &Box3) -> f32 {
-        let e = b.extent();
+        self.area_of_extent(b.extent())
+    }
+
+    /// [`Metric::area`] of a box in lanes (the same numbers).
+    #[inline]
+    fn area_of(&self, b: &BuildRef) -> f32 {
+        self.area_of_extent(b.extent())
+    }
+
+    #[inline]
+    fn area_of_extent(&self, e: Vec3) -> f32 {
         let w = self.weights;
         2.0 * (w.z * e.x * e.y + w.x * e.y * e.z + w.y * e.z * e.x)
     }
@@ -212,28 +285,102 @@ enum Plan {
     Leaf,
     /// Inner node over `refs[..mid]` and `refs[mid..]` (partitioned), with
     /// their boxes.
-    Split(usize, Box3, Box3),
+    Split(usize, BuildRef, BuildRef),
 }
 
 /// The box of some refs.
-fn bounds_of(refs: &[BuildRef]) -> Box3 {
-    let mut b = Box3::EMPTY;
-    for r in refs {
-        b.add(r);
+fn bounds_of(refs: &[BuildRef]) -> BuildRef {
+    refs.iter().fold(BuildRef::EMPTY, |a, r| a.union(*r))
+}
+
+/// The boxes and counts of the refs whose centroids fall into each bin,
+/// along each axis.
+#[derive(Clone, Copy)]
+struct Bins {
+    boxes: [[BuildRef; BINS]; 3],
+    counts: [[u32; BINS]; 3],
+}
+
+impl Bins {
+    const EMPTY: Bins = Bins {
+        boxes: [[BuildRef::EMPTY; BINS]; 3],
+        counts: [[0; BINS]; 3],
+    };
+
+    /// Adds `r`, whose bin along axis a is `k[a]`.
+    #[inline(always)]
+    fn add(&mut self, k: UVec4, r: &BuildRef) {
+        for axis in 0..3 {
+            let k = k[axis] as usize;
+            self.boxes[axis][k] = self.boxes[axis][k].union(*r);
+            self.counts[axis][k] += 1;
+        }
     }
-    b
+
+    fn merge(&mut self, o: &Bins) {
+        for axis in 0..3 {
+            for k in 0..BINS {
+                self.boxes[axis][k] = self.boxes[axis][k].union(o.boxes[axis][k]);
+                self.counts[axis][k] += o.counts[axis][k];
+            }
+        }
+    }
+
+    /// The bins of `refs`, `bin(r)` giving a ref's bin along each axis.
+    /// Many refs are binned as two halves side by side: neighbours in the
+    /// input often fall into the same bin, and one set of bins would make
+    /// each update wait for the one before.
+    #[inline(always)]
+    fn of(refs: &[BuildRef], bin: impl Fn(&BuildRef) -> UVec4) -> Bins {
+        let mut a = Bins::EMPTY;
+        if refs.len() < 256 {
+            for r in refs {
+                a.add(bin(r), r);
+            }
+            return a;
+        }
+        let mut b = Bins::EMPTY;
+        let (lo, hi) = refs.split_at(refs.len() / 2);
+        for (r, s) in lo.iter().zip(hi) {
+            a.add(bin(r), r);
+            b.add(bin(s), s);
+        }
+        if let Some(r) = hi.get(lo.len()) {
+            a.add(bin(r), r);
+        }
+        a.merge(&b);
+        a
+    }
+}
+
+/// The integer parts of four numbers in 0..2³¹ (one instruction where
+/// `as u32` takes four, each with its checks).
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn truncate(v: Vec4) -> UVec4 {
+    use std::arch::x86_64::*;
+    // SAFETY: SSE2 is part of x86_64; the lanes are non-negative.
+    let i: [u32; 4] = unsafe { std::mem::transmute(_mm_cvttps_epi32(v.into())) };
+    UVec4::from_array(i)
+}
+
+#[cfg(not(target_arch = "x86_64"))]
+#[inline(always)]
+fn truncate(v: Vec4) -> UVec4 {
+    v.as_uvec4()
 }
 
 /// How to split `refs`, whose box is `bounds` (partitioning them in
 /// place). Centroids are binned over the box itself: the children's boxes
 /// then come from the bins, without another pass.
-fn plan(refs: &mut [BuildRef], bounds: Box3, metric: Metric, depth: usize) -> Plan {
+fn plan(refs: &mut [BuildRef], bounds: BuildRef, metric: Metric, depth: usize) -> Plan {
     if refs.len() <= MAX_LEAF {
         return Plan::Leaf;
     }
+    let whole = bounds.decode();
     // `centre2` is twice the centre: it lies in twice the box.
-    let origin = bounds.min * 2.0;
-    let ext = bounds.extent() * 2.0;
+    let origin = whole.min * 2.0;
+    let ext = whole.extent() * 2.0;
     let axis = if ext.x >= ext.y && ext.x >= ext.z {
         0
     } else if ext.y >= ext.z {
@@ -261,53 +408,50 @@ fn plan(refs: &mut [BuildRef], bounds: Box3, metric: Metric, depth: usize) -> Pl
     )
     .extend(0.0);
     let bins_of = |r: &BuildRef| -> UVec4 {
-        ((r.centre2() - origin) * scale)
-            .max(Vec4::ZERO)
-            .as_uvec4()
-            .min(UVec4::splat(BINS as u32 - 1))
+        truncate(
+            ((r.centre2() - origin) * scale)
+                .max(Vec4::ZERO)
+                .min(Vec4::splat(BINS as f32 - 1.0)),
+        )
     };
-    let mut bin_bounds = [[Box3::EMPTY; BINS]; 3];
-    let mut bin_count = [[0u32; BINS]; 3];
-    for r in refs.iter() {
-        let b = bins_of(r);
-        for axis in 0..3 {
-            let k = b[axis] as usize;
-            bin_bounds[axis][k].add(r);
-            bin_count[axis][k] += 1;
-        }
-    }
+    let Bins {
+        boxes: bin_bounds,
+        counts: bin_count,
+    } = Bins::of(refs, bins_of);
     // The cheapest split plane over the bins of every axis, from sweeps
-    // from both ends.
+    // from both ends. Only the planes after non-empty bins are tried: a
+    // plane after an empty bin splits as the one before it, which is
+    // tried first and kept on a tie.
     let mut best = (f32::INFINITY, 0, axis);
     for axis in (0..3).filter(|&a| ext[a] > 0.0) {
         let (boxes, counts) = (&bin_bounds[axis], &bin_count[axis]);
-        let mut right_cost = [0.0f32; BINS];
-        let mut acc = Box3::EMPTY;
-        let mut count = 0u32;
-        for b in (1..BINS).rev() {
-            acc = acc.union(boxes[b]);
-            count += counts[b];
-            right_cost[b] = if count == 0 {
-                f32::INFINITY
-            } else {
-                metric.area(&acc) * count as f32
-            };
+        let mut full = [0usize; BINS];
+        let mut m = 0;
+        for (k, &c) in counts.iter().enumerate() {
+            full[m] = k;
+            m += (c > 0) as usize;
         }
-        let mut acc = Box3::EMPTY;
+        // right_cost[j]: the cost of the bins full[j..m].
+        let mut right_cost = [0.0f32; BINS];
+        let mut acc = BuildRef::EMPTY;
         let mut count = 0u32;
-        for b in 0..BINS - 1 {
-            acc = acc.union(boxes[b]);
-            count += counts[b];
-            if count == 0 || right_cost[b + 1].is_infinite() {
-                continue;
-            }
-            let cost = metric.area(&acc) * count as f32 + right_cost[b + 1];
+        for j in (1..m).rev() {
+            acc = acc.union(boxes[full[j]]);
+            count += counts[full[j]];
+            right_cost[j] = metric.area_of(&acc) * count as f32;
+        }
+        let mut acc = BuildRef::EMPTY;
+        let mut count = 0u32;
+        for j in 0..m.saturating_sub(1) {
+            acc = acc.union(boxes[full[j]]);
+            count += counts[full[j]];
+            let cost = metric.area_of(&acc) * count as f32 + right_cost[j + 1];
             if cost < best.0 {
-                best = (cost, b, axis);
+                best = (cost, full[j], axis);
             }
         }
     }
-    let area = metric.area(&bounds);
+    let area = metric.area(&whole);
     let leaf_cost = area * refs.len() as f32;
     let split_cost = TRAVERSAL_COST * area + best.0;
     if best.0.is_infinite() || (split_cost >= leaf_cost && refs.len() <= 2 * MAX_LEAF) {
@@ -315,12 +459,8 @@ fn plan(refs: &mut [BuildRef], bounds: Box3, metric: Metric, depth: usize) -> Pl
     }
     let (_, split_bin, axis) = best;
     let boxes = &bin_bounds[axis];
-    let left_box = boxes[..=split_bin]
-        .iter()
-        .fold(Box3::EMPTY, |a, b| a.union(*b));
-    let right_box = boxes[split_bin + 1..]
-        .iter()
-        .fold(Box3::EMPTY, |a, b| a.union(*b));
+    let left_box = bounds_of(&boxes[..=split_bin]);
+    let right_box = bounds_of(&boxes[split_bin + 1..]);
     // Hoare partition by the same bin computation.
     let left = |r: &BuildRef| bins_of(r)[axis] as usize <= split_bin;
     let (mut i, mut j) = (0, refs.len());
@@ -348,7 +488,7 @@ fn split(
     nodes: &mut Vec<Node>,
     node: usize,
     refs: &mut [BuildRef],
-    b: Box3,
+    b: BuildRef,
     first: usize,
     metric: Metric,
     depth: usize,
@@ -376,7 +516,7 @@ fn split(
 /// The subtree over `refs` (with the box `b`) as its own node list (root
 /// first, leaves indexing `refs` from 0); large ones build their halves in
 /// parallel.
-fn subtree(refs: &mut [BuildRef], b: Box3, metric: Metric, depth: usize) -> Vec<Node> {
+fn subtree(refs: &mut [BuildRef], b: BuildRef, metric: Metric, depth: usize) -> Vec<Node> {
     if refs.len() < PARALLEL {
         let mut nodes = Vec::with_capacity(refs.len());
         nodes.push(Node::EMPTY);
@@ -474,10 +614,10 @@ impl Bvh {
         let b = refs
             .par_chunks(PARALLEL)
             .map(bounds_of)
-            .reduce(|| Box3::EMPTY, Box3::union);
+            .reduce(|| BuildRef::EMPTY, BuildRef::union);
         let mut nodes = subtree(&mut refs, b, metric, 0);
         nodes.shrink_to_fit();
-        let items = refs.iter().map(|r| r.id).collect();
+        let items = refs.iter().map(|r| r.id()).collect();
         Bvh { nodes, items }
     }
 

@@ -6,6 +6,7 @@
 //! numbers.
 
 use glam::DVec3;
+use rayon::prelude::*;
 
 use super::triangle::{self, Triangle, TriangleOccluder};
 use super::{Aabb, Ray, SurfacePoint};
@@ -74,17 +75,24 @@ impl Meshes {
         }
         // Unit normals once per vertex (what a triangle's `with_normals`
         // computes for each corner).
-        let unit: Vec<DVec3> = normals.iter().map(|n| n.normalize_or_zero()).collect();
-        let mut shading = Vec::with_capacity(faces.len());
-        let before = faces.len();
-        faces.retain(|f| {
-            let v = f.map(|i| positions[i as usize]);
-            let Some(normal) = Triangle::face_normal(&v) else {
-                return false;
-            };
-            shading.push(if unit.is_empty() {
-                FLAT
-            } else {
+        let unit: Vec<DVec3> = normals
+            .par_iter()
+            .with_min_len(4096)
+            .map(|n| n.normalize_or_zero())
+            .collect();
+        // Each face's shading, or `DEGENERATE`, on all threads.
+        const DEGENERATE: u8 = u8::MAX;
+        let mut shading: Vec<u8> = faces
+            .par_iter()
+            .with_min_len(4096)
+            .map(|f| {
+                let v = f.map(|i| positions[i as usize]);
+                let Some(normal) = Triangle::face_normal(&v) else {
+                    return DEGENERATE;
+                };
+                if unit.is_empty() {
+                    return FLAT;
+                }
                 let n = f.map(|i| unit[i as usize]);
                 if n.iter().any(|n| *n == DVec3::ZERO || !n.is_finite()) {
                     FLAT
@@ -93,9 +101,15 @@ impl Meshes {
                 } else {
                     SMOOTH
                 }
-            });
-            true
+            })
+            .collect();
+        let before = faces.len();
+        let mut k = 0;
+        faces.retain(|_| {
+            k += 1;
+            shading[k - 1] != DEGENERATE
         });
+        shading.retain(|&s| s != DEGENERATE);
         let degenerate = before - faces.len();
         if faces.is_empty() {
             return Ok(degenerate);
@@ -185,6 +199,16 @@ impl Meshes {
     /// Every face's vertices with coordinates within `limit`, or the first
     /// face (counted over the scene's faces) that has one beyond it.
     pub fn check_range(&self, first_face: usize, limit: f64) -> Result<(), String> {
+        // Most meshes have every vertex in range: one parallel look at the
+        // vertices answers them; only otherwise are the faces searched.
+        if self
+            .positions
+            .par_iter()
+            .with_min_len(4096)
+            .all(|v| v.abs().max_element() <= limit)
+        {
+            return Ok(());
+        }
         for f in first_face..self.faces.len() {
             for v in self.vertices(f as u32) {
                 if v.abs().max_element() > limit {

@@ -105,7 +105,12 @@ impl Occluder {
                     // plane), treating that slab as not limiting.
                     let near = ax.min(bx).max(ay.min(by)).max(az.min(bz)).max(0.0);
                     let far = ax.max(bx).min(ay.max(by)).min(az.max(bz)).min(RAY_END);
-                    vis[j] = if near < far { 0.0 } else { vis[j] };
+                    // The box is closed, as its triangles are (edges
+                    // inclusive): a ray that enters and leaves at the same
+                    // t runs through an edge or corner and is blocked; the
+                    // segment stays open (t in (0, RAY_END)).
+                    let blocked = near <= far && far > 0.0 && near < RAY_END;
+                    vis[j] = if blocked { 0.0 } else { vis[j] };
                 }
             }
             Occluder::Rect {

@@ -1383,8 +1383,9 @@ fn a_dropped_mesh_joins_the_scene_and_its_toggle_hides_it() {
     settle(&mut h);
     let room = finished(h.state());
     let before = h.state().desc().objects.len();
-    h.state_mut().add_mesh(&file);
+    drop_file(&mut h, file.clone());
     h.step();
+    loaded(&mut h);
     let desc = h.state().desc().clone();
     assert_eq!(desc.objects.len(), before + 1);
     let penumbra::render::scene_file::ObjectDesc::Mesh(m) = desc.objects.last().unwrap() else {
@@ -1427,8 +1428,9 @@ fn a_dropped_mesh_joins_the_scene_and_its_toggle_hides_it() {
     // A file that is not a mesh is a banner, and the scene stays.
     let bad = dir.join("bad.obj");
     std::fs::write(&bad, "v 0 0 0\nf 1 2 3\n").unwrap();
-    h.state_mut().add_mesh(&bad);
+    drop_file(&mut h, bad.clone());
     h.step();
+    loaded(&mut h);
     assert!(
         h.state().banner().is_some_and(|b| b.contains("bad.obj")),
         "{:?}",

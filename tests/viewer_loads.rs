@@ -1,4 +1,4 @@
-//! Scene files in the viewer are read off the UI thread: frames go on
+//! Scene and mesh files in the viewer are read off the UI thread: frames go on
 //! while a load runs, a newer load supersedes an older one, a load can be
 //! cancelled, and a FIFO or device in place of a scene is refused with a
 //! banner instead of freezing the window.
@@ -146,9 +146,9 @@ fn frames_run_while_a_load_waits_a_newer_load_supersedes_it_and_cancel_keeps_the
     for _ in 0..10 {
         h.step();
     }
-    let (loading, _, reload) = h.state().loading().expect("a load under way");
+    let (loading, _, verb) = h.state().loading().expect("a load under way");
     assert_eq!(loading, a.as_path());
-    assert!(!reload);
+    assert_eq!(verb, "loading");
     h.get_by_label_contains(&format!("loading {}…", a.display()));
     assert_eq!(h.state().desc(), &seed);
 
@@ -204,4 +204,44 @@ fn a_big_scene_is_read_while_frames_go_on() {
     assert!(frames > 1, "{frames}");
     assert_eq!(h.state().desc().objects.len(), big.objects.len());
     assert!(h.state().banner().is_none(), "{:?}", h.state().banner());
+}
+
+/// A dropped mesh is read on the load thread too: frames go on with the
+/// progress strip while the file is read (here held by the test hook), the
+/// scene gains the mesh only when the read ends, and Cancel drops it.
+#[test]
+fn a_dropped_mesh_is_read_while_frames_go_on_and_can_be_cancelled() {
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = dir.path().join("tri.obj");
+    std::fs::write(&mesh, "v -1 0 0\nv 1 0 0\nv 0 2 0\nf 1 2 3\n").unwrap();
+    let mut h = harness(ViewerOptions::new(small_room()));
+    h.step();
+    let before = h.state().desc().objects.len();
+
+    h.state().hold_loads_for_tests(true);
+    drop_file(&mut h, &mesh);
+    for _ in 0..10 {
+        h.step();
+    }
+    let (reading, _, verb) = h.state().loading().expect("a read under way");
+    assert_eq!((reading, verb), (mesh.as_path(), "reading mesh"));
+    h.get_by_label_contains(&format!("reading mesh {}…", mesh.display()));
+    assert_eq!(h.state().desc().objects.len(), before);
+    h.state().hold_loads_for_tests(false);
+    assert!(h.state().wait_for_loads(WAIT));
+    h.step();
+    assert!(h.state().loading().is_none());
+    assert_eq!(h.state().desc().objects.len(), before + 1);
+    assert!(h.state().notice().unwrap().contains("added"));
+
+    // Cancelled: the scene stays as it was.
+    h.state().hold_loads_for_tests(true);
+    drop_file(&mut h, &mesh);
+    h.step();
+    h.get_by_role_and_label(Role::Button, "Cancel").click();
+    h.step();
+    h.state().hold_loads_for_tests(false);
+    assert!(h.state().wait_for_loads(WAIT));
+    h.step();
+    assert_eq!(h.state().desc().objects.len(), before + 1);
 }

@@ -204,15 +204,11 @@ pub fn mesh_object(desc: &SceneDesc, path: &Path, material: &str) -> Result<Obje
     Ok(ObjectDesc::Mesh(m))
 }
 
-/// Adds the mesh in `path` to the scene (see [`mesh_object`]); the chosen
-/// material is the list's.
-pub fn add_mesh(state: &ObjectListState, desc: &mut SceneDesc, path: &Path) -> Result<(), String> {
-    let material = if desc.materials.contains_key(&state.material) {
+/// The material an added mesh gets: the list's choice, if the scene has it.
+pub fn mesh_material(state: &ObjectListState, desc: &SceneDesc) -> String {
+    if desc.materials.contains_key(&state.material) {
         state.material.clone()
     } else {
         default_material(desc)
-    };
-    let object = mesh_object(desc, path, &material)?;
-    desc.objects.push(object);
-    Ok(())
+    }
 }

@@ -1,8 +1,9 @@
-//! Scene files in, off the UI thread: opening a scene and the hot reload
-//! (with its merge of the edits) run on a thread of their own, so that a
-//! big scene (10⁶ objects parse for seconds) or a file that is not one
-//! (a FIFO, a device: refused by the core's loader before a byte is read)
-//! never stops the window.
+//! Scene and mesh files in, off the UI thread: opening a scene, the hot
+//! reload (with its merge of the edits) and reading a mesh to add run on a
+//! thread of their own, so that a big scene (10⁶ objects parse for
+//! seconds), a big mesh, or a file that is not one (a FIFO, a device:
+//! refused by the core's loader before a byte is read) never stops the
+//! window.
 //!
 //! One load counts: a newer request supersedes the one under way (its
 //! result is dropped when it arrives), and a load can be cancelled. A
@@ -16,8 +17,10 @@ use std::sync::mpsc::{Receiver, Sender, channel};
 use std::sync::{Arc, Condvar, Mutex};
 use std::time::{Duration, Instant};
 
+use super::object_list::mesh_object;
 use super::viewer::merge_reload;
 use crate::render::SceneDesc;
+use crate::render::scene_file::ObjectDesc;
 
 /// What the file is read for.
 #[derive(Debug, Clone)]
@@ -32,6 +35,20 @@ pub enum LoadKind {
         base: Option<SceneDesc>,
         mine: SceneDesc,
     },
+    /// A mesh file to add to `scene` (it is placed in that scene's room),
+    /// in `material`.
+    AddMesh { scene: SceneDesc, material: String },
+}
+
+impl LoadKind {
+    /// What the progress strip says the thread is doing.
+    fn verb(&self) -> &'static str {
+        match self {
+            LoadKind::Open => "loading",
+            LoadKind::Reload { .. } => "reloading",
+            LoadKind::AddMesh { .. } => "reading mesh",
+        }
+    }
 }
 
 /// How a load ended.
@@ -48,6 +65,8 @@ pub enum LoadResult {
         /// was edited meanwhile).
         mine: SceneDesc,
     },
+    /// The mesh read, as the object to add.
+    MeshRead(ObjectDesc),
     /// The message for the banner (names the file).
     Failed(String),
 }
@@ -56,7 +75,7 @@ pub enum LoadResult {
 struct Running {
     id: u64,
     path: PathBuf,
-    reload: bool,
+    verb: &'static str,
     started: Instant,
     cancelled: Arc<AtomicBool>,
 }
@@ -98,7 +117,7 @@ impl SceneLoads {
         self.running = Some(Running {
             id,
             path: path.to_path_buf(),
-            reload: matches!(kind, LoadKind::Reload { .. }),
+            verb: kind.verb(),
             started: Instant::now(),
             cancelled: cancelled.clone(),
         });
@@ -159,12 +178,12 @@ impl SceneLoads {
         out
     }
 
-    /// The load under way: its path, how long it has run, whether it is a
-    /// reload.
-    pub fn busy(&self) -> Option<(&Path, Duration, bool)> {
+    /// The load under way: its path, how long it has run, and what it does
+    /// ("loading", "reloading", "reading mesh").
+    pub fn busy(&self) -> Option<(&Path, Duration, &'static str)> {
         self.running
             .as_ref()
-            .map(|r| (r.path.as_path(), r.started.elapsed(), r.reload))
+            .map(|r| (r.path.as_path(), r.started.elapsed(), r.verb))
     }
 
     /// Blocks until every load thread ended (tests only); false on timeout.
@@ -191,6 +210,13 @@ impl SceneLoads {
 /// Reads (and for a reload merges) on the load thread; `None` once
 /// cancelled.
 fn load(path: &Path, kind: LoadKind, cancelled: &AtomicBool) -> Option<LoadResult> {
+    if let LoadKind::AddMesh { scene, material } = &kind {
+        let read = mesh_object(scene, path, material);
+        if cancelled.load(Ordering::Relaxed) {
+            return None;
+        }
+        return Some(read.map_or_else(LoadResult::Failed, LoadResult::MeshRead));
+    }
     let theirs = match SceneDesc::load(path) {
         Ok(d) => d,
         Err(e) => return Some(LoadResult::Failed(e.to_string())),
@@ -200,6 +226,7 @@ fn load(path: &Path, kind: LoadKind, cancelled: &AtomicBool) -> Option<LoadResul
     }
     Some(match kind {
         LoadKind::Open => LoadResult::Opened(theirs),
+        LoadKind::AddMesh { .. } => unreachable!("read above"),
         LoadKind::Reload { base, mine } => {
             let merged = match &base {
                 Some(base) => merge_reload(base, &mine, &theirs),
@@ -217,15 +244,14 @@ fn load(path: &Path, kind: LoadKind, cancelled: &AtomicBool) -> Option<LoadResul
 /// The strip shown while a load runs: what, how long, and Cancel; true if
 /// Cancel was clicked.
 pub fn progress_ui(ui: &mut egui::Ui, loads: &SceneLoads) -> bool {
-    let Some((path, elapsed, reload)) = loads.busy() else {
+    let Some((path, elapsed, verb)) = loads.busy() else {
         return false;
     };
     let mut cancel = false;
     ui.horizontal(|ui| {
         ui.spinner();
         ui.label(format!(
-            "{} {}… {:.1} s",
-            if reload { "reloading" } else { "loading" },
+            "{verb} {}… {:.1} s",
             path.display(),
             elapsed.as_secs_f64()
         ));

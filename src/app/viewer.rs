@@ -745,8 +745,9 @@ impl Viewer {
         self.loads.start(ctx, &path, kind);
     }
 
-    /// A load under way: its path, how long it has run, whether a reload.
-    pub fn loading(&self) -> Option<(&Path, Duration, bool)> {
+    /// A load under way: its path, how long it has run, what it does
+    /// ("loading", "reloading", "reading mesh").
+    pub fn loading(&self) -> Option<(&Path, Duration, &'static str)> {
         self.loads.busy()
     }
 
@@ -786,6 +787,11 @@ impl Viewer {
                     _ => merged,
                 };
                 self.reloaded(&path, theirs, merged)
+            }
+            LoadResult::MeshRead(object) => {
+                self.desc.objects.push(object);
+                self.notice = Some(format!("added {}", path.display()));
+                self.restart();
             }
             LoadResult::Failed(e) => self.show_error(e),
         }
@@ -1222,16 +1228,15 @@ impl Viewer {
     }
 
     /// Adds a mesh file to the scene, on the floor and scaled to the room,
-    /// in the object list's material; a file that cannot be read is a
-    /// banner.
-    pub fn add_mesh(&mut self, path: &Path) {
-        match super::object_list::add_mesh(&self.objects, &mut self.desc, path) {
-            Ok(()) => {
-                self.notice = Some(format!("added {}", path.display()));
-                self.restart();
-            }
-            Err(e) => self.show_error(e),
-        }
+    /// in the object list's material. The file is read on the load thread
+    /// (as a scene is, with the progress strip and Cancel); one that cannot
+    /// be read is a banner.
+    pub fn add_mesh(&mut self, ctx: &egui::Context, path: &Path) {
+        let kind = LoadKind::AddMesh {
+            scene: self.desc.clone(),
+            material: super::object_list::mesh_material(&self.objects, &self.desc),
+        };
+        self.loads.start(ctx, path, kind);
     }
 
     /// Opens the path dialog. It starts in the folder last used in it;
@@ -1446,7 +1451,7 @@ impl Viewer {
                         Purpose::SavePng => self.save_png(&ctx, path),
                         Purpose::SaveScene => self.save_scene(&ctx, path),
                         Purpose::OpenReference => self.load_reference(&ctx, path),
-                        Purpose::AddMesh => self.add_mesh(&path),
+                        Purpose::AddMesh => self.add_mesh(&ctx, &path),
                     }
                 }
             }
@@ -1657,7 +1662,7 @@ impl Viewer {
                 // An image dropped on the window is a reference.
                 self.load_reference(ctx, path.clone());
             } else if super::object_list::is_mesh_file(path) {
-                self.add_mesh(path);
+                self.add_mesh(ctx, path);
             } else {
                 self.request_open(ctx, path);
             }

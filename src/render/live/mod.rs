@@ -40,7 +40,7 @@ use super::shading::{nearest_point_specular, sampled_specular_again};
 use super::shading_params::ShadingParams;
 use super::shadow::ShadowBuffers;
 use super::stats::RayStats;
-use super::tracer::{Tracer, replay_pixel};
+use super::tracer::{ReplayMaterial, Tracer, replay_materials, replay_pixel};
 
 /// Default memory cap of the records (see `record.rs` for the bytes per
 /// hit): the seed room at 960×540, 64 shadow rays, depth 4 needs ~40 MB.
@@ -98,6 +98,9 @@ impl Frame {
 pub struct LiveRender {
     cap: usize,
     current: Option<Current>,
+    /// An image given back by the caller ([`LiveRender::recycle`]): a
+    /// recombine writes every pixel of it instead of mapping fresh pages.
+    spare: Option<Film>,
 }
 
 impl Default for LiveRender {
@@ -109,7 +112,11 @@ impl Default for LiveRender {
 impl LiveRender {
     /// A live render whose records hold at most `cap` bytes.
     pub fn new(cap: usize) -> LiveRender {
-        LiveRender { cap, current: None }
+        LiveRender {
+            cap,
+            current: None,
+            spare: None,
+        }
     }
 
     /// Takes `other`'s scene (no records): the next render re-traces over
@@ -122,6 +129,12 @@ impl LiveRender {
             shading: c.shading.clone(),
             frame: None,
         });
+    }
+
+    /// Takes back an image this render gave, no longer needed: the next
+    /// recombine or re-shade of the same size writes into it.
+    pub fn recycle(&mut self, film: Film) {
+        self.spare = Some(film);
     }
 
     /// The memory cap of the records.
@@ -305,9 +318,15 @@ impl LiveRender {
         }
         let scene = current.scene.clone();
         let (width, height) = (scene.camera.width, scene.camera.height);
-        let film = Mutex::new(Film::new(width, height));
+        // Every tile is written (a cancelled render's image is dropped).
+        let film = match self.spare.take() {
+            Some(f) if (f.width, f.height) == (width, height) => f,
+            _ => Film::new(width, height),
+        };
+        let film = Mutex::new(film);
         let retraced = AtomicUsize::new(0);
         let tracer = Tracer::new(&scene, &settings, &shading, settings.shadow_rays);
+        let materials = replay_materials(&settings, &shading);
         let records = &frame.tiles;
         let rects: Vec<TileRect> = records.iter().map(|t| lock(t).rect).collect();
         let job = TileJob {
@@ -335,7 +354,7 @@ impl LiveRender {
                         &mut scratch.shadow,
                     );
                 }
-                let n = replay_tile(&tracer, &mut record, scratch, pixels);
+                let n = replay_tile(&tracer, &materials, &mut record, scratch, pixels);
                 retraced.fetch_add(n, Ordering::Relaxed);
                 true
             })
@@ -427,6 +446,7 @@ fn respecular_tile(
 /// whose paths an edit lengthened; returns how many were traced.
 fn replay_tile(
     tracer: &Tracer,
+    materials: &[ReplayMaterial],
     record: &mut TileRecord,
     scratch: &mut super::tracer::TraceScratch,
     out: &mut Vec<Vec3>,
@@ -438,7 +458,7 @@ fn replay_tile(
     for i in 0..pixels {
         let paths = (i * spp as usize..(i + 1) * spp as usize)
             .map(|p| (&record.hits[record.path_hits(p)], record.ends[p]));
-        match replay_pixel(paths, spp, tracer.settings, tracer.shading) {
+        match replay_pixel(paths, spp, tracer.settings, tracer.shading, materials) {
             Some(c) => out.push(c),
             None => {
                 short.push(i);

@@ -129,8 +129,8 @@ fn encoder() -> &'static Encoder {
 pub fn encode_channel(x: f32) -> u8 {
     let e = encoder();
     let t = &e.thresholds;
-    // NaN compares false.
-    if !(x >= t[0]) {
+    // Below the first threshold, or NaN.
+    if x.is_nan() || x < t[0] {
         return 0;
     }
     if x >= t[254] {

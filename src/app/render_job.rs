@@ -115,6 +115,10 @@ struct State {
     refine_to: u32,
     /// How tiles are converted for the screen.
     display: DisplayTransform,
+    /// The last finished render a newer request replaced: its image goes
+    /// back to the live render to be written over (a fresh one maps and
+    /// faults in new pages: milliseconds per edit).
+    spent: Option<Arc<FinishedRender>>,
 }
 
 impl Stop for State {
@@ -178,6 +182,9 @@ impl RenderJob {
         }
         if let Some(old) = s.pending.take() {
             s.state = Some((old.generation, JobState::Cancelled));
+        }
+        if let Some((_, JobState::Finished(f))) = s.state.take() {
+            s.spent = Some(f);
         }
         s.latest += 1;
         let generation = s.latest;
@@ -336,18 +343,32 @@ fn worker_loop(inner: &Inner) {
     let mut live = LiveRender::default();
     let mut kept = Kept::default();
     loop {
-        let Some((req, panic_now)) = inner.next(|s| {
+        let Some((req, panic_now, spent)) = inner.next(|s| {
             let req = s.pending.take()?;
             s.running = Some(req.cancel.clone());
             s.running_desc = Some((req.generation, req.desc.clone()));
             let size = (req.desc.camera.width, req.desc.camera.height);
-            s.film = Some((req.generation, Film::new(size.0, size.1)));
+            // The last image's pages, cleared, rather than fresh ones.
+            let film = match s.film.take() {
+                Some((_, mut f)) if (f.width, f.height) == size => {
+                    f.pixels.fill(glam::Vec3::ZERO);
+                    f
+                }
+                _ => Film::new(size.0, size.1),
+            };
+            s.film = Some((req.generation, film));
             let panic_now = std::mem::take(&mut s.panic_next);
             s.started += 1;
-            Some((req, panic_now))
+            Some((req, panic_now, s.spent.take()))
         }) else {
             return;
         };
+        // Unless the UI or an export still holds it.
+        if let Some(f) = spent.and_then(|f| Arc::try_unwrap(f).ok())
+            && let Ok(film) = Arc::try_unwrap(f.film)
+        {
+            live.recycle(film);
+        }
         let generation = req.generation;
         // A panic anywhere in the render (our callback included) ends this
         // generation with an error message; the thread and the window live on.

@@ -48,6 +48,7 @@ impl DisplayTransform {
     }
 
     /// Linear light to display light (before the sRGB encoding).
+    #[inline]
     pub fn map(&self, p: Vec3) -> Vec3 {
         // 2^0 is exactly 1, so the identity leaves every value as it is;
         // skipping the product spares a libm call per pixel at 0 EV.
@@ -68,6 +69,7 @@ impl DisplayTransform {
     }
 
     /// One pixel as the 8-bit sRGB code shown (NaN shows black).
+    #[inline]
     pub fn encode(&self, p: Vec3) -> [u8; 3] {
         encode_srgb8(self.map(p))
     }

@@ -82,25 +82,64 @@ impl Film {
 }
 
 /// Linear values where each 8-bit sRGB code begins: code k covers
-/// [THRESHOLDS[k-1], THRESHOLDS[k]). A binary search over them gives the
-/// correctly rounded code without evaluating `powf` per pixel.
-fn thresholds() -> &'static [f32; 255] {
-    static T: OnceLock<[f32; 255]> = OnceLock::new();
-    T.get_or_init(|| {
-        let mut t = [0.0f32; 255];
-        for (k, v) in t.iter_mut().enumerate() {
+/// [THRESHOLDS[k-1], THRESHOLDS[k]), so a value's code is the number of
+/// thresholds at or below it: the correctly rounded code without `powf`.
+struct Encoder {
+    thresholds: [f32; 255],
+    /// Top 16 bits (exponent and 8 mantissa bits) of the first bucket.
+    first: u32,
+    /// Per bucket of values sharing those bits, from the first threshold up
+    /// to 1: the code of its lowest value, at most one short of any value's
+    /// in the bucket (a bucket is 1/256 of an octave wide, narrower than the
+    /// gap between two thresholds; the table's build checks it).
+    start: Vec<u8>,
+}
+
+fn encoder() -> &'static Encoder {
+    static E: OnceLock<Encoder> = OnceLock::new();
+    E.get_or_init(|| {
+        let mut thresholds = [0.0f32; 255];
+        for (k, v) in thresholds.iter_mut().enumerate() {
             *v = srgb_to_linear((k as f32 + 0.5) / 255.0);
         }
-        t
+        let first = thresholds[0].to_bits() >> 15;
+        let last = 1.0f32.to_bits() >> 15;
+        let count = |x: f32| thresholds.partition_point(|&v| v <= x);
+        let start = (first..=last)
+            .map(|bucket| {
+                let lowest = count(f32::from_bits(bucket << 15));
+                let highest = count(f32::from_bits(((bucket + 1) << 15) - 1));
+                assert!(highest - lowest <= 1, "two thresholds in one bucket");
+                lowest as u8
+            })
+            .collect();
+        Encoder {
+            thresholds,
+            first,
+            start,
+        }
     })
 }
 
-/// One linear value to its 8-bit sRGB code (clamped; NaN gives 0).
+/// One linear value to its 8-bit sRGB code (clamped; NaN gives 0): the
+/// number of thresholds at or below it, counted from its bucket's start
+/// (a table look-up and one comparison instead of a binary search over
+/// 255 values: the viewer encodes every pixel of every edit).
 #[inline]
 pub fn encode_channel(x: f32) -> u8 {
-    let t = thresholds();
-    // partition_point: number of thresholds <= x (NaN compares false).
-    t.partition_point(|&v| v <= x) as u8
+    let e = encoder();
+    let t = &e.thresholds;
+    // Below the first threshold, or NaN.
+    if x.is_nan() || x < t[0] {
+        return 0;
+    }
+    if x >= t[254] {
+        return 255;
+    }
+    // t[0] <= x < t[254] < 1: a bucket of the table.
+    // Below 255: no more thresholds than x's are below the bucket's start.
+    let start = e.start[((x.to_bits() >> 15) - e.first) as usize];
+    start + (t[start as usize] <= x) as u8
 }
 
 /// A linear RGB pixel to 8-bit sRGB.
@@ -117,4 +156,42 @@ pub fn encode_srgb8(p: Vec3) -> [u8; 3] {
 pub fn decode_channel(c: u8) -> f32 {
     static T: OnceLock<[f32; 256]> = OnceLock::new();
     T.get_or_init(|| std::array::from_fn(|k| srgb_to_linear(k as f32 / 255.0)))[c as usize]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The code by a binary search over the thresholds (the definition).
+    fn by_search(x: f32) -> u8 {
+        encoder().thresholds.partition_point(|&v| v <= x) as u8
+    }
+
+    #[test]
+    fn the_bucketed_encoding_counts_the_thresholds_exactly() {
+        let t = encoder().thresholds;
+        // Every threshold and the 64 values on each side of it.
+        for &v in &t {
+            let mut x = v;
+            for _ in 0..64 {
+                x = x.next_down();
+            }
+            for _ in 0..129 {
+                assert_eq!(encode_channel(x), by_search(x), "{x:e}");
+                x = x.next_up();
+            }
+        }
+        // A sweep over every bit pattern step from −1 to 2, and the edges.
+        for bits in (0u32..=2.0f32.to_bits()).step_by(997) {
+            let x = f32::from_bits(bits);
+            assert_eq!(encode_channel(x), by_search(x), "{x:e}");
+            assert_eq!(encode_channel(-x), 0, "{:e}", -x);
+        }
+        for x in [0.0, -0.0, 1.0, f32::INFINITY, f32::MIN_POSITIVE, 1e-30] {
+            assert_eq!(encode_channel(x), by_search(x), "{x:e}");
+        }
+        assert_eq!(encode_channel(f32::NAN), 0);
+        assert_eq!(encode_channel(f32::NEG_INFINITY), 0);
+        assert_eq!((encode_channel(0.0), encode_channel(1.0)), (0, 255));
+    }
 }

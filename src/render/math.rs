@@ -32,6 +32,30 @@ pub(crate) use avx2_dispatch;
 
 use std::sync::atomic::{AtomicU8, Ordering};
 
+/// Whether the re-shading kernel runs with AVX-512 (F, VL, DQ, BW): where
+/// the CPU has it, unless `PENUMBRA_KERNELS` is `portable` or `avx2` (to
+/// compare the paths); chosen once per process.
+#[inline]
+pub fn avx512_kernels() -> bool {
+    static WIDE: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    avx2_kernels()
+        && *WIDE.get_or_init(|| {
+            let capped = std::env::var("PENUMBRA_KERNELS").is_ok_and(|v| v == "avx2");
+            #[cfg(target_arch = "x86_64")]
+            let wide = !capped
+                && std::arch::is_x86_feature_detected!("avx512f")
+                && std::arch::is_x86_feature_detected!("avx512vl")
+                && std::arch::is_x86_feature_detected!("avx512dq")
+                && std::arch::is_x86_feature_detected!("avx512bw");
+            #[cfg(not(target_arch = "x86_64"))]
+            let wide = {
+                let _ = capped;
+                false
+            };
+            wide
+        })
+}
+
 /// Which kernels run: 0 not chosen yet, 1 portable, 2 AVX2.
 static KERNELS: AtomicU8 = AtomicU8::new(0);
 

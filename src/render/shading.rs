@@ -215,46 +215,136 @@ pub fn visible_fraction(buf: &ShadowBuffers, count: usize) -> f32 {
     visible / count as f32
 }
 
-/// The specular factor again, for a new shininess, from a hit point's
-/// stored visibility: the light points drawn again (`rng` as at the hit),
-/// their directions from `to_corner`, and their visibility from the bits
-/// `visible` (bit j of word j / 64). The same operations as
-/// [`light_terms`], so the same bits.
-#[allow(clippy::too_many_arguments)]
-pub fn sampled_specular_again(
-    scene: &Scene,
-    pattern: &Pattern,
-    rng: &mut Rng,
-    to_corner: Vec3,
-    n: Vec3,
-    v: Vec3,
-    shininess: f32,
+/// Recorded hits whose specular factors [`respecular_batch`] computes side
+/// by side.
+pub const RESHADE_BATCH: usize = 8;
+
+/// What a recorded hit's specular factor depends on.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct RecordedHit {
+    /// From the hit point to the light's corner (as [`light_terms`] had it).
+    pub to_corner: Vec3,
+    pub normal: Vec3,
+    pub view: Vec3,
+    pub shininess: f32,
+}
+
+/// The light points of a batch of recorded hits: hit `h`'s points start at
+/// `h * stride` in `a` and `b` (a stride of 0: one fixed pattern for all).
+/// Each hit's slice is at least `count` rounded up to 8 long.
+pub struct BatchPoints<'a> {
+    pub a: &'a [f32],
+    pub b: &'a [f32],
+    pub stride: usize,
+    pub count: usize,
+    pub edge_u: Vec3,
+    pub edge_v: Vec3,
+}
+
+avx2_dispatch!(
+    /// [`respecular_batch`] on up to eight lanes.
+    fn respecular_batch_avx2(
+        hits: &[RecordedHit],
+        visible: &[u64],
+        points: &BatchPoints<'_>,
+        rows: &mut [f32],
+        out: &mut [f32],
+    ) => respecular_batch_generic
+);
+
+/// The specular factors of up to [`RESHADE_BATCH`] recorded hits for a
+/// new shininess, from their visibility bits (`visible`: each hit's
+/// `count.div_ceil(64)` words, bit j of word j / 64), into `out`. The
+/// operations of [`light_terms`] point by point and the same left-to-right
+/// sum per hit, so the same bits; the hits' sums run interleaved (one sum
+/// alone waits on each addition). `rows`: scratch of `RESHADE_BATCH` × `count` rounded up to 8. Sixteen
+/// lanes where the CPU has them: the same operations lane by lane, so the
+/// same bits, in half the instructions (a re-shade spends most of its time
+/// here).
+pub fn respecular_batch(
+    hits: &[RecordedHit],
     visible: &[u64],
-    buf: &mut ShadowBuffers,
-) -> f32 {
-    let count = pattern.count();
-    if visible.iter().all(|&w| w == 0) {
-        // Every term of the average is 0 × a finite factor.
-        return 0.0;
+    points: &BatchPoints<'_>,
+    rows: &mut [f32],
+    out: &mut [f32],
+) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        #[target_feature(enable = "avx512f,avx512vl,avx512dq,avx512bw")]
+        fn wide(
+            hits: &[RecordedHit],
+            visible: &[u64],
+            points: &BatchPoints<'_>,
+            rows: &mut [f32],
+            out: &mut [f32],
+        ) {
+            respecular_batch_generic(hits, visible, points, rows, out)
+        }
+        if super::math::avx512_kernels() {
+            // SAFETY: the CPU supports AVX-512 F, VL, DQ and BW
+            // (`avx512_kernels` checks).
+            return unsafe { wide(hits, visible, points, rows, out) };
+        }
     }
-    fill_light_points(pattern, rng, buf);
-    let light = &scene.light.shape;
-    shadow::light_directions(
-        to_corner,
-        light.edge_u.as_vec3(),
-        light.edge_v.as_vec3(),
-        n,
-        count,
-        buf,
-    );
-    for (j, v) in buf.vis[..count].iter_mut().enumerate() {
-        *v = if visible[j / 64] >> (j % 64) & 1 == 1 {
-            1.0
-        } else {
-            0.0
-        };
+    respecular_batch_avx2(hits, visible, points, rows, out)
+}
+
+#[inline(always)]
+fn respecular_batch_generic(
+    hits: &[RecordedHit],
+    visible: &[u64],
+    points: &BatchPoints<'_>,
+    rows: &mut [f32],
+    out: &mut [f32],
+) {
+    let count = points.count;
+    let padded = count.next_multiple_of(8);
+    let words = count.div_ceil(64);
+    let (eu, ev) = (points.edge_u, points.edge_v);
+    for (h, hit) in hits.iter().enumerate() {
+        let base = h * points.stride;
+        let (a, b) = (
+            &points.a[base..base + padded],
+            &points.b[base..base + padded],
+        );
+        let bits = &visible[h * words..(h + 1) * words];
+        let row = &mut rows[h * padded..(h + 1) * padded];
+        let (c0, n, v, shininess) = (hit.to_corner, hit.normal, hit.view, hit.shininess);
+        // One branch-free loop (the points' chains of divisions and square
+        // roots overlap); the bits mask each term at the end.
+        for j in 0..padded {
+            // As `light_directions`, then `specular_terms`.
+            let (x, y, z) = (
+                c0.x + eu.x * a[j] + ev.x * b[j],
+                c0.y + eu.y * a[j] + ev.y * b[j],
+                c0.z + eu.z * a[j] + ev.z * b[j],
+            );
+            let inv = 1.0 / (x * x + y * y + z * z).sqrt();
+            let (hx, hy, hz) = (x * inv + v.x, y * inv + v.y, z * inv + v.z);
+            let h2 = hx * hx + hy * hy + hz * hz;
+            let c = ((n.x * hx + n.y * hy + n.z * hz) / h2.sqrt()).max(0.0);
+            let c = if h2 > 0.0 { c } else { 0.0 };
+            row[j] = pow_approx(c, shininess);
+        }
+        // Eight points per byte of the bits (the padding's bits are 0).
+        for (k, terms) in row.chunks_exact_mut(8).enumerate() {
+            let byte = (bits[k / 8] >> (k % 8 * 8)) as u8;
+            for (l, term) in terms.iter_mut().enumerate() {
+                *term *= ((byte >> l) & 1) as f32;
+            }
+        }
     }
-    specular_average(n, v, shininess, count, buf)
+    // Each hit's sum left to right from −0 (as `Iterator::sum`); rows past
+    // `hits.len()` hold finite leftovers and are not read out.
+    let mut sums = [-0.0f32; RESHADE_BATCH];
+    for j in 0..count {
+        for (h, sum) in sums.iter_mut().enumerate() {
+            *sum += rows[h * padded + j];
+        }
+    }
+    for (o, s) in out.iter_mut().zip(sums).take(hits.len()) {
+        *o = s * (1.0 / count as f32);
+    }
 }
 
 avx2_dispatch!(
@@ -335,33 +425,6 @@ fn sequential_sums<const K: usize>(slices: [&[f32]; K]) -> [f32; K] {
         }
     }
     sums
-}
-
-/// A slice's sum, left to right from −0 (as `Iterator::sum`).
-#[inline(always)]
-fn sequential_sum(a: &[f32]) -> f32 {
-    a.iter().fold(-0.0f32, |s, x| s + x)
-}
-
-avx2_dispatch!(
-    /// The specular factor alone (see [`sampled_terms`]).
-    fn specular_average(n: Vec3, v: Vec3, shininess: f32, count: usize, buf: &mut ShadowBuffers) -> f32
-        => specular_average_generic
-);
-
-/// max(0, N·H)^shininess averaged over the light points, each weighted by
-/// its visibility: the specular half of [`sampled_terms`], shared with the
-/// re-shading of recorded hits so that both give the same bits.
-#[inline(always)]
-fn specular_average_generic(
-    n: Vec3,
-    v: Vec3,
-    shininess: f32,
-    count: usize,
-    buf: &mut ShadowBuffers,
-) -> f32 {
-    specular_terms(n, v, shininess, count, buf);
-    sequential_sum(&buf.term_s[..count]) * (1.0 / count as f32)
 }
 
 /// Fills `buf.term_s` with each light point's max(0, N·H)^shininess times

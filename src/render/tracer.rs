@@ -291,6 +291,32 @@ impl<'a> Tracer<'a> {
     }
 }
 
+/// What [`replay`] needs of each material, computed once per replay: the
+/// colour products of [`local_colour`] (the same operations, so the same
+/// bits) and the reflectivity.
+#[derive(Debug, Clone, Copy)]
+pub struct ReplayMaterial {
+    ambient: Vec3,
+    kd: Vec3,
+    ks: Vec3,
+    reflectivity: f32,
+}
+
+/// The materials of `shading` as [`replay`] uses them.
+pub fn replay_materials(settings: &RenderSettings, shading: &ShadingParams) -> Vec<ReplayMaterial> {
+    let (light, terms) = (&shading.light, settings.terms);
+    shading
+        .materials
+        .iter()
+        .map(|m| ReplayMaterial {
+            ambient: m.ambient * light.ambient * terms.x,
+            kd: m.diffuse * light.diffuse * terms.y,
+            ks: m.specular * light.specular * terms.z,
+            reflectivity: m.reflectivity,
+        })
+        .collect()
+}
+
 /// The colour of a pixel from its recorded paths (`paths` yields each
 /// sample's hits and end), with the arithmetic of [`Tracer::trace`];
 /// `None` if an edit made a path longer than what was recorded.
@@ -300,38 +326,43 @@ pub fn replay_pixel<'r>(
     spp: u32,
     settings: &RenderSettings,
     shading: &ShadingParams,
+    materials: &[ReplayMaterial],
 ) -> Option<Vec3> {
     if spp == 1 {
         let (hits, end) = paths.next()?;
-        return replay(hits, end, settings, shading);
+        return replay(hits, end, settings, shading, materials);
     }
     let mut sum = Vec3::ZERO;
     for (hits, end) in paths {
-        sum += replay(hits, end, settings, shading)?;
+        sum += replay(hits, end, settings, shading, materials)?;
     }
     Some(sum * (1.0 / spp as f32))
 }
 
 /// The colour of a recorded path under (possibly edited) shading
-/// parameters, with the arithmetic of [`Tracer::trace_path`]; `None` if the
-/// edit makes the path longer than what was recorded (a reflectivity that
-/// was 0, or a weight that was below the cut-off), so it must be traced.
+/// parameters (`materials` from [`replay_materials`]), with the arithmetic
+/// of [`Tracer::trace_path`]; `None` if the edit makes the path longer than
+/// what was recorded (a reflectivity that was 0, or a weight that was below
+/// the cut-off), so it must be traced.
 #[inline]
 pub fn replay(
     hits: &[ColourHit],
     end: PathEnd,
     settings: &RenderSettings,
     shading: &ShadingParams,
+    materials: &[ReplayMaterial],
 ) -> Option<Vec3> {
     let mut colour = Vec3::ZERO;
     let mut weight = 1.0f32;
     for (k, hit) in hits.iter().enumerate() {
-        let material = &shading.materials[hit.material as usize];
-        colour += local_colour(material, &shading.light, settings.terms, hit.factors) * weight;
-        if material.reflectivity == 0.0 || k as u32 + 1 == settings.max_depth {
+        let m = &materials[hit.material as usize];
+        // `local_colour` with its products precomputed.
+        let f = hit.factors;
+        colour += (m.ambient + (m.kd * f.diffuse + m.ks * f.specular)) * weight;
+        if m.reflectivity == 0.0 || k as u32 + 1 == settings.max_depth {
             return Some(colour);
         }
-        weight *= material.reflectivity;
+        weight *= m.reflectivity;
         if settings.skip && weight < MIN_PATH_WEIGHT {
             return Some(colour);
         }

@@ -24,7 +24,7 @@ use std::time::{Duration, Instant};
 use glam::Vec3;
 
 pub use edit::{EditClass, classify};
-use record::{Budget, TileRecord, TileRecorder, shininess_of};
+use record::{Budget, ColourHit, TileRecord, TileRecorder, shininess_of};
 
 use super::error::SceneError;
 use super::film::Film;
@@ -33,14 +33,16 @@ use super::progressive::{
     pass_plan, render_passes,
 };
 use super::rng::Rng;
+use super::sampling::Pattern;
 use super::scene::{Loaded, Scene};
 use super::scene_file::{AreaLightModel, SceneDesc};
 use super::settings::RenderSettings;
-use super::shading::{nearest_point_specular, sampled_specular_again};
+use super::shading::{
+    BatchPoints, RESHADE_BATCH, RecordedHit, nearest_point_specular, respecular_batch,
+};
 use super::shading_params::ShadingParams;
-use super::shadow::ShadowBuffers;
 use super::stats::RayStats;
-use super::tracer::{Tracer, replay_pixel};
+use super::tracer::{ReplayMaterial, Tracer, replay_materials, replay_pixel};
 
 /// Default memory cap of the records (see `record.rs` for the bytes per
 /// hit): the seed room at 960×540, 64 shadow rays, depth 4 needs ~40 MB.
@@ -98,6 +100,9 @@ impl Frame {
 pub struct LiveRender {
     cap: usize,
     current: Option<Current>,
+    /// An image given back by the caller ([`LiveRender::recycle`]): a
+    /// recombine writes every pixel of it instead of mapping fresh pages.
+    spare: Option<Film>,
 }
 
 impl Default for LiveRender {
@@ -109,7 +114,11 @@ impl Default for LiveRender {
 impl LiveRender {
     /// A live render whose records hold at most `cap` bytes.
     pub fn new(cap: usize) -> LiveRender {
-        LiveRender { cap, current: None }
+        LiveRender {
+            cap,
+            current: None,
+            spare: None,
+        }
     }
 
     /// Takes `other`'s scene (no records): the next render re-traces over
@@ -122,6 +131,12 @@ impl LiveRender {
             shading: c.shading.clone(),
             frame: None,
         });
+    }
+
+    /// Takes back an image this render gave, no longer needed: the next
+    /// recombine or re-shade of the same size writes into it.
+    pub fn recycle(&mut self, film: Film) {
+        self.spare = Some(film);
     }
 
     /// The memory cap of the records.
@@ -305,9 +320,15 @@ impl LiveRender {
         }
         let scene = current.scene.clone();
         let (width, height) = (scene.camera.width, scene.camera.height);
-        let film = Mutex::new(Film::new(width, height));
+        // Every tile is written (a cancelled render's image is dropped).
+        let film = match self.spare.take() {
+            Some(f) if (f.width, f.height) == (width, height) => f,
+            _ => Film::new(width, height),
+        };
+        let film = Mutex::new(film);
         let retraced = AtomicUsize::new(0);
         let tracer = Tracer::new(&scene, &settings, &shading, settings.shadow_rays);
+        let materials = replay_materials(&settings, &shading);
         let records = &frame.tiles;
         let rects: Vec<TileRect> = records.iter().map(|t| lock(t).rect).collect();
         let job = TileJob {
@@ -332,10 +353,10 @@ impl LiveRender {
                         &tracer,
                         &shininess,
                         &mut record,
-                        &mut scratch.shadow,
+                        &mut ReshadeBatch::default(),
                     );
                 }
-                let n = replay_tile(&tracer, &mut record, scratch, pixels);
+                let n = replay_tile(&tracer, &materials, &mut record, scratch, pixels);
                 retraced.fetch_add(n, Ordering::Relaxed);
                 true
             })
@@ -359,13 +380,14 @@ impl LiveRender {
 }
 
 /// Computes the specular factors of a tile's hits whose material's
-/// shininess differs from `shininess`, from their recorded visibility.
+/// shininess differs from `shininess`, from their recorded visibility, in
+/// batches of [`RESHADE_BATCH`] hits.
 fn respecular_tile(
     scene: &Scene,
     tracer: &Tracer,
     shininess: &Arc<[f32]>,
     record: &mut TileRecord,
-    buf: &mut ShadowBuffers,
+    batch: &mut ReshadeBatch,
 ) {
     let respecular: Vec<bool> = shininess
         .iter()
@@ -383,7 +405,10 @@ fn respecular_tile(
         ..
     } = record;
     let shapes = shapes.as_ref().expect("the shininess tier");
+    let words = shapes.words;
     let spp = tracer.samples() as usize;
+    let light = &scene.light.shape;
+    batch.start(pattern);
     // One path per camera sample, pixel by pixel.
     for (path, w) in starts.windows(2).enumerate() {
         let (i, sample) = (path / spp, (path % spp) as u32);
@@ -394,32 +419,127 @@ fn respecular_tile(
                 continue;
             }
             let shape = &shapes.hits[h];
-            let visible = &shapes.visible[h * shapes.words..(h + 1) * shapes.words];
+            let visible = &shapes.visible[h * words..(h + 1) * words];
             let shininess = shading.materials[hit.material as usize].shininess;
-            hit.factors.specular = match settings.model {
-                AreaLightModel::NearestPoint => {
-                    let seen: u32 = visible.iter().map(|w| w.count_ones()).sum();
+            if settings.model == AreaLightModel::NearestPoint {
+                let seen: u32 = visible.iter().map(|w| w.count_ones()).sum();
+                hit.factors.specular =
                     nearest_point_specular(shape.normal, shape.to_light, shape.view, shininess)
-                        * (seen as f32 / count as f32)
-                }
-                // `exact` frames keep no shininess tier (see `retrace`):
-                // their specular factors come from no visibility bits.
-                AreaLightModel::Sampled | AreaLightModel::Analytic | AreaLightModel::Exact => {
-                    let mut rng = Rng::for_sample(settings.seed, x, y, sample, k as u32 + 1);
-                    sampled_specular_again(
-                        scene,
-                        pattern,
-                        &mut rng,
-                        shape.to_light,
-                        shape.normal,
-                        shape.view,
-                        shininess,
-                        visible,
-                        buf,
-                    )
-                }
+                        * (seen as f32 / count as f32);
+                continue;
+            }
+            // `sampled` and `analytic` (`exact` frames keep no shininess
+            // tier, see `retrace`: their factors come from no bits).
+            if visible.iter().all(|&w| w == 0) {
+                // Every term of the average is 0 × a finite factor.
+                hit.factors.specular = 0.0;
+                continue;
+            }
+            let recorded = RecordedHit {
+                to_corner: shape.to_light,
+                normal: shape.normal,
+                view: shape.view,
+                shininess,
             };
+            let rng = || Rng::for_sample(settings.seed, x, y, sample, k as u32 + 1);
+            if batch.push(h, recorded, visible, pattern, rng) {
+                batch.flush(light.edge_u.as_vec3(), light.edge_v.as_vec3(), hits);
+            }
         }
+    }
+    batch.flush(light.edge_u.as_vec3(), light.edge_v.as_vec3(), hits);
+}
+
+/// Recorded hits waiting for their specular factors (per thread, reused
+/// from tile to tile).
+#[derive(Default)]
+struct ReshadeBatch {
+    /// Index of each waiting hit in its tile's records.
+    index: Vec<usize>,
+    hits: Vec<RecordedHit>,
+    visible: Vec<u64>,
+    /// Light points: one fixed pattern, or each waiting hit's own.
+    a: Vec<f32>,
+    b: Vec<f32>,
+    fixed: bool,
+    count: usize,
+    rows: Vec<f32>,
+    out: [f32; RESHADE_BATCH],
+}
+
+impl ReshadeBatch {
+    /// Prepares for the hits of a frame traced with `pattern`.
+    fn start(&mut self, pattern: &Pattern) {
+        let padded = pattern.count().next_multiple_of(8);
+        self.count = pattern.count();
+        self.fixed = pattern.is_fixed();
+        let points = if self.fixed { 1 } else { RESHADE_BATCH };
+        self.a.resize(points * padded, 0.0);
+        self.b.resize(points * padded, 0.0);
+        if self.fixed {
+            pattern.fill(&mut Rng::new(0), &mut self.a, &mut self.b);
+        }
+        self.rows.resize(RESHADE_BATCH * padded, 0.0);
+        self.index.clear();
+        self.hits.clear();
+        self.visible.clear();
+    }
+
+    /// Adds a hit (its light points drawn from `rng()` unless the pattern
+    /// is fixed); true once the batch is full.
+    fn push(
+        &mut self,
+        index: usize,
+        hit: RecordedHit,
+        visible: &[u64],
+        pattern: &Pattern,
+        rng: impl FnOnce() -> Rng,
+    ) -> bool {
+        if !self.fixed {
+            let padded = self.count.next_multiple_of(8);
+            let base = self.hits.len() * padded;
+            pattern.fill(
+                &mut rng(),
+                &mut self.a[base..base + padded],
+                &mut self.b[base..base + padded],
+            );
+        }
+        self.index.push(index);
+        self.hits.push(hit);
+        self.visible.extend_from_slice(visible);
+        self.hits.len() == RESHADE_BATCH
+    }
+
+    /// Computes the waiting hits' specular factors into `hits`.
+    fn flush(&mut self, edge_u: Vec3, edge_v: Vec3, hits: &mut [ColourHit]) {
+        if self.hits.is_empty() {
+            return;
+        }
+        let points = BatchPoints {
+            a: &self.a,
+            b: &self.b,
+            stride: if self.fixed {
+                0
+            } else {
+                self.count.next_multiple_of(8)
+            },
+            count: self.count,
+            edge_u,
+            edge_v,
+        };
+        respecular_batch(
+            &self.hits,
+            &self.visible,
+            &points,
+            &mut self.rows,
+            &mut self.out,
+        );
+        for (&i, &s) in self.index.iter().zip(&self.out) {
+            hits[i].factors.specular = s;
+        }
+        self.index.clear();
+        self.hits.clear();
+        self.visible.clear();
     }
 }
 
@@ -427,6 +547,7 @@ fn respecular_tile(
 /// whose paths an edit lengthened; returns how many were traced.
 fn replay_tile(
     tracer: &Tracer,
+    materials: &[ReplayMaterial],
     record: &mut TileRecord,
     scratch: &mut super::tracer::TraceScratch,
     out: &mut Vec<Vec3>,
@@ -438,7 +559,7 @@ fn replay_tile(
     for i in 0..pixels {
         let paths = (i * spp as usize..(i + 1) * spp as usize)
             .map(|p| (&record.hits[record.path_hits(p)], record.ends[p]));
-        match replay_pixel(paths, spp, tracer.settings, tracer.shading) {
+        match replay_pixel(paths, spp, tracer.settings, tracer.shading, materials) {
             Some(c) => out.push(c),
             None => {
                 short.push(i);

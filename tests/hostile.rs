@@ -613,10 +613,10 @@ fn mesh_errors_quote_long_values_cut() {
         .push(json!({"type": "mesh", "file": name, "material": "white"}));
     let mut desc = SceneDesc::from_json(&v.to_string()).unwrap();
     desc.base_dir = Some(dir);
-    let e = Loaded::new(&desc)
-        .err()
-        .expect("no such mesh file")
-        .to_string();
+    let Err(e) = Loaded::new(&desc) else {
+        panic!("no such mesh file")
+    };
+    let e = e.to_string();
     assert!(
         e.contains("(100004 characters)") && e.len() < 1000,
         "{} characters: {e:.200}",

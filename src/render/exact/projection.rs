@@ -363,10 +363,11 @@ pub fn sphere_shadow(
         CircleFit::SameArea => (step / step.sin()).sqrt(),
     };
     s.face.clear();
-    s.face.extend((0..n).map(|i| {
-        let (sn, cs) = (i as f64 * step).sin_cos();
-        centre + (u * cs + w * sn) * (rho * scale)
-    }));
+    let ring = unit_ring(n);
+    s.face.extend(
+        ring.iter()
+            .map(|&(sn, cs)| centre + (u * cs + w * sn) * (rho * scale)),
+    );
     s.points.clear();
     let ProjectScratch {
         face,
@@ -384,4 +385,19 @@ pub fn sphere_shadow(
         out.clear();
     }
     Ok(())
+}
+
+/// (sin, cos) of i · 2π/n for i < n: the same values as computing them,
+/// kept for the usual n (every sphere of every hit point needs them).
+fn unit_ring(n: usize) -> std::borrow::Cow<'static, [(f64, f64)]> {
+    let make = |n: usize| -> Vec<(f64, f64)> {
+        let step = std::f64::consts::TAU / n as f64;
+        (0..n).map(|i| (i as f64 * step).sin_cos()).collect()
+    };
+    static USUAL: std::sync::OnceLock<Vec<(f64, f64)>> = std::sync::OnceLock::new();
+    if n == super::SPHERE_EDGES {
+        std::borrow::Cow::Borrowed(USUAL.get_or_init(|| make(n)))
+    } else {
+        std::borrow::Cow::Owned(make(n))
+    }
 }

@@ -65,7 +65,7 @@ ratio() { awk -v a="$1" -v b="$2" 'BEGIN { printf "%.1f", a / b }'; }
 pw=$(med "${pen_wall[@]}"); pc=$(med "${pen_cpu[@]}")
 vw=$(med "${pov_wall[@]}"); vc=$(med "${pov_cpu[@]}")
 echo "medians of $RUNS runs at ${WIDTH}x${HEIGHT} on $THREADS threads:"
-echo "  wall: penumbra $pw s, povray $vw s: penumbra $(ratio "$vw" "$pw")x faster (goal >= 25x)"
+echo "  wall: penumbra $pw s, povray $vw s: penumbra $(ratio "$vw" "$pw")x faster (goal >= 50x)"
 echo "  CPU:  penumbra $pc s, povray $vc s: penumbra $(ratio "$vc" "$pc")x less CPU time"
 echo "penumbra's own timing (render only):"
 grep -E '^[0-9]+×[0-9]+ in' "$OUT/penumbra.log" | tail -n "$RUNS" | sed 's/^/  /'

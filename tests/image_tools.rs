@@ -4,48 +4,18 @@
 
 use std::time::Duration;
 
+mod common;
+
+use common::viewer::harness;
+use common::viewer::{WAIT, double_click, finished, settle, small_room};
 use egui_kittest::Harness;
 use egui_kittest::kittest::Queryable;
 use penumbra::app::image_view::{MAX_ZOOM, Zoom};
 use penumbra::app::pinned::CompareMode;
-use penumbra::app::render_job::JobState;
 use penumbra::app::{Viewer, ViewerOptions};
 use penumbra::render::compare::{compare, diff_image};
 use penumbra::render::output::read_film;
-use penumbra::render::{DisplayTransform, Film, Loaded, SEED_ROOM_JSON, SceneDesc, ToneCurve};
-
-const WAIT: Duration = Duration::from_secs(60);
-
-/// The seed room at 64×36 with few shadow rays.
-fn small_room() -> SceneDesc {
-    let mut d = SceneDesc::from_json(SEED_ROOM_JSON).unwrap();
-    d.camera.width = 64;
-    d.camera.height = 36;
-    d.render.shadow_rays = 16;
-    d
-}
-
-fn harness() -> Harness<'static, Viewer> {
-    Harness::builder()
-        .with_size([1280.0, 960.0])
-        .with_step_dt(1.0 / 60.0)
-        .build_ui_state(
-            |ui, v: &mut Viewer| v.show(ui, None),
-            Viewer::new(ViewerOptions::new(small_room())),
-        )
-}
-
-fn settle(h: &mut Harness<'static, Viewer>) {
-    assert!(h.state().wait_for_render(WAIT), "render did not finish");
-    h.step();
-}
-
-fn finished(v: &Viewer) -> Film {
-    match v.render_state() {
-        Some(JobState::Finished(f)) => (*f.film).clone(),
-        other => panic!("render did not finish: {other:?}"),
-    }
-}
+use penumbra::render::{DisplayTransform, Loaded, ToneCurve};
 
 /// The bytes the texture holds, as RGB.
 fn shown_rgb(v: &Viewer) -> Vec<u8> {
@@ -63,7 +33,7 @@ const BRIGHT_FILMIC: DisplayTransform = DisplayTransform {
 
 #[test]
 fn exposure_curve_zoom_and_pin_leave_the_linear_film_as_rendered() {
-    let mut h = harness();
+    let mut h = harness(ViewerOptions::new(small_room()));
     settle(&mut h);
     let core = Loaded::new(&small_room()).unwrap().render_image();
     assert_eq!(finished(h.state()), core);
@@ -119,7 +89,7 @@ fn exposure_curve_zoom_and_pin_leave_the_linear_film_as_rendered() {
 #[test]
 fn a_saved_png_is_what_is_shown_and_an_exr_stays_linear() {
     let dir = tempfile::tempdir().unwrap();
-    let mut h = harness();
+    let mut h = harness(ViewerOptions::new(small_room()));
     settle(&mut h);
     h.state_mut().set_display(BRIGHT_FILMIC);
     h.step();
@@ -147,29 +117,9 @@ fn a_saved_png_is_what_is_shown_and_an_exr_stays_linear() {
     assert!(h.state().banner().is_none(), "{:?}", h.state().banner());
 }
 
-/// Double-clicks at `pos` (two clicks 50 ms apart).
-fn double_click(h: &mut Harness<'static, Viewer>, pos: egui::Pos2) {
-    h.event(egui::Event::PointerMoved(pos));
-    h.step();
-    let t0 = h.ctx.input(|i| i.time) + 1.0;
-    for (k, pressed) in [true, false, true, false].into_iter().enumerate() {
-        h.input_mut().time = Some(t0 + 0.05 * k as f64);
-        h.input_mut().events.push(egui::Event::PointerButton {
-            pos,
-            button: egui::PointerButton::Primary,
-            pressed,
-            modifiers: egui::Modifiers::NONE,
-        });
-        if k < 3 {
-            h.step();
-        }
-    }
-    h.step();
-}
-
 #[test]
 fn at_32x_the_inspector_picks_the_pixel_under_the_cursor_live_and_pinned() {
-    let mut h = harness();
+    let mut h = harness(ViewerOptions::new(small_room()));
     settle(&mut h);
     let a = finished(h.state());
     h.key_press(egui::Key::P);
@@ -209,7 +159,7 @@ fn at_32x_the_inspector_picks_the_pixel_under_the_cursor_live_and_pinned() {
 
 #[test]
 fn ctrl_wheel_zooms_the_image_about_the_cursor_and_the_wheel_still_zooms_the_camera() {
-    let mut h = harness();
+    let mut h = harness(ViewerOptions::new(small_room()));
     settle(&mut h);
     let camera = h.state().desc().camera.clone();
     h.step();
@@ -275,7 +225,7 @@ fn settle_difference(h: &mut Harness<'static, Viewer>) {
 
 #[test]
 fn the_difference_against_the_pinned_image_is_the_cores() {
-    let mut h = harness();
+    let mut h = harness(ViewerOptions::new(small_room()));
     settle(&mut h);
     let a = finished(h.state());
     h.get_by_label("Pin A").click();
@@ -311,7 +261,7 @@ fn the_difference_against_the_pinned_image_is_the_cores() {
 
 #[test]
 fn a_still_image_with_its_tools_asks_for_no_frames_and_flicker_asks_for_some() {
-    let mut h = harness();
+    let mut h = harness(ViewerOptions::new(small_room()));
     settle(&mut h);
     h.key_press(egui::Key::P);
     h.step();

@@ -4,6 +4,11 @@
 use std::path::Path;
 use std::time::{Duration, Instant};
 
+mod common;
+
+use common::viewer::{
+    WAIT, double_click, drop_file, finished, harness, settle, small_room, step_until,
+};
 use egui::accesskit::Role;
 use egui_kittest::Harness;
 use egui_kittest::kittest::Queryable;
@@ -12,32 +17,6 @@ use penumbra::app::{Viewer, ViewerOptions};
 use penumbra::render::SEED_ROOM_JSON;
 use penumbra::render::film::encode_srgb8;
 use penumbra::render::{Film, Loaded, SceneDesc};
-
-const WAIT: Duration = Duration::from_secs(60);
-
-/// The seed room at 64×36 with few shadow rays.
-fn small_room() -> SceneDesc {
-    let mut d = SceneDesc::from_json(SEED_ROOM_JSON).unwrap();
-    d.camera.width = 64;
-    d.camera.height = 36;
-    d.render.shadow_rays = 16;
-    d
-}
-
-fn harness(options: ViewerOptions) -> Harness<'static, Viewer> {
-    Harness::builder()
-        .with_size([1280.0, 960.0])
-        // Real frame times, so that two clicks make a double-click.
-        .with_step_dt(1.0 / 60.0)
-        .build_ui_state(|ui, v: &mut Viewer| v.show(ui, None), Viewer::new(options))
-}
-
-/// Waits for the latest render to end, then runs a frame so its last
-/// tiles reach the texture.
-fn settle(h: &mut Harness<'static, Viewer>) {
-    assert!(h.state().wait_for_render(WAIT), "render did not finish");
-    h.step();
-}
 
 fn core_render(desc: &SceneDesc) -> Film {
     Loaded::new(desc).unwrap().render_image()
@@ -58,13 +37,6 @@ fn room_render(edit: impl FnOnce(&mut SceneDesc)) -> Film {
     let mut desc = small_room();
     edit(&mut desc);
     core_render(&desc)
-}
-
-fn finished(v: &Viewer) -> Film {
-    match v.render_state() {
-        Some(JobState::Finished(f)) => (*f.film).clone(),
-        other => panic!("render did not finish: {other:?}"),
-    }
 }
 
 #[test]
@@ -253,16 +225,6 @@ fn write(path: &Path, text: &str) {
     std::fs::rename(&tmp, path).unwrap();
 }
 
-/// Steps frames until `done` or a timeout.
-fn step_until(h: &mut Harness<'static, Viewer>, done: impl Fn(&Viewer) -> bool) {
-    let start = Instant::now();
-    while !done(h.state()) {
-        assert!(start.elapsed() < Duration::from_secs(20), "timed out");
-        h.step();
-        std::thread::sleep(Duration::from_millis(20));
-    }
-}
-
 #[test]
 fn a_broken_scene_file_shows_a_banner_and_keeps_the_old_image() {
     let dir = tempfile::tempdir().unwrap();
@@ -359,23 +321,7 @@ fn dragging_the_image_orbits_the_camera_and_double_click_picks() {
 
     let film = finished(h.state());
     // Double-click the middle of the image: the back wall is there.
-    h.event(egui::Event::PointerMoved(centre));
-    h.step();
-    // Two clicks 50 ms apart (frame times set explicitly).
-    let t0 = h.ctx.input(|i| i.time) + 1.0;
-    for (k, pressed) in [true, false, true, false].into_iter().enumerate() {
-        h.input_mut().time = Some(t0 + 0.05 * k as f64);
-        h.input_mut().events.push(egui::Event::PointerButton {
-            pos: centre,
-            button: egui::PointerButton::Primary,
-            pressed,
-            modifiers: egui::Modifiers::NONE,
-        });
-        if k < 3 {
-            h.step();
-        }
-    }
-    h.step();
+    double_click(&mut h, centre);
     let pick = h.state().pick().expect("double-click shows a pick").clone();
     assert!(pick.what.contains("objects["), "{pick:?}");
     assert!(pick.material.is_some());
@@ -646,29 +592,10 @@ fn values_outside_the_sliders_ranges_load_show_and_stay_unchanged() {
 use penumbra::app::camera_control::project;
 use penumbra::app::viewer::Confirm;
 
-/// A file dropped on the window, as eframe hands it to egui.
-#[derive(Debug)]
-struct Dropped(std::path::PathBuf);
-
-impl egui::DroppedFile for Dropped {
-    fn path(&self) -> &Path {
-        &self.0
-    }
-    fn bytes(&self) -> Result<Vec<u8>, String> {
-        std::fs::read(&self.0).map_err(|e| e.to_string())
-    }
-}
-
 /// Waits for the scene loads under way, then a frame takes the result.
 fn loaded(h: &mut Harness<'static, Viewer>) {
     assert!(h.state().wait_for_loads(WAIT), "a load did not end");
     h.step();
-}
-
-fn drop_file(h: &mut Harness<'static, Viewer>, path: std::path::PathBuf) {
-    h.input_mut()
-        .dropped_files
-        .push(std::sync::Arc::new(Dropped(path)));
 }
 
 /// Drags on the image from `from` by `by` in a few steps (one gesture).
@@ -873,7 +800,7 @@ fn unsaved_edits_mark_the_title_and_quit_or_open_asks_first() {
     assert!(!h.state().view_settings().specular);
 
     // Opening (here by dropping a file) asks too; "Open" goes on.
-    drop_file(&mut h, other.clone());
+    drop_file(&mut h, &other);
     h.step();
     assert_eq!(h.state().confirm(), Some(&Confirm::Open(other.clone())));
     h.step();
@@ -897,7 +824,7 @@ fn dropping_a_scene_file_opens_it_and_a_png_loads_a_reference() {
     write(&scene, &d.to_json());
     let mut h = harness(ViewerOptions::new(small_room()));
     settle(&mut h);
-    drop_file(&mut h, scene.clone());
+    drop_file(&mut h, &scene);
     h.step();
     loaded(&mut h);
     assert_eq!(h.state().scene_path(), Some(scene.as_path()));
@@ -907,7 +834,7 @@ fn dropping_a_scene_file_opens_it_and_a_png_loads_a_reference() {
 
     let png = dir.path().join("ref.exr");
     write_film(&core_render(&d), &png).unwrap();
-    drop_file(&mut h, png);
+    drop_file(&mut h, &png);
     h.step();
     settle_reference(&mut h);
     assert_eq!(h.state().reference_match(), Some(Match::Same));
@@ -1070,7 +997,7 @@ fn the_last_scene_recent_files_and_view_settings_are_remembered() {
     write(&path, &small_room().to_json());
     let mut h = harness(ViewerOptions::new(small_room()));
     settle(&mut h);
-    drop_file(&mut h, path.clone());
+    drop_file(&mut h, &path);
     h.step();
     loaded(&mut h);
     h.get_by_role_and_label(Role::Slider, "Resolution scale")
@@ -1383,7 +1310,7 @@ fn a_dropped_mesh_joins_the_scene_and_its_toggle_hides_it() {
     settle(&mut h);
     let room = finished(h.state());
     let before = h.state().desc().objects.len();
-    drop_file(&mut h, file.clone());
+    drop_file(&mut h, &file);
     h.step();
     loaded(&mut h);
     let desc = h.state().desc().clone();
@@ -1428,7 +1355,7 @@ fn a_dropped_mesh_joins_the_scene_and_its_toggle_hides_it() {
     // A file that is not a mesh is a banner, and the scene stays.
     let bad = dir.join("bad.obj");
     std::fs::write(&bad, "v 0 0 0\nf 1 2 3\n").unwrap();
-    drop_file(&mut h, bad.clone());
+    drop_file(&mut h, &bad);
     h.step();
     loaded(&mut h);
     assert!(

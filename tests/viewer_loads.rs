@@ -6,47 +6,20 @@
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use egui::accesskit::Role;
+mod common;
+
+use common::viewer::{WAIT, harness, small_room, step_until};
 use egui_kittest::Harness;
 use egui_kittest::kittest::Queryable;
 use penumbra::app::{Viewer, ViewerOptions};
-use penumbra::render::{SEED_ROOM_JSON, SceneDesc};
+use penumbra::render::SceneDesc;
 
-const WAIT: Duration = Duration::from_secs(60);
-
-fn small_room() -> SceneDesc {
-    let mut d = SceneDesc::from_json(SEED_ROOM_JSON).unwrap();
-    d.camera.width = 32;
-    d.camera.height = 18;
-    d.render.shadow_rays = 4;
-    d
-}
-
-fn harness(options: ViewerOptions) -> Harness<'static, Viewer> {
-    Harness::builder()
-        .with_size([1280.0, 960.0])
-        .with_step_dt(1.0 / 60.0)
-        .build_ui_state(|ui, v: &mut Viewer| v.show(ui, None), Viewer::new(options))
-}
-
-#[derive(Debug)]
-struct Dropped(PathBuf);
-
-impl egui::DroppedFile for Dropped {
-    fn path(&self) -> &Path {
-        &self.0
-    }
-    fn bytes(&self) -> Result<Vec<u8>, String> {
-        Err("not read".into())
-    }
-}
-
+/// Drops `path` on the window and runs the frame that takes it.
 fn drop_file(h: &mut Harness<'static, Viewer>, path: &Path) {
-    h.input_mut()
-        .dropped_files
-        .push(Arc::new(Dropped(path.to_path_buf())));
+    common::viewer::drop_file(h, path);
     h.step();
 }
 
@@ -71,15 +44,6 @@ fn unblock_later(fifo: PathBuf) -> Arc<AtomicBool> {
         }
     });
     fired
-}
-
-fn step_until(h: &mut Harness<'static, Viewer>, done: impl Fn(&Viewer) -> bool) {
-    let start = Instant::now();
-    while !done(h.state()) {
-        assert!(start.elapsed() < WAIT, "timed out");
-        h.step();
-        std::thread::sleep(Duration::from_millis(10));
-    }
 }
 
 #[test]

@@ -521,28 +521,11 @@ mod tests {
     use super::*;
     use std::f64::consts::PI;
 
-    /// n-point Gauss–Legendre rule on [0, 1] by Newton's method.
+    /// n-point Gauss–Legendre rule on [0, 1].
     fn gauss_legendre(n: usize) -> Vec<(f64, f64)> {
-        (0..n)
-            .map(|i| {
-                let mut x = (PI * (i as f64 + 0.75) / (n as f64 + 0.5)).cos();
-                let mut dp = 0.0;
-                for _ in 0..100 {
-                    let (mut p0, mut p1) = (1.0, x);
-                    for k in 2..=n {
-                        let p2 = ((2 * k - 1) as f64 * x * p1 - (k - 1) as f64 * p0) / k as f64;
-                        p0 = p1;
-                        p1 = p2;
-                    }
-                    dp = n as f64 * (x * p1 - p0) / (x * x - 1.0);
-                    let dx = p1 / dp;
-                    x -= dx;
-                    if dx.abs() < 1e-16 {
-                        break;
-                    }
-                }
-                ((1.0 - x) * 0.5, 1.0 / ((1.0 - x * x) * dp * dp))
-            })
+        crate::render::math::gauss_legendre(n)
+            .into_iter()
+            .map(|(x, w)| ((1.0 - x) * 0.5, w * 0.5))
             .collect()
     }
 

@@ -163,6 +163,32 @@ pub fn pow_approx(x: f32, y: f32) -> f32 {
     }
 }
 
+/// The n-point Gauss–Legendre rule on [−1, 1], as (node, weight) pairs:
+/// the roots of Pₙ by Newton's method from Tricomi's first guesses.
+pub fn gauss_legendre(n: usize) -> Vec<(f64, f64)> {
+    (0..n)
+        .map(|i| {
+            let mut t = (std::f64::consts::PI * (i as f64 + 0.75) / (n as f64 + 0.5)).cos();
+            let mut dp = 1.0;
+            for _ in 0..100 {
+                let (mut p0, mut p1) = (1.0, t);
+                for k in 2..=n {
+                    let p2 = ((2 * k - 1) as f64 * t * p1 - (k - 1) as f64 * p0) / k as f64;
+                    p0 = p1;
+                    p1 = p2;
+                }
+                dp = n as f64 * (t * p1 - p0) / (t * t - 1.0);
+                let dx = p1 / dp;
+                t -= dx;
+                if dx.abs() < 1e-16 {
+                    break;
+                }
+            }
+            (t, 2.0 / ((1.0 - t * t) * dp * dp))
+        })
+        .collect()
+}
+
 /// Hands memory freed by a large build back to the system. glibc raises
 /// its threshold for mapping blocks of their own after each large block is
 /// freed, up to 32 MiB, and keeps what is freed below it in its per-thread

@@ -150,27 +150,13 @@ struct Rule {
 
 /// The n-point Gauss–Legendre nodes and weights on [−1, 1] (n ≤ ORDER).
 fn gauss_legendre(n: usize) -> ([f64; ORDER], [f64; ORDER]) {
-    let mut x = [0.0; ORDER];
-    let mut w = [0.0; ORDER];
-    for i in 0..n {
-        let mut t = (std::f64::consts::PI * (i as f64 + 0.75) / (n as f64 + 0.5)).cos();
-        let mut dp = 1.0;
-        for _ in 0..100 {
-            let (mut p0, mut p1) = (1.0, t);
-            for k in 2..=n {
-                let p2 = ((2 * k - 1) as f64 * t * p1 - (k - 1) as f64 * p0) / k as f64;
-                p0 = p1;
-                p1 = p2;
-            }
-            dp = n as f64 * (t * p1 - p0) / (t * t - 1.0);
-            let dx = p1 / dp;
-            t -= dx;
-            if dx.abs() < 1e-16 {
-                break;
-            }
-        }
+    let (mut x, mut w) = ([0.0; ORDER], [0.0; ORDER]);
+    for (i, (t, wt)) in crate::render::math::gauss_legendre(n)
+        .into_iter()
+        .enumerate()
+    {
         x[i] = t;
-        w[i] = 2.0 / ((1.0 - t * t) * dp * dp);
+        w[i] = wt;
     }
     (x, w)
 }

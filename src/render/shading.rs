@@ -67,10 +67,34 @@ impl Needs {
 /// operations in the same order, so the same bits).
 #[inline]
 pub fn local_colour(m: &Material, light: &LightColours, terms: Vec3, factors: LightTerms) -> Vec3 {
-    let ambient = m.ambient * light.ambient * terms.x;
-    let kd = m.diffuse * light.diffuse * terms.y;
-    let ks = m.specular * light.specular * terms.z;
-    ambient + (kd * factors.diffuse + ks * factors.specular)
+    PhongColours::new(m, light, terms).colour(factors)
+}
+
+/// A material's three colours times the light's and the term strengths:
+/// what [`local_colour`] multiplies the light factors by. A replay of
+/// recorded hits computes them once per material instead of once per hit.
+#[derive(Debug, Clone, Copy)]
+pub struct PhongColours {
+    ambient: Vec3,
+    kd: Vec3,
+    ks: Vec3,
+}
+
+impl PhongColours {
+    #[inline]
+    pub fn new(m: &Material, light: &LightColours, terms: Vec3) -> PhongColours {
+        PhongColours {
+            ambient: m.ambient * light.ambient * terms.x,
+            kd: m.diffuse * light.diffuse * terms.y,
+            ks: m.specular * light.specular * terms.z,
+        }
+    }
+
+    /// The Phong sum for one hit point's light factors.
+    #[inline]
+    pub fn colour(&self, factors: LightTerms) -> Vec3 {
+        self.ambient + (self.kd * factors.diffuse + self.ks * factors.specular)
+    }
 }
 
 /// The local colour (without the reflection) of one hit point, computing

@@ -18,8 +18,8 @@ use super::sampling::Pattern;
 use super::scene::{HitTarget, Scene};
 use super::settings::RenderSettings;
 use super::shading::{
-    LightTerms, Needs, ShadingPoint, light_terms, local_colour, nearest_point_specular_direction,
-    shade,
+    LightTerms, Needs, PhongColours, ShadingPoint, light_terms, local_colour,
+    nearest_point_specular_direction, shade,
 };
 use super::shading_params::ShadingParams;
 use super::shadow::ShadowBuffers;
@@ -291,27 +291,20 @@ impl<'a> Tracer<'a> {
     }
 }
 
-/// What [`replay`] needs of each material, computed once per replay: the
-/// colour products of [`local_colour`] (the same operations, so the same
-/// bits) and the reflectivity.
+/// What [`replay`] needs of each material, computed once per replay.
 #[derive(Debug, Clone, Copy)]
 pub struct ReplayMaterial {
-    ambient: Vec3,
-    kd: Vec3,
-    ks: Vec3,
+    colours: PhongColours,
     reflectivity: f32,
 }
 
 /// The materials of `shading` as [`replay`] uses them.
 pub fn replay_materials(settings: &RenderSettings, shading: &ShadingParams) -> Vec<ReplayMaterial> {
-    let (light, terms) = (&shading.light, settings.terms);
     shading
         .materials
         .iter()
         .map(|m| ReplayMaterial {
-            ambient: m.ambient * light.ambient * terms.x,
-            kd: m.diffuse * light.diffuse * terms.y,
-            ks: m.specular * light.specular * terms.z,
+            colours: PhongColours::new(m, &shading.light, settings.terms),
             reflectivity: m.reflectivity,
         })
         .collect()
@@ -356,9 +349,7 @@ pub fn replay(
     let mut weight = 1.0f32;
     for (k, hit) in hits.iter().enumerate() {
         let m = &materials[hit.material as usize];
-        // `local_colour` with its products precomputed.
-        let f = hit.factors;
-        colour += (m.ambient + (m.kd * f.diffuse + m.ks * f.specular)) * weight;
+        colour += m.colours.colour(hit.factors) * weight;
         if m.reflectivity == 0.0 || k as u32 + 1 == settings.max_depth {
             return Some(colour);
         }

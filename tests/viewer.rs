@@ -1289,22 +1289,7 @@ fn a_dropped_mesh_joins_the_scene_and_its_toggle_hides_it() {
     let dir = std::env::temp_dir().join(format!("penumbra-viewer-mesh-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let file = dir.join("box.obj");
-    let mut obj = String::new();
-    for i in 0..8 {
-        let c = |bit: usize| if i & bit == 0 { -1.0 } else { 1.0 };
-        obj += &format!("v {} {} {}\n", c(1), c(2), c(4));
-    }
-    for q in [
-        [1, 3, 7, 5],
-        [2, 6, 8, 4],
-        [1, 5, 6, 2],
-        [3, 4, 8, 7],
-        [1, 2, 4, 3],
-        [5, 7, 8, 6],
-    ] {
-        obj += &format!("f {} {} {} {}\n", q[0], q[1], q[2], q[3]);
-    }
-    std::fs::write(&file, obj).unwrap();
+    std::fs::write(&file, common::box_obj([1.0; 3])).unwrap();
 
     let mut h = harness(ViewerOptions::new(small_room()));
     settle(&mut h);

@@ -54,3 +54,27 @@ pub fn files_in(dir: &Path) -> Vec<String> {
     v.sort();
     v
 }
+
+/// The 8 corners ±h and the 12 triangles of a box as OBJ text.
+pub fn box_obj(h: [f64; 3]) -> String {
+    use std::fmt::Write;
+    let mut s = String::from("# a box\n");
+    for i in 0..8 {
+        let c = |bit: usize, k: usize| if i & bit == 0 { -h[k] } else { h[k] };
+        writeln!(s, "v {} {} {}", c(1, 0), c(2, 1), c(4, 2)).unwrap();
+    }
+    // Faces as quads of corner indices (1-based), split in two.
+    let quads = [
+        [1, 3, 7, 5],
+        [2, 6, 8, 4],
+        [1, 5, 6, 2],
+        [3, 4, 8, 7],
+        [1, 2, 4, 3],
+        [5, 7, 8, 6],
+    ];
+    for q in quads {
+        writeln!(s, "f {} {} {}", q[0], q[1], q[2]).unwrap();
+        writeln!(s, "f {} {} {}", q[0], q[2], q[3]).unwrap();
+    }
+    s
+}

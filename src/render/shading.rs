@@ -337,7 +337,7 @@ fn respecular_batch_generic(
         // One branch-free loop (the points' chains of divisions and square
         // roots overlap); the bits mask each term at the end.
         for j in 0..padded {
-            // As `light_directions`, then `specular_terms`.
+            // As `light_directions`, then `sampled_terms`.
             let (x, y, z) = (
                 c0.x + eu.x * a[j] + ev.x * b[j],
                 c0.y + eu.y * a[j] + ev.y * b[j],
@@ -406,15 +406,15 @@ fn sampled_terms_generic(
         &buf.vis[..padded],
     );
     let (term_d, term_f) = (&mut buf.term_d[..padded], &mut buf.term_f[..padded]);
-    for j in 0..padded {
-        let (x, y, z) = (dx[j], dy[j], dz[j]);
-        let inv = 1.0 / (x * x + y * y + z * z).sqrt();
-        let f = ((n.x * x + n.y * y + n.z * z) * inv).max(0.0);
-        term_f[j] = f;
-        term_d[j] = vis[j] * f;
-    }
     let inv_count = 1.0 / count as f32;
     if !need_s {
+        for j in 0..padded {
+            let (x, y, z) = (dx[j], dy[j], dz[j]);
+            let inv = 1.0 / (x * x + y * y + z * z).sqrt();
+            let f = ((n.x * x + n.y * y + n.z * z) * inv).max(0.0);
+            term_f[j] = f;
+            term_d[j] = vis[j] * f;
+        }
         let [d, f] = sequential_sums([&buf.term_d[..count], &buf.term_f[..count]]);
         return SampledTerms {
             diffuse: d * inv_count,
@@ -422,7 +422,23 @@ fn sampled_terms_generic(
             specular: 0.0,
         };
     }
-    specular_terms(n, v, shininess, count, buf);
+    // Both terms in one loop: they share each point's 1 / |L| (a square
+    // root and a division, the loop's slowest operations).
+    let term_s = &mut buf.term_s[..padded];
+    for j in 0..padded {
+        let (x, y, z) = (dx[j], dy[j], dz[j]);
+        let inv = 1.0 / (x * x + y * y + z * z).sqrt();
+        let f = ((n.x * x + n.y * y + n.z * z) * inv).max(0.0);
+        term_f[j] = f;
+        term_d[j] = vis[j] * f;
+        // Blinn's half vector H = L / |L| + V.
+        let (hx, hy, hz) = (x * inv + v.x, y * inv + v.y, z * inv + v.z);
+        let h2 = hx * hx + hy * hy + hz * hz;
+        // N·H / |H|; H = 0 (light exactly behind the viewer) gives 0.
+        let c = ((n.x * hx + n.y * hy + n.z * hz) / h2.sqrt()).max(0.0);
+        let c = if h2 > 0.0 { c } else { 0.0 };
+        term_s[j] = vis[j] * pow_approx(c, shininess);
+    }
     let [d, f, s] = sequential_sums([
         &buf.term_d[..count],
         &buf.term_f[..count],
@@ -449,30 +465,6 @@ fn sequential_sums<const K: usize>(slices: [&[f32]; K]) -> [f32; K] {
         }
     }
     sums
-}
-
-/// Fills `buf.term_s` with each light point's max(0, N·H)^shininess times
-/// its visibility (the padding included).
-#[inline(always)]
-fn specular_terms(n: Vec3, v: Vec3, shininess: f32, count: usize, buf: &mut ShadowBuffers) {
-    let padded = count.next_multiple_of(8);
-    let (dx, dy, dz, vis) = (
-        &buf.dx[..padded],
-        &buf.dy[..padded],
-        &buf.dz[..padded],
-        &buf.vis[..padded],
-    );
-    let term_s = &mut buf.term_s[..padded];
-    for j in 0..padded {
-        let (x, y, z) = (dx[j], dy[j], dz[j]);
-        let inv = 1.0 / (x * x + y * y + z * z).sqrt();
-        let (hx, hy, hz) = (x * inv + v.x, y * inv + v.y, z * inv + v.z);
-        let h2 = hx * hx + hy * hy + hz * hz;
-        // N·H / |H|; H = 0 (light exactly behind the viewer) gives 0.
-        let c = ((n.x * hx + n.y * hy + n.z * hz) / h2.sqrt()).max(0.0);
-        let c = if h2 > 0.0 { c } else { 0.0 };
-        term_s[j] = vis[j] * pow_approx(c, shininess);
-    }
 }
 
 /// Averages over the light points of one hit point.

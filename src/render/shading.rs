@@ -371,23 +371,62 @@ fn respecular_batch_generic(
     }
 }
 
-avx2_dispatch!(
-    /// `sampled` model: the diffuse factor max(0, N·L) and the specular factor
-    /// max(0, N·H)^shininess averaged over the light points, each weighted by
-    /// its visibility.
-    ///
-    /// Written for the vectorizer: one branch-free loop per term that writes
-    /// each point's contribution, then a sum in a fixed order — so the result
-    /// does not depend on whether visibility came from tracing or skipping.
-    /// The buffers are padded to a multiple of eight with invisible points.
-    fn sampled_terms(
+/// `sampled` model: the diffuse factor max(0, N·L) and the specular factor
+/// max(0, N·H)^shininess averaged over the light points, each weighted by
+/// its visibility.
+///
+/// Written for the vectorizer: one branch-free loop over the points that
+/// writes each one's contributions, then a sum in a fixed order — so the
+/// result does not depend on whether visibility came from tracing or
+/// skipping. The buffers are padded to a multiple of eight with invisible
+/// points. From [`WIDE_POINTS`] points on, sixteen lanes where the CPU has
+/// them: the same operations lane by lane, so the same bits, in about half
+/// the instructions (the power's polynomials are most of the loop).
+fn sampled_terms(
     n: Vec3,
     v: Vec3,
     shininess: f32,
     need_s: bool,
     count: usize,
     buf: &mut ShadowBuffers,
-) -> SampledTerms => sampled_terms_generic);
+) -> SampledTerms {
+    #[cfg(target_arch = "x86_64")]
+    {
+        #[target_feature(enable = "avx512f,avx512vl,avx512dq,avx512bw")]
+        fn wide(
+            n: Vec3,
+            v: Vec3,
+            shininess: f32,
+            need_s: bool,
+            count: usize,
+            buf: &mut ShadowBuffers,
+        ) -> SampledTerms {
+            sampled_terms_generic(n, v, shininess, need_s, count, buf)
+        }
+        if count >= WIDE_POINTS && super::math::avx512_kernels() {
+            // SAFETY: the CPU supports AVX-512 F, VL, DQ and BW
+            // (`avx512_kernels` checks).
+            return unsafe { wide(n, v, shininess, need_s, count, buf) };
+        }
+    }
+    sampled_terms_avx2(n, v, shininess, need_s, count, buf)
+}
+
+/// From this many light points on, [`sampled_terms`] runs on sixteen lanes
+/// where it can (below, most of a sixteen-lane loop would be its remainder).
+const WIDE_POINTS: usize = 16;
+
+avx2_dispatch!(
+    /// [`sampled_terms`] on up to eight lanes.
+    fn sampled_terms_avx2(
+        n: Vec3,
+        v: Vec3,
+        shininess: f32,
+        need_s: bool,
+        count: usize,
+        buf: &mut ShadowBuffers,
+    ) -> SampledTerms => sampled_terms_generic
+);
 
 #[inline(always)]
 fn sampled_terms_generic(

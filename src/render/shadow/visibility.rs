@@ -369,10 +369,42 @@ struct Rays<'a> {
     count: usize,
 }
 
+/// Directions from the hit point to the light points, and 1 in `vis` for
+/// those in front of the surface; returns how many are. Sixteen lanes
+/// where the CPU has them and there are enough points (as `sampled_terms`).
+pub(crate) fn light_directions(
+    to_corner: Vec3,
+    eu: Vec3,
+    ev: Vec3,
+    n: Vec3,
+    count: usize,
+    buf: &mut ShadowBuffers,
+) -> u64 {
+    #[cfg(target_arch = "x86_64")]
+    {
+        #[target_feature(enable = "avx512f,avx512vl,avx512dq,avx512bw")]
+        fn wide(
+            to_corner: Vec3,
+            eu: Vec3,
+            ev: Vec3,
+            n: Vec3,
+            count: usize,
+            buf: &mut ShadowBuffers,
+        ) -> u64 {
+            light_directions_generic(to_corner, eu, ev, n, count, buf)
+        }
+        if count >= 16 && crate::render::math::avx512_kernels() {
+            // SAFETY: the CPU supports AVX-512 F, VL, DQ and BW
+            // (`avx512_kernels` checks).
+            return unsafe { wide(to_corner, eu, ev, n, count, buf) };
+        }
+    }
+    light_directions_avx2(to_corner, eu, ev, n, count, buf)
+}
+
 avx2_dispatch!(
-    /// Directions from the hit point to the light points, and 1 in `vis` for
-    /// those in front of the surface; returns how many are.
-    pub(crate) fn light_directions(to_corner: Vec3, eu: Vec3, ev: Vec3, n: Vec3, count: usize, buf: &mut ShadowBuffers) -> u64
+    /// [`light_directions`] on up to eight lanes.
+    fn light_directions_avx2(to_corner: Vec3, eu: Vec3, ev: Vec3, n: Vec3, count: usize, buf: &mut ShadowBuffers) -> u64
         => light_directions_generic
 );
 

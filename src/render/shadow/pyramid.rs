@@ -7,9 +7,9 @@ use crate::render::geometry::Aabb;
 /// The pyramid spanned by a hit point and the light rectangle, as five
 /// planes `n · x <= d` (four sides and the light's plane), for culling.
 pub(super) struct ShadowPyramid {
+    /// Not normalized: a sphere test takes their lengths (most hit points
+    /// test no sphere, so they are not computed up front).
     planes: [(DVec3, f64); 5],
-    /// Length of each plane's normal (they are not normalized).
-    lengths: [f64; 5],
     bounds: Aabb,
 }
 
@@ -31,7 +31,6 @@ impl ShadowPyramid {
         planes[4] = (-light_normal, -light_normal.dot(corners[0]));
         ShadowPyramid {
             planes,
-            lengths: planes.map(|(n, _)| n.length()),
             bounds: Aabb::from_points(corners).grow(p),
         }
     }
@@ -40,8 +39,7 @@ impl ShadowPyramid {
     pub(super) fn may_overlap_sphere(&self, centre: DVec3, radius: f64) -> bool {
         self.planes
             .iter()
-            .zip(&self.lengths)
-            .all(|(&(n, d), &len)| n.dot(centre) - d <= radius * len * (1.0 + 1e-9))
+            .all(|&(n, d)| n.dot(centre) - d <= radius * n.length() * (1.0 + 1e-9))
     }
 
     /// Conservative: false only if the box certainly misses the pyramid.

@@ -18,6 +18,11 @@ use crate::render::stats::RayStats;
 /// Rays traced first by the adaptive mode.
 const ADAPTIVE_PROBES: usize = 8;
 
+/// From this many light points per hit point on, the umbra test (four
+/// corner rays per convex candidate) is tried before tracing: with fewer,
+/// tracing the rays themselves costs less and finds the same.
+const UMBRA_TEST_RAYS: usize = 4;
+
 /// A possible occluder of one hit point.
 #[derive(Debug, Clone, Copy)]
 pub(super) struct Candidate {
@@ -63,6 +68,7 @@ pub fn visibility(
     }
 
     let skip = settings.skip;
+    let umbra_tested = skip && count >= UMBRA_TEST_RAYS;
     let corners = light.corners();
     let pyramid = ShadowPyramid::new(q.point, &corners, light.normal, light.centre());
     // An object as a possible occluder of this hit point, unless it can
@@ -77,7 +83,8 @@ pub fn visibility(
         if skip && cannot_block(prim, bounds, q.point, &corners, &pyramid) {
             return None;
         }
-        let umbra_test = !inside
+        let umbra_test = umbra_tested
+            && !inside
             && prim.convex()
             && match bounds {
                 // Planes block a light point iff it lies on their other side:
@@ -107,7 +114,7 @@ pub fn visibility(
         stats.shadow_unoccluded += facing;
         return;
     }
-    if skip {
+    if umbra_tested {
         // Umbra: one convex occluder between p and the light's plane that
         // blocks all four corner rays blocks the whole light.
         let corner_dirs = corners.map(|c| (c - q.point).as_vec3());

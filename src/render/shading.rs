@@ -390,6 +390,17 @@ fn sampled_terms(
     count: usize,
     buf: &mut ShadowBuffers,
 ) -> SampledTerms {
+    // No point visible (behind the surface or in shadow): every
+    // contribution is visibility 0 times a finite factor, so both sums are
+    // +0 — the loop's answer, without the loop. (The ratio estimator gets 0
+    // from either of its branches.)
+    if !buf.vis[..count].iter().any(|&v| v != 0.0) {
+        return SampledTerms {
+            diffuse: 0.0,
+            unshadowed_diffuse: 0.0,
+            specular: 0.0,
+        };
+    }
     #[cfg(target_arch = "x86_64")]
     {
         #[target_feature(enable = "avx512f,avx512vl,avx512dq,avx512bw")]

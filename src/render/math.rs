@@ -30,6 +30,44 @@ macro_rules! avx2_dispatch {
 }
 pub(crate) use avx2_dispatch;
 
+/// Defines `fn name(args) -> ret` running `body` (an `#[inline(always)]`
+/// function of the same arguments) compiled for AVX-512 — sixteen lanes —
+/// where the CPU has it ([`avx512_kernels`]) and `cond` (an expression of
+/// the arguments, e.g. enough points to fill the lanes) holds, and the
+/// eight-lane `narrow` (an [`avx2_dispatch!`] function) otherwise. The same
+/// operations lane by lane, so the same bits.
+macro_rules! avx512_dispatch {
+    ($(#[$meta:meta])* $vis:vis fn $name:ident($($arg:ident: $ty:ty),* $(,)?) -> $ret:ty
+        => $body_fn:ident if $cond:expr, else $narrow:ident) => {
+        $(#[$meta])*
+        $vis fn $name($($arg: $ty),*) -> $ret {
+            #[cfg(target_arch = "x86_64")]
+            {
+                #[target_feature(enable = "avx512f,avx512vl,avx512dq,avx512bw")]
+                fn wide($($arg: $ty),*) -> $ret {
+                    $body_fn($($arg),*)
+                }
+                if $cond && $crate::render::math::avx512_kernels() {
+                    // SAFETY: the CPU supports AVX-512 F, VL, DQ and BW
+                    // (`avx512_kernels` checks).
+                    return unsafe { wide($($arg),*) };
+                }
+            }
+            $narrow($($arg),*)
+        }
+    };
+    ($(#[$meta:meta])* $vis:vis fn $name:ident($($arg:ident: $ty:ty),* $(,)?)
+        => $body_fn:ident if $cond:expr, else $narrow:ident) => {
+        avx512_dispatch!($(#[$meta])* $vis fn $name($($arg: $ty),*) -> () => $body_fn if $cond, else $narrow);
+    };
+}
+pub(crate) use avx512_dispatch;
+
+/// From this many rays (light points) per call on, the shadow and shading
+/// kernels take sixteen lanes where they can: below, most of a sixteen-lane
+/// loop would be its remainder.
+pub(crate) const WIDE_POINTS: usize = 16;
+
 use std::sync::atomic::{AtomicU8, Ordering};
 
 /// Whether the re-shading kernel runs with AVX-512 (F, VL, DQ, BW): where

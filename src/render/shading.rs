@@ -6,7 +6,7 @@ use glam::{DVec3, Vec3};
 
 use super::analytic;
 use super::exact::{CircleFit, ExactPoint, exact_factors};
-use super::math::{avx2_dispatch, pow_approx};
+use super::math::{WIDE_POINTS, avx2_dispatch, avx512_dispatch, pow_approx};
 use super::rng::Rng;
 use super::sampling::Pattern;
 use super::scene::Scene;
@@ -401,31 +401,20 @@ fn sampled_terms(
             specular: 0.0,
         };
     }
-    #[cfg(target_arch = "x86_64")]
-    {
-        #[target_feature(enable = "avx512f,avx512vl,avx512dq,avx512bw")]
-        fn wide(
-            n: Vec3,
-            v: Vec3,
-            shininess: f32,
-            need_s: bool,
-            count: usize,
-            buf: &mut ShadowBuffers,
-        ) -> SampledTerms {
-            sampled_terms_generic(n, v, shininess, need_s, count, buf)
-        }
-        if count >= WIDE_POINTS && super::math::avx512_kernels() {
-            // SAFETY: the CPU supports AVX-512 F, VL, DQ and BW
-            // (`avx512_kernels` checks).
-            return unsafe { wide(n, v, shininess, need_s, count, buf) };
-        }
-    }
-    sampled_terms_avx2(n, v, shininess, need_s, count, buf)
+    sampled_terms_any(n, v, shininess, need_s, count, buf)
 }
 
-/// From this many light points on, [`sampled_terms`] runs on sixteen lanes
-/// where it can (below, most of a sixteen-lane loop would be its remainder).
-const WIDE_POINTS: usize = 16;
+avx512_dispatch!(
+    /// [`sampled_terms`] of a hit point with some light point visible.
+    fn sampled_terms_any(
+        n: Vec3,
+        v: Vec3,
+        shininess: f32,
+        need_s: bool,
+        count: usize,
+        buf: &mut ShadowBuffers,
+    ) -> SampledTerms => sampled_terms_generic if count >= WIDE_POINTS, else sampled_terms_avx2
+);
 
 avx2_dispatch!(
     /// [`sampled_terms`] on up to eight lanes.

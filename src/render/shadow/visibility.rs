@@ -10,7 +10,7 @@ use super::packet::{PacketScratch, Packets, packet};
 use super::pyramid::ShadowPyramid;
 use super::ray_packet::{PACKET, RayBins};
 use crate::render::geometry::{Aabb, Primitive, Shape};
-use crate::render::math::avx2_dispatch;
+use crate::render::math::{WIDE_POINTS, avx2_dispatch, avx512_dispatch};
 use crate::render::scene::Scene;
 use crate::render::settings::RenderSettings;
 use crate::render::stats::RayStats;
@@ -376,38 +376,12 @@ struct Rays<'a> {
     count: usize,
 }
 
-/// Directions from the hit point to the light points, and 1 in `vis` for
-/// those in front of the surface; returns how many are. Sixteen lanes
-/// where the CPU has them and there are enough points (as `sampled_terms`).
-pub(crate) fn light_directions(
-    to_corner: Vec3,
-    eu: Vec3,
-    ev: Vec3,
-    n: Vec3,
-    count: usize,
-    buf: &mut ShadowBuffers,
-) -> u64 {
-    #[cfg(target_arch = "x86_64")]
-    {
-        #[target_feature(enable = "avx512f,avx512vl,avx512dq,avx512bw")]
-        fn wide(
-            to_corner: Vec3,
-            eu: Vec3,
-            ev: Vec3,
-            n: Vec3,
-            count: usize,
-            buf: &mut ShadowBuffers,
-        ) -> u64 {
-            light_directions_generic(to_corner, eu, ev, n, count, buf)
-        }
-        if count >= 16 && crate::render::math::avx512_kernels() {
-            // SAFETY: the CPU supports AVX-512 F, VL, DQ and BW
-            // (`avx512_kernels` checks).
-            return unsafe { wide(to_corner, eu, ev, n, count, buf) };
-        }
-    }
-    light_directions_avx2(to_corner, eu, ev, n, count, buf)
-}
+avx512_dispatch!(
+    /// Directions from the hit point to the light points, and 1 in `vis` for
+    /// those in front of the surface; returns how many are.
+    pub(crate) fn light_directions(to_corner: Vec3, eu: Vec3, ev: Vec3, n: Vec3, count: usize, buf: &mut ShadowBuffers) -> u64
+        => light_directions_generic if count >= WIDE_POINTS, else light_directions_avx2
+);
 
 avx2_dispatch!(
     /// [`light_directions`] on up to eight lanes.

@@ -1,6 +1,7 @@
-//! The AVX2 kernels and the portable (baseline x86-64 or other CPUs) build
-//! of the same loops give the same image bit for bit. One test in its own
-//! binary: it switches a process-wide choice.
+//! The AVX-512, AVX2 and portable (baseline x86-64 or other CPUs) builds of
+//! the same loops give the same image bit for bit. Its own test binary: the
+//! in-process test switches a process-wide choice (the other runs the
+//! `penumbra` binary once per choice).
 
 use penumbra::render::Loaded;
 use penumbra::render::math::force_portable_kernels;
@@ -34,4 +35,55 @@ fn avx2_and_portable_kernels_render_the_same_bits() {
         assert_eq!(differing, 0, "{name}: AVX2 ({avx2}) against portable");
         eprintln!("{name}: identical (AVX2 kernels available: {avx2})");
     }
+}
+
+/// The sixteen-lane (AVX-512) kernels, the eight-lane ones
+/// (`PENUMBRA_KERNELS=avx2`) and the portable build write the same EXR
+/// bytes, with skipping on and off and with few and many shadow rays (the
+/// wide kernels take hit points of 16 light points on). The choice is made
+/// once per process, so each variant is a run of the binary.
+#[test]
+fn wide_narrow_and_portable_kernels_write_the_same_files() {
+    let dir = std::env::temp_dir().join(format!("penumbra-kernels-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let cases: [(&str, &[&str]); 5] = [
+        ("scenes/seed-room.json", &[]),
+        ("scenes/seed-room.json", &["--no-skip"]),
+        ("scenes/seed-room.json", &["--shadow-rays", "1"]),
+        ("scenes/mirrors.json", &["--model", "analytic"]),
+        (
+            "scenes/stress/shininess-high.json",
+            &["--shadow-rays", "20"],
+        ),
+    ];
+    for (k, (scene, extra)) in cases.iter().enumerate() {
+        let mut files = Vec::new();
+        for kernels in [None, Some("avx2"), Some("portable")] {
+            let out = dir.join(format!("{k}-{}.exr", kernels.unwrap_or("default")));
+            let mut cmd = std::process::Command::new(env!("CARGO_BIN_EXE_penumbra"));
+            cmd.arg("render")
+                .arg(root.join(scene))
+                .args(["--width", "160", "--height", "90", "-o"])
+                .arg(&out)
+                .args(*extra);
+            match kernels {
+                Some(v) => cmd.env("PENUMBRA_KERNELS", v),
+                None => cmd.env_remove("PENUMBRA_KERNELS"),
+            };
+            let status = cmd.output().expect("runs").status;
+            assert!(
+                status.success(),
+                "{scene} {extra:?} ({kernels:?}): {status}"
+            );
+            files.push((kernels, std::fs::read(&out).unwrap()));
+        }
+        for (kernels, bytes) in &files[1..] {
+            assert!(
+                *bytes == files[0].1,
+                "{scene} {extra:?}: {kernels:?} kernels differ from the default"
+            );
+        }
+    }
+    std::fs::remove_dir_all(&dir).ok();
 }

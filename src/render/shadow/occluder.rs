@@ -34,6 +34,7 @@ pub(super) enum Occluder {
 }
 
 impl Occluder {
+    #[inline(always)]
     pub(super) fn new(prim: Primitive, p: DVec3, inside: bool) -> Occluder {
         let shape = match prim {
             Primitive::Shape(s) => s,

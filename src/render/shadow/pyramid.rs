@@ -14,6 +14,7 @@ pub(super) struct ShadowPyramid {
 }
 
 impl ShadowPyramid {
+    #[inline(always)]
     pub(super) fn new(
         p: DVec3,
         corners: &[DVec3; 4],
@@ -36,6 +37,7 @@ impl ShadowPyramid {
     }
 
     /// Conservative: false only if the sphere certainly misses the pyramid.
+    #[inline(always)]
     pub(super) fn may_overlap_sphere(&self, centre: DVec3, radius: f64) -> bool {
         self.planes
             .iter()
@@ -43,6 +45,7 @@ impl ShadowPyramid {
     }
 
     /// Conservative: false only if the box certainly misses the pyramid.
+    #[inline(always)]
     pub(super) fn may_overlap(&self, b: &Aabb) -> bool {
         if b.min.cmpgt(self.bounds.max).any() || b.max.cmplt(self.bounds.min).any() {
             return false;

@@ -71,14 +71,17 @@ impl TileRecord {
         let pixels = (rect.w * rect.h) as usize;
         let mut starts = Vec::with_capacity(pixels + 1);
         starts.push(0);
+        // Room for two hits a pixel (a mirror's paths have more): growing
+        // copies what is there, and `shrink` gives the rest back in place.
+        let hits = 2 * pixels;
         TileRecord {
             rect,
             starts,
             ends: Vec::with_capacity(pixels),
-            hits: Vec::with_capacity(pixels),
+            hits: Vec::with_capacity(hits),
             shapes: with_shapes.then(|| Shapes {
-                hits: Vec::with_capacity(pixels),
-                visible: Vec::with_capacity(pixels * light_points.div_ceil(64)),
+                hits: Vec::with_capacity(hits),
+                visible: Vec::with_capacity(hits * light_points.div_ceil(64)),
                 words: light_points.div_ceil(64),
             }),
             shininess,

@@ -435,14 +435,10 @@ fn deliver(inner: &Inner, req: &Request, t: &TileUpdate, samples: u32, refinemen
     let generation = req.generation;
     let display = inner.lock().display;
     // Convert on the worker: the UI only copies bytes into the texture.
-    let pixels: Vec<Color32> = t
-        .pixels
-        .iter()
-        .map(|&p| {
-            let [r, g, b] = display.encode(p);
-            Color32::from_rgb(r, g, b)
-        })
-        .collect();
+    let mut pixels = Vec::with_capacity(t.pixels.len());
+    display.encode_each(t.pixels, |[r, g, b]| {
+        pixels.push(Color32::from_rgb(r, g, b))
+    });
     {
         let mut s = inner.lock();
         if s.latest != generation {

@@ -93,6 +93,8 @@ struct Encoder {
     /// in the bucket (a bucket is 1/256 of an octave wide, narrower than the
     /// gap between two thresholds; the table's build checks it).
     start: Vec<u8>,
+    /// The largest value below the last threshold.
+    below_top: f32,
 }
 
 fn encoder() -> &'static Encoder {
@@ -114,6 +116,7 @@ fn encoder() -> &'static Encoder {
             })
             .collect();
         Encoder {
+            below_top: thresholds[254].next_down(),
             thresholds,
             first,
             start,
@@ -127,19 +130,43 @@ fn encoder() -> &'static Encoder {
 /// 255 values: the viewer encodes every pixel of every edit).
 #[inline]
 pub fn encode_channel(x: f32) -> u8 {
-    let e = encoder();
+    encode_with(encoder(), x)
+}
+
+/// [`encode_channel`] with the tables at hand, without branches: the
+/// value is clamped into the tables' range for the look-up, and the two
+/// ends are chosen after it (a branch per end was mispredicted wherever
+/// dark or clipped pixels mix with others).
+#[inline(always)]
+fn encode_with(e: &Encoder, x: f32) -> u8 {
     let t = &e.thresholds;
-    // Below the first threshold, or NaN.
-    if x.is_nan() || x < t[0] {
-        return 0;
-    }
+    // t[0] <= c < t[254] < 1 (NaN: t[0]); for such an x, c = x.
+    let c = x.max(t[0]).min(e.below_top);
+    // Below 255: no more thresholds than c's are below the bucket's start.
+    let start = e.start[((c.to_bits() >> 15) - e.first) as usize];
+    let code = start + (t[start as usize] <= c) as u8;
     if x >= t[254] {
-        return 255;
+        255
+    } else if x >= t[0] {
+        code
+    } else {
+        // Below the first threshold, or NaN.
+        0
     }
-    // t[0] <= x < t[254] < 1: a bucket of the table.
-    // Below 255: no more thresholds than x's are below the bucket's start.
-    let start = e.start[((x.to_bits() >> 15) - e.first) as usize];
-    start + (t[start as usize] <= x) as u8
+}
+
+/// Every pixel of `pixels` to 8-bit sRGB, handed to `out` in order (the
+/// tables fetched once).
+#[inline]
+pub fn encode_srgb8_each(pixels: &[Vec3], mut out: impl FnMut([u8; 3])) {
+    let e = encoder();
+    for p in pixels {
+        out([
+            encode_with(e, p.x),
+            encode_with(e, p.y),
+            encode_with(e, p.z),
+        ]);
+    }
 }
 
 /// A linear RGB pixel to 8-bit sRGB.

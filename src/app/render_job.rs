@@ -97,7 +97,8 @@ struct State {
     /// The description the worker is rendering (or last rendered).
     running_desc: Option<(u64, SceneDesc)>,
     /// Linear image of the latest generation, written tile by tile (for
-    /// picking and for exporting a finished render).
+    /// picking and for exporting a finished render); a pixel not rendered
+    /// yet holds the last image's value.
     film: Option<(u64, Film)>,
     /// The runtime scene being rendered (for picking under the cursor).
     scene: Option<(u64, Arc<Scene>)>,
@@ -348,12 +349,12 @@ fn worker_loop(inner: &Inner) {
             s.running = Some(req.cancel.clone());
             s.running_desc = Some((req.generation, req.desc.clone()));
             let size = (req.desc.camera.width, req.desc.camera.height);
-            // The last image's pages, cleared, rather than fresh ones.
+            // The last image's pages rather than fresh ones, not cleared:
+            // a pixel keeps its last value until its first tile arrives, as
+            // on the screen (every pass writes every pixel; clearing cost
+            // a 6 MB write before each edit's first tile at 960×540).
             let film = match s.film.take() {
-                Some((_, mut f)) if (f.width, f.height) == size => {
-                    f.pixels.fill(glam::Vec3::ZERO);
-                    f
-                }
+                Some((_, f)) if (f.width, f.height) == size => f,
                 _ => Film::new(size.0, size.1),
             };
             s.film = Some((req.generation, film));
@@ -435,14 +436,10 @@ fn deliver(inner: &Inner, req: &Request, t: &TileUpdate, samples: u32, refinemen
     let generation = req.generation;
     let display = inner.lock().display;
     // Convert on the worker: the UI only copies bytes into the texture.
-    let pixels: Vec<Color32> = t
-        .pixels
-        .iter()
-        .map(|&p| {
-            let [r, g, b] = display.encode(p);
-            Color32::from_rgb(r, g, b)
-        })
-        .collect();
+    let mut pixels = Vec::with_capacity(t.pixels.len());
+    display.encode_each(t.pixels, |[r, g, b]| {
+        pixels.push(Color32::from_rgb(r, g, b))
+    });
     {
         let mut s = inner.lock();
         if s.latest != generation {

@@ -1939,13 +1939,9 @@ impl eframe::App for Viewer {
 
 /// Linear pixels as the texture shows them.
 fn pixels_shown(linear: &[glam::Vec3], display: &DisplayTransform) -> Vec<Color32> {
-    linear
-        .iter()
-        .map(|&p| {
-            let [r, g, b] = display.encode(p);
-            Color32::from_rgb(r, g, b)
-        })
-        .collect()
+    let mut pixels = Vec::with_capacity(linear.len());
+    display.encode_each(linear, |[r, g, b]| pixels.push(Color32::from_rgb(r, g, b)));
+    pixels
 }
 
 /// A hot reload's three-way merge, field by field of the JSON tree: where

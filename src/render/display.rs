@@ -5,7 +5,7 @@
 
 use glam::Vec3;
 
-use super::film::encode_srgb8;
+use super::film::{encode_srgb8, encode_srgb8_each};
 
 /// The curve from scaled linear light to display light in [0, 1].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
@@ -77,10 +77,24 @@ impl DisplayTransform {
     /// A whole image, row-major RGB bytes.
     pub fn encode_all(&self, pixels: &[Vec3]) -> Vec<u8> {
         let mut out = Vec::with_capacity(pixels.len() * 3);
-        for p in pixels {
-            out.extend_from_slice(&self.encode(*p));
-        }
+        self.encode_each(pixels, |rgb| out.extend_from_slice(&rgb));
         out
+    }
+
+    /// [`DisplayTransform::encode`] of every pixel, handed to `out` in
+    /// order: the identity (the usual case) goes straight to the sRGB
+    /// encoding, and the tone curve is chosen once, not per pixel.
+    #[inline]
+    pub fn encode_each(&self, pixels: &[Vec3], mut out: impl FnMut([u8; 3])) {
+        if self.is_identity() {
+            return encode_srgb8_each(pixels, out);
+        }
+        let mut mapped = Vec::with_capacity(pixels.len().min(4096));
+        for chunk in pixels.chunks(4096) {
+            mapped.clear();
+            mapped.extend(chunk.iter().map(|&p| self.map(p)));
+            encode_srgb8_each(&mapped, &mut out);
+        }
     }
 
     /// "exposure +1.0 EV, filmic (ACES fit)", for messages and the dialog.
@@ -93,6 +107,46 @@ impl DisplayTransform {
 mod tests {
     use super::*;
     use crate::render::film::encode_srgb8;
+
+    #[test]
+    fn encoding_a_whole_image_is_encoding_each_pixel() {
+        let values = [
+            0.0,
+            -0.0,
+            -1.0,
+            1e-6,
+            0.003,
+            0.0031308,
+            0.18,
+            0.5,
+            0.999,
+            1.0,
+            7.5,
+            f32::NAN,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+        ];
+        let pixels: Vec<Vec3> = (0..values.len() * 5)
+            .map(|i| Vec3::new(values[i % 14], values[(i / 3) % 14], values[(i * 7) % 14]))
+            .collect();
+        for t in [
+            DisplayTransform::default(),
+            DisplayTransform {
+                exposure: 1.5,
+                curve: ToneCurve::Srgb,
+            },
+            DisplayTransform {
+                exposure: -2.0,
+                curve: ToneCurve::Filmic,
+            },
+        ] {
+            let mut got = Vec::new();
+            t.encode_each(&pixels, |rgb| got.push(rgb));
+            let want: Vec<[u8; 3]> = pixels.iter().map(|&p| t.encode(p)).collect();
+            assert_eq!(got, want, "{}", t.describe());
+            assert_eq!(t.encode_all(&pixels), want.concat());
+        }
+    }
 
     #[test]
     fn the_identity_is_the_plain_srgb_encoding() {

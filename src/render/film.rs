@@ -93,6 +93,10 @@ struct Encoder {
     /// in the bucket (a bucket is 1/256 of an octave wide, narrower than the
     /// gap between two thresholds; the table's build checks it).
     start: Vec<u8>,
+    /// The largest value below the last threshold.
+    below_top: f32,
+    /// `start` in 32 bits (what a gather loads).
+    start_wide: Vec<u32>,
 }
 
 fn encoder() -> &'static Encoder {
@@ -105,7 +109,7 @@ fn encoder() -> &'static Encoder {
         let first = thresholds[0].to_bits() >> 15;
         let last = 1.0f32.to_bits() >> 15;
         let count = |x: f32| thresholds.partition_point(|&v| v <= x);
-        let start = (first..=last)
+        let start: Vec<u8> = (first..=last)
             .map(|bucket| {
                 let lowest = count(f32::from_bits(bucket << 15));
                 let highest = count(f32::from_bits(((bucket + 1) << 15) - 1));
@@ -114,6 +118,8 @@ fn encoder() -> &'static Encoder {
             })
             .collect();
         Encoder {
+            below_top: thresholds[254].next_down(),
+            start_wide: start.iter().map(|&s: &u8| s as u32).collect(),
             thresholds,
             first,
             start,
@@ -127,19 +133,106 @@ fn encoder() -> &'static Encoder {
 /// 255 values: the viewer encodes every pixel of every edit).
 #[inline]
 pub fn encode_channel(x: f32) -> u8 {
-    let e = encoder();
+    encode_with(encoder(), x)
+}
+
+/// [`encode_channel`] with the tables at hand, without branches: the
+/// value is clamped into the tables' range for the look-up, and the two
+/// ends are chosen after it (a branch per end was mispredicted wherever
+/// dark or clipped pixels mix with others).
+#[inline(always)]
+fn encode_with(e: &Encoder, x: f32) -> u8 {
     let t = &e.thresholds;
-    // Below the first threshold, or NaN.
-    if x.is_nan() || x < t[0] {
-        return 0;
-    }
+    // t[0] <= c < t[254] < 1 (NaN: t[0]); for such an x, c = x.
+    let c = x.max(t[0]).min(e.below_top);
+    // Below 255: no more thresholds than c's are below the bucket's start.
+    let start = e.start[((c.to_bits() >> 15) - e.first) as usize];
+    let code = start + (t[start as usize] <= c) as u8;
     if x >= t[254] {
-        return 255;
+        255
+    } else if x >= t[0] {
+        code
+    } else {
+        // Below the first threshold, or NaN.
+        0
     }
-    // t[0] <= x < t[254] < 1: a bucket of the table.
-    // Below 255: no more thresholds than x's are below the bucket's start.
-    let start = e.start[((x.to_bits() >> 15) - e.first) as usize];
-    start + (t[start as usize] <= x) as u8
+}
+
+/// Every pixel of `pixels` to 8-bit sRGB, handed to `out` in order: the
+/// channels of 256 pixels at a time go through [`encode_values`].
+#[inline]
+pub fn encode_srgb8_each(pixels: &[Vec3], mut out: impl FnMut([u8; 3])) {
+    let mut values = [0.0f32; 3 * 256];
+    let mut codes = [0u8; 3 * 256];
+    for chunk in pixels.chunks(256) {
+        let n = 3 * chunk.len();
+        for (k, p) in chunk.iter().enumerate() {
+            (values[3 * k], values[3 * k + 1], values[3 * k + 2]) = (p.x, p.y, p.z);
+        }
+        encode_values(&values[..n], &mut codes[..n]);
+        for c in codes[..n].chunks_exact(3) {
+            out([c[0], c[1], c[2]]);
+        }
+    }
+}
+
+/// [`encode_channel`] of every value, `codes[i]` for `values[i]`: eight at
+/// a time with AVX2 gathers from the tables where the CPU has them (the
+/// same comparisons, so the same codes), else one at a time.
+fn encode_values(values: &[f32], codes: &mut [u8]) {
+    let e = encoder();
+    #[cfg(target_arch = "x86_64")]
+    if super::math::avx2_kernels() {
+        // SAFETY: the CPU supports AVX2 (`avx2_kernels` checks).
+        return unsafe { encode_values_avx2(e, values, codes) };
+    }
+    for (code, &x) in codes.iter_mut().zip(values) {
+        *code = encode_with(e, x);
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn encode_values_avx2(e: &Encoder, values: &[f32], codes: &mut [u8]) {
+    use std::arch::x86_64::*;
+    let t = &e.thresholds;
+    let n = values.len().min(codes.len());
+    let whole = n / 8 * 8;
+    let low = _mm256_set1_ps(t[0]);
+    let high = _mm256_set1_ps(t[254]);
+    let below_top = _mm256_set1_ps(e.below_top);
+    let first = _mm256_set1_epi32(e.first as i32);
+    let all = _mm256_set1_epi32(255);
+    for i in (0..whole).step_by(8) {
+        // SAFETY: i + 8 <= n, within both slices; the gathers' indices stay
+        // in the tables: as in `encode_with`, the clamped value lies in
+        // [t[0], t[254]) (NaN: t[0]), whose buckets `start` covers, and a
+        // bucket's start is at most 254.
+        unsafe {
+            let x = _mm256_loadu_ps(values.as_ptr().add(i));
+            let at_least_low = _mm256_cmp_ps::<_CMP_GE_OQ>(x, low);
+            let c = _mm256_blendv_ps(low, x, at_least_low);
+            let c = _mm256_blendv_ps(below_top, c, _mm256_cmp_ps::<_CMP_LE_OQ>(c, below_top));
+            let bucket = _mm256_sub_epi32(_mm256_srli_epi32::<15>(_mm256_castps_si256(c)), first);
+            let start = _mm256_i32gather_epi32::<4>(e.start_wide.as_ptr().cast(), bucket);
+            let threshold = _mm256_i32gather_ps::<4>(t.as_ptr(), start);
+            // The comparison's mask is −1 where the threshold is at or
+            // below the value: subtracting it adds 1.
+            let passed = _mm256_castps_si256(_mm256_cmp_ps::<_CMP_LE_OQ>(threshold, c));
+            let code = _mm256_sub_epi32(start, passed);
+            let top = _mm256_castps_si256(_mm256_cmp_ps::<_CMP_GE_OQ>(x, high));
+            let code = _mm256_blendv_epi8(code, all, top);
+            let code = _mm256_and_si256(code, _mm256_castps_si256(at_least_low));
+            let mut lanes = [0u32; 8];
+            _mm256_storeu_si256(lanes.as_mut_ptr().cast(), code);
+            for (k, &c) in lanes.iter().enumerate() {
+                codes[i + k] = c as u8;
+            }
+        }
+    }
+    for k in whole..n {
+        codes[k] = encode_with(e, values[k]);
+    }
 }
 
 /// A linear RGB pixel to 8-bit sRGB.
@@ -193,5 +286,33 @@ mod tests {
         assert_eq!(encode_channel(f32::NAN), 0);
         assert_eq!(encode_channel(f32::NEG_INFINITY), 0);
         assert_eq!((encode_channel(0.0), encode_channel(1.0)), (0, 255));
+    }
+
+    #[test]
+    fn eight_values_at_a_time_give_the_codes_of_one_at_a_time() {
+        let mut values: Vec<f32> = (0u32..=2.0f32.to_bits())
+            .step_by(991)
+            .map(f32::from_bits)
+            .flat_map(|x| [x, -x])
+            .collect();
+        for &v in &encoder().thresholds {
+            values.extend([v.next_down(), v, v.next_up()]);
+        }
+        values.extend([f32::NAN, f32::INFINITY, f32::NEG_INFINITY, -0.0, 1.0, 0.5]);
+        let want: Vec<u8> = values.iter().map(|&x| encode_channel(x)).collect();
+        assert!(want.iter().filter(|&&c| c == 255).count() > 10);
+        // Every start, so that the tail of each length is one at a time.
+        for skip in 0..9 {
+            let mut got = vec![7u8; values.len() - skip];
+            encode_values(&values[skip..], &mut got);
+            assert_eq!(got, want[skip..], "from {skip}");
+        }
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            let mut got = vec![7u8; values.len()];
+            // SAFETY: the CPU supports AVX2.
+            unsafe { encode_values_avx2(encoder(), &values, &mut got) };
+            assert_eq!(got, want, "AVX2");
+        }
     }
 }

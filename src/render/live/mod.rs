@@ -16,6 +16,7 @@
 
 pub mod edit;
 pub mod record;
+pub mod respecular;
 
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
@@ -24,7 +25,8 @@ use std::time::{Duration, Instant};
 use glam::Vec3;
 
 pub use edit::{EditClass, classify};
-use record::{Budget, ColourHit, TileRecord, TileRecorder, shininess_of};
+use record::{Budget, TileRecord, TileRecorder, shininess_of};
+use respecular::{RecordedHit, ReshadeBatch};
 
 use super::error::SceneError;
 use super::film::Film;
@@ -33,13 +35,10 @@ use super::progressive::{
     pass_plan, render_passes,
 };
 use super::rng::Rng;
-use super::sampling::Pattern;
 use super::scene::{Loaded, Scene};
 use super::scene_file::{AreaLightModel, SceneDesc};
 use super::settings::RenderSettings;
-use super::shading::{
-    BatchPoints, RESHADE_BATCH, RecordedHit, nearest_point_specular, respecular_batch,
-};
+use super::shading::nearest_point_specular;
 use super::shading_params::ShadingParams;
 use super::stats::RayStats;
 use super::tracer::{ReplayMaterial, Tracer, replay_materials, replay_pixel};
@@ -381,7 +380,7 @@ impl LiveRender {
 
 /// Computes the specular factors of a tile's hits whose material's
 /// shininess differs from `shininess`, from their recorded visibility, in
-/// batches of [`RESHADE_BATCH`] hits.
+/// batches of [`respecular::LANES`] hits.
 fn respecular_tile(
     scene: &Scene,
     tracer: &Tracer,
@@ -408,6 +407,7 @@ fn respecular_tile(
     let words = shapes.words;
     let spp = tracer.samples() as usize;
     let light = &scene.light.shape;
+    let (edge_u, edge_v) = (light.edge_u.as_vec3(), light.edge_v.as_vec3());
     batch.start(pattern);
     // One path per camera sample, pixel by pixel.
     for (path, w) in starts.windows(2).enumerate() {
@@ -443,104 +443,11 @@ fn respecular_tile(
             };
             let rng = || Rng::for_sample(settings.seed, x, y, sample, k as u32 + 1);
             if batch.push(h, recorded, visible, pattern, rng) {
-                batch.flush(light.edge_u.as_vec3(), light.edge_v.as_vec3(), hits);
+                batch.flush(edge_u, edge_v, |i, s| hits[i].factors.specular = s);
             }
         }
     }
-    batch.flush(light.edge_u.as_vec3(), light.edge_v.as_vec3(), hits);
-}
-
-/// Recorded hits waiting for their specular factors (per thread, reused
-/// from tile to tile).
-#[derive(Default)]
-struct ReshadeBatch {
-    /// Index of each waiting hit in its tile's records.
-    index: Vec<usize>,
-    hits: Vec<RecordedHit>,
-    visible: Vec<u64>,
-    /// Light points: one fixed pattern, or each waiting hit's own.
-    a: Vec<f32>,
-    b: Vec<f32>,
-    fixed: bool,
-    count: usize,
-    rows: Vec<f32>,
-    out: [f32; RESHADE_BATCH],
-}
-
-impl ReshadeBatch {
-    /// Prepares for the hits of a frame traced with `pattern`.
-    fn start(&mut self, pattern: &Pattern) {
-        let padded = pattern.count().next_multiple_of(8);
-        self.count = pattern.count();
-        self.fixed = pattern.is_fixed();
-        let points = if self.fixed { 1 } else { RESHADE_BATCH };
-        self.a.resize(points * padded, 0.0);
-        self.b.resize(points * padded, 0.0);
-        if self.fixed {
-            pattern.fill(&mut Rng::new(0), &mut self.a, &mut self.b);
-        }
-        self.rows.resize(RESHADE_BATCH * padded, 0.0);
-        self.index.clear();
-        self.hits.clear();
-        self.visible.clear();
-    }
-
-    /// Adds a hit (its light points drawn from `rng()` unless the pattern
-    /// is fixed); true once the batch is full.
-    fn push(
-        &mut self,
-        index: usize,
-        hit: RecordedHit,
-        visible: &[u64],
-        pattern: &Pattern,
-        rng: impl FnOnce() -> Rng,
-    ) -> bool {
-        if !self.fixed {
-            let padded = self.count.next_multiple_of(8);
-            let base = self.hits.len() * padded;
-            pattern.fill(
-                &mut rng(),
-                &mut self.a[base..base + padded],
-                &mut self.b[base..base + padded],
-            );
-        }
-        self.index.push(index);
-        self.hits.push(hit);
-        self.visible.extend_from_slice(visible);
-        self.hits.len() == RESHADE_BATCH
-    }
-
-    /// Computes the waiting hits' specular factors into `hits`.
-    fn flush(&mut self, edge_u: Vec3, edge_v: Vec3, hits: &mut [ColourHit]) {
-        if self.hits.is_empty() {
-            return;
-        }
-        let points = BatchPoints {
-            a: &self.a,
-            b: &self.b,
-            stride: if self.fixed {
-                0
-            } else {
-                self.count.next_multiple_of(8)
-            },
-            count: self.count,
-            edge_u,
-            edge_v,
-        };
-        respecular_batch(
-            &self.hits,
-            &self.visible,
-            &points,
-            &mut self.rows,
-            &mut self.out,
-        );
-        for (&i, &s) in self.index.iter().zip(&self.out) {
-            hits[i].factors.specular = s;
-        }
-        self.index.clear();
-        self.hits.clear();
-        self.visible.clear();
-    }
+    batch.flush(edge_u, edge_v, |i, s| hits[i].factors.specular = s);
 }
 
 /// The pixels of a tile from its records (into `out`), tracing the pixels

@@ -1,0 +1,377 @@
+//! The re-shading kernel: the specular factors of recorded hits for a new
+//! shininess, from their recorded light direction, normal, view and
+//! visibility bits — the operations of the tracer's sampled specular term
+//! (`shading::sampled_terms`) point by point and the same left-to-right
+//! sum, so the same bits.
+//!
+//! [`LANES`] hits run side by side, one per vector lane, walking their
+//! light points together: each lane's sum is one hit's, in the points'
+//! order, so the sums need no second pass over stored terms, and with a
+//! fixed pattern (the grid) the points' offsets along the light's edges
+//! are computed once per point for all lanes.
+
+use glam::Vec3;
+
+use crate::render::math::{avx2_dispatch, avx512_kernels, pow_approx};
+use crate::render::rng::Rng;
+use crate::render::sampling::Pattern;
+
+/// Hits computed side by side.
+pub const LANES: usize = 16;
+
+/// What a recorded hit's specular factor depends on.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct RecordedHit {
+    /// From the hit point to the light's corner (as the tracer had it).
+    pub to_corner: Vec3,
+    pub normal: Vec3,
+    pub view: Vec3,
+    pub shininess: f32,
+}
+
+/// The lanes' inputs, one array entry per lane.
+#[derive(Debug, Clone, Copy, Default)]
+struct LaneHits {
+    c: [[f32; LANES]; 3],
+    n: [[f32; LANES]; 3],
+    v: [[f32; LANES]; 3],
+    shininess: [f32; LANES],
+}
+
+/// Recorded hits waiting for their specular factors (per tile, reused from
+/// batch to batch).
+#[derive(Default)]
+pub struct ReshadeBatch {
+    /// Index of each waiting hit in its tile's records.
+    index: Vec<usize>,
+    hits: LaneHits,
+    /// Visibility, 32 points per entry: bit l of `bits[k][h]` is point
+    /// 32·k + l of lane h.
+    bits: Vec<[u32; LANES]>,
+    /// A fixed pattern's points (`count` long), or, for patterns drawn per
+    /// hit, each point's offsets lane by lane (`lane_a[j][h]`).
+    a: Vec<f32>,
+    b: Vec<f32>,
+    lane_a: Vec<[f32; LANES]>,
+    lane_b: Vec<[f32; LANES]>,
+    fixed: bool,
+    count: usize,
+    /// Scratch for one hit's points drawn from its generator.
+    one_a: Vec<f32>,
+    one_b: Vec<f32>,
+}
+
+impl ReshadeBatch {
+    /// Prepares for the hits of a frame traced with `pattern`.
+    pub fn start(&mut self, pattern: &Pattern) {
+        let count = pattern.count();
+        let padded = count.next_multiple_of(8);
+        self.count = count;
+        self.fixed = pattern.is_fixed();
+        self.index.clear();
+        self.bits.clear();
+        self.bits.resize(count.div_ceil(32), [0; LANES]);
+        if self.fixed {
+            self.a.resize(padded, 0.0);
+            self.b.resize(padded, 0.0);
+            pattern.fill(&mut Rng::new(0), &mut self.a, &mut self.b);
+            self.a.truncate(count);
+            self.b.truncate(count);
+        } else {
+            self.one_a.resize(padded, 0.0);
+            self.one_b.resize(padded, 0.0);
+            self.lane_a.resize(count, [0.0; LANES]);
+            self.lane_b.resize(count, [0.0; LANES]);
+        }
+    }
+
+    /// Adds hit `index` (`visible`: its `count.div_ceil(64)` visibility
+    /// words; its light points drawn from `rng()` unless the pattern is
+    /// fixed); true once the batch is full.
+    pub fn push(
+        &mut self,
+        index: usize,
+        hit: RecordedHit,
+        visible: &[u64],
+        pattern: &Pattern,
+        rng: impl FnOnce() -> Rng,
+    ) -> bool {
+        let h = self.index.len();
+        self.index.push(index);
+        let lanes = &mut self.hits;
+        for (k, (c, (n, v))) in [
+            (hit.to_corner.x, (hit.normal.x, hit.view.x)),
+            (hit.to_corner.y, (hit.normal.y, hit.view.y)),
+            (hit.to_corner.z, (hit.normal.z, hit.view.z)),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            lanes.c[k][h] = c;
+            lanes.n[k][h] = n;
+            lanes.v[k][h] = v;
+        }
+        lanes.shininess[h] = hit.shininess;
+        for (k, bits) in self.bits.iter_mut().enumerate() {
+            bits[h] = (visible[k / 2] >> (k % 2 * 32)) as u32;
+        }
+        if !self.fixed {
+            pattern.fill(&mut rng(), &mut self.one_a, &mut self.one_b);
+            for j in 0..self.count {
+                self.lane_a[j][h] = self.one_a[j];
+                self.lane_b[j][h] = self.one_b[j];
+            }
+        }
+        self.index.len() == LANES
+    }
+
+    /// Computes the waiting hits' specular factors: `store(index, factor)`
+    /// for each.
+    pub fn flush(&mut self, edge_u: Vec3, edge_v: Vec3, store: impl FnMut(usize, f32)) {
+        self.flush_by(specular_lanes, edge_u, edge_v, store);
+    }
+
+    fn flush_by(
+        &mut self,
+        kernel: Kernel,
+        edge_u: Vec3,
+        edge_v: Vec3,
+        mut store: impl FnMut(usize, f32),
+    ) {
+        if self.index.is_empty() {
+            return;
+        }
+        let points = Points {
+            a: &self.a,
+            b: &self.b,
+            lane_a: &self.lane_a,
+            lane_b: &self.lane_b,
+            fixed: self.fixed,
+            count: self.count,
+            edge_u,
+            edge_v,
+        };
+        // Lanes past the waiting hits hold finite leftovers of earlier
+        // batches (or zeros) and are not read out.
+        let sums = kernel(&self.hits, &self.bits, &points);
+        for (&i, s) in self.index.iter().zip(sums) {
+            store(i, s);
+        }
+        self.index.clear();
+    }
+}
+
+type Kernel = fn(&LaneHits, &[[u32; LANES]], &Points<'_>) -> [f32; LANES];
+
+/// The light points of a batch.
+struct Points<'a> {
+    a: &'a [f32],
+    b: &'a [f32],
+    lane_a: &'a [[f32; LANES]],
+    lane_b: &'a [[f32; LANES]],
+    fixed: bool,
+    count: usize,
+    edge_u: Vec3,
+    edge_v: Vec3,
+}
+
+/// The specular factor of every lane, with the widest vectors the CPU has
+/// (the same operations lane by lane whatever the width, so the same bits).
+fn specular_lanes(hits: &LaneHits, bits: &[[u32; LANES]], points: &Points<'_>) -> [f32; LANES] {
+    #[cfg(target_arch = "x86_64")]
+    if avx512_kernels() {
+        // SAFETY: the CPU supports AVX-512 F, VL, DQ and BW
+        // (`avx512_kernels` checks).
+        return unsafe { specular_lanes_avx512(hits, bits, points) };
+    }
+    specular_lanes_avx2(hits, bits, points)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx512vl,avx512dq,avx512bw")]
+fn specular_lanes_avx512(
+    hits: &LaneHits,
+    bits: &[[u32; LANES]],
+    points: &Points<'_>,
+) -> [f32; LANES] {
+    specular_lanes_generic(hits, bits, points)
+}
+
+avx2_dispatch!(
+    fn specular_lanes_avx2(
+        hits: &LaneHits,
+        bits: &[[u32; LANES]],
+        points: &Points<'_>,
+    ) -> [f32; LANES] => specular_lanes_generic
+);
+
+#[inline(always)]
+fn specular_lanes_generic(
+    hits: &LaneHits,
+    bits: &[[u32; LANES]],
+    points: &Points<'_>,
+) -> [f32; LANES] {
+    if points.fixed {
+        let (a, b) = (&points.a[..points.count], &points.b[..points.count]);
+        lane_sums(hits, bits, points, |j, _| (a[j], b[j]))
+    } else {
+        let (a, b) = (
+            &points.lane_a[..points.count],
+            &points.lane_b[..points.count],
+        );
+        lane_sums(hits, bits, points, |j, h| (a[j][h], b[j][h]))
+    }
+}
+
+/// Each lane's average of max(0, N·H)^shininess over its visible points.
+#[inline(always)]
+fn lane_sums(
+    hits: &LaneHits,
+    bits: &[[u32; LANES]],
+    points: &Points<'_>,
+    point: impl Fn(usize, usize) -> (f32, f32),
+) -> [f32; LANES] {
+    let count = points.count;
+    let (eu, ev) = (points.edge_u, points.edge_v);
+    let [cx, cy, cz] = &hits.c;
+    let [nx, ny, nz] = &hits.n;
+    let [vx, vy, vz] = &hits.v;
+    // Each sum left to right from −0 (as `Iterator::sum`).
+    let mut sums = [-0.0f32; LANES];
+    for (k, word) in bits.iter().enumerate() {
+        for l in 0..(count - 32 * k).min(32) {
+            let j = 32 * k + l;
+            for h in 0..LANES {
+                let (a, b) = point(j, h);
+                // As `light_directions`, then the specular term.
+                let (x, y, z) = (
+                    cx[h] + eu.x * a + ev.x * b,
+                    cy[h] + eu.y * a + ev.y * b,
+                    cz[h] + eu.z * a + ev.z * b,
+                );
+                let inv = 1.0 / (x * x + y * y + z * z).sqrt();
+                let (hx, hy, hz) = (x * inv + vx[h], y * inv + vy[h], z * inv + vz[h]);
+                let h2 = hx * hx + hy * hy + hz * hz;
+                let c = ((nx[h] * hx + ny[h] * hy + nz[h] * hz) / h2.sqrt()).max(0.0);
+                let c = if h2 > 0.0 { c } else { 0.0 };
+                // The tracer multiplies by the visibility (1 or 0): the
+                // term, or +0 (it is finite and not negative).
+                let term = pow_approx(c, hits.shininess[h]);
+                sums[h] += if (word[h] >> l) & 1 != 0 { term } else { 0.0 };
+            }
+        }
+    }
+    sums.map(|s| s * (1.0 / count as f32))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::render::scene_file::Sampling;
+
+    /// The definition, hit by hit: the tracer's specular term with its
+    /// visibility weights and sum.
+    fn one_hit(
+        hit: &RecordedHit,
+        visible: &[u64],
+        a: &[f32],
+        b: &[f32],
+        eu: Vec3,
+        ev: Vec3,
+    ) -> f32 {
+        let terms: Vec<f32> = (0..a.len())
+            .map(|j| {
+                let (x, y, z) = (
+                    hit.to_corner.x + eu.x * a[j] + ev.x * b[j],
+                    hit.to_corner.y + eu.y * a[j] + ev.y * b[j],
+                    hit.to_corner.z + eu.z * a[j] + ev.z * b[j],
+                );
+                let inv = 1.0 / (x * x + y * y + z * z).sqrt();
+                let (n, v) = (hit.normal, hit.view);
+                let (hx, hy, hz) = (x * inv + v.x, y * inv + v.y, z * inv + v.z);
+                let h2 = hx * hx + hy * hy + hz * hz;
+                let c = ((n.x * hx + n.y * hy + n.z * hz) / h2.sqrt()).max(0.0);
+                let c = if h2 > 0.0 { c } else { 0.0 };
+                let vis = ((visible[j / 64] >> (j % 64)) & 1) as f32;
+                vis * pow_approx(c, hit.shininess)
+            })
+            .collect();
+        terms.iter().sum::<f32>() * (1.0 / a.len() as f32)
+    }
+
+    /// Every kernel this CPU runs: the baseline build, AVX2, AVX-512.
+    fn kernels() -> Vec<(&'static str, Kernel)> {
+        let mut k: Vec<(&'static str, Kernel)> = vec![
+            ("portable", specular_lanes_generic),
+            ("avx2 or portable", specular_lanes_avx2),
+        ];
+        #[cfg(target_arch = "x86_64")]
+        if avx512_kernels() {
+            // SAFETY: the CPU supports AVX-512 F, VL, DQ and BW.
+            k.push(("avx512", |h, b, p| unsafe {
+                specular_lanes_avx512(h, b, p)
+            }));
+        }
+        k
+    }
+
+    #[test]
+    fn lanes_give_the_bits_of_one_hit_at_a_time() {
+        let (eu, ev) = (Vec3::new(2.0, 0.0, 0.1), Vec3::new(0.0, 0.3, 2.0));
+        for (sampling, rays) in [
+            (Sampling::Grid, 64),
+            (Sampling::Grid, 9),
+            (Sampling::Random, 100),
+        ] {
+            let pattern = Pattern::new(sampling, rays);
+            let count = pattern.count();
+            let mut rng = Rng::new(7);
+            let r = |rng: &mut Rng| rng.next_f32() * 2.0 - 1.0;
+            // 37 hits: two full batches and a partial one.
+            let hits: Vec<(RecordedHit, Vec<u64>)> = (0..37)
+                .map(|i| {
+                    let hit = RecordedHit {
+                        to_corner: Vec3::new(r(&mut rng), 3.0 + r(&mut rng), r(&mut rng)),
+                        normal: Vec3::new(r(&mut rng), 1.0, r(&mut rng)).normalize(),
+                        view: Vec3::new(r(&mut rng), r(&mut rng), 1.0).normalize(),
+                        shininess: [1.0, 20.0, 100.0, 500.0][i % 4],
+                    };
+                    let visible = (0..count.div_ceil(64))
+                        .map(|k| {
+                            let tail = count - 64 * k;
+                            let w = rng.next_u64();
+                            if tail < 64 { w & ((1 << tail) - 1) } else { w }
+                        })
+                        .collect();
+                    (hit, visible)
+                })
+                .collect();
+            let seed = |i: usize| 100 + i as u64;
+            let want: Vec<u32> = hits
+                .iter()
+                .enumerate()
+                .map(|(i, (hit, visible))| {
+                    let (mut a, mut b) = (vec![0.0; count + 8], vec![0.0; count + 8]);
+                    pattern.fill(&mut Rng::new(seed(i)), &mut a, &mut b);
+                    one_hit(hit, visible, &a[..count], &b[..count], eu, ev).to_bits()
+                })
+                .collect();
+            assert!(
+                want.iter().any(|&s| f32::from_bits(s) > 0.0),
+                "some hits are lit"
+            );
+            for (name, kernel) in kernels() {
+                let mut batch = ReshadeBatch::default();
+                batch.start(&pattern);
+                let mut got = vec![f32::NAN.to_bits(); hits.len()];
+                for (i, (hit, visible)) in hits.iter().enumerate() {
+                    if batch.push(i, *hit, visible, &pattern, || Rng::new(seed(i))) {
+                        batch.flush_by(kernel, eu, ev, |i, s| got[i] = s.to_bits());
+                    }
+                }
+                batch.flush_by(kernel, eu, ev, |i, s| got[i] = s.to_bits());
+                assert_eq!(got, want, "{name}: {sampling:?} {rays}");
+            }
+        }
+    }
+}

@@ -174,7 +174,9 @@ pub enum CircleFit {
     Inscribed,
     /// Edges tangent to it: a shadow containing the true one.
     Circumscribed,
-    /// The N-gon of the circle's area, between the two (what shading uses).
+    /// The N-gon of the circle's area, between the two (what shading uses:
+    /// for the pieces and the specular factor; the diffuse factor then
+    /// follows the conic itself where it can, see `conic.rs`).
     SameArea,
 }
 

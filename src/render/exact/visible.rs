@@ -9,7 +9,7 @@ use super::projection::{
     CircleFit, LightView, ProjectScratch, Unsupported, box_shadow, rect_shadow, sphere_shadow,
     triangle_shadow,
 };
-use crate::render::geometry::{Primitive, Shape};
+use crate::render::geometry::{Primitive, Shape, Sphere};
 use crate::render::scene::Scene;
 
 /// Edges of a sphere's silhouette polygon.
@@ -39,12 +39,17 @@ pub enum Fallback {
 /// See [`Fallback::TinyLight`].
 pub const TINY_LIGHT: f64 = 1e-4;
 
-/// Scratch of [`visible_region`].
+/// Scratch of [`visible_region`], and what it leaves for the diffuse
+/// factor of spheres.
 #[derive(Debug, Clone, Default)]
 pub struct RegionScratch {
     pub work: Work,
     pub project: ProjectScratch,
     pub shadow: Vec<DVec2>,
+    /// The spheres whose polygons were subtracted (last, after every other
+    /// occluder), and the pieces before the first of them.
+    pub spheres: Vec<Sphere>,
+    pub before_spheres: Pieces,
 }
 
 /// The visible part of the light into `pieces` (the plane's coordinates of
@@ -97,11 +102,26 @@ pub fn visible_region(
             pieces.clip(h, min_area, &mut s.work);
         }
     }
-    for &(i, _) in occluders {
+    s.spheres.clear();
+    s.before_spheres.clear();
+    // Spheres last, so that the pieces before them are what the diffuse
+    // factor's conics are cut from.
+    let is_sphere = |i: u32| matches!(scene.primitive(i), Primitive::Shape(Shape::Sphere(_)));
+    let others = occluders.iter().filter(|&&(i, _)| !is_sphere(i));
+    let spheres = occluders.iter().filter(|&&(i, _)| is_sphere(i));
+    let mut first_sphere = true;
+    for &(i, _) in others.chain(spheres) {
         if pieces.is_empty() {
             return Ok(());
         }
         let shadow = &mut s.shadow;
+        if let Primitive::Shape(Shape::Sphere(sp)) = scene.primitive(i) {
+            if first_sphere {
+                s.before_spheres.clone_from(pieces);
+                first_sphere = false;
+            }
+            s.spheres.push(sp.clone());
+        }
         match scene.primitive(i) {
             Primitive::Shape(Shape::Plane(_)) => continue,
             Primitive::Shape(Shape::Cuboid(c)) => box_shadow(view, c, &mut s.project, shadow),

@@ -4,10 +4,13 @@
 //!
 //! Compact: a node is 32 bytes (an f32 box rounded outwards, so it holds
 //! every point its f64 contents hold, and two u32s), and the build works on
-//! 28-byte records moved in place. Subtrees of many primitives are built on
-//! two threads. The tree decides only which primitives a ray is tested
-//! against; the hit found is the nearest of their own f64 tests whatever
-//! its shape.
+//! 16-byte records moved in place. Subtrees of many primitives are built on
+//! two threads, the root's records are binned on all, and a node's
+//! partition bins its children's records as it moves them (one pass over
+//! the records per level, not two); none of this changes the tree (tested
+//! against the plain build, node for node). The tree decides only which
+//! primitives a ray is tested against; the hit found is the nearest of
+//! their own f64 tests whatever its shape.
 
 use glam::{DVec3, UVec4, Vec3, Vec4};
 use rayon::prelude::*;
@@ -283,9 +286,34 @@ impl Metric {
 /// What the build does with one node's primitives.
 enum Plan {
     Leaf,
-    /// Inner node over `refs[..mid]` and `refs[mid..]` (partitioned), with
-    /// their boxes.
-    Split(usize, BuildRef, BuildRef),
+    /// Inner node over `refs[..mid]` and `refs[mid..]` (partitioned).
+    Split(usize, [Child; 2]),
+}
+
+/// A child of a split: its box, and whether the partition binned its refs
+/// on the way (into the slot the caller gave).
+#[derive(Clone, Copy)]
+struct Child {
+    bounds: BuildRef,
+    binned: bool,
+}
+
+/// How the tree is built; the tree is the same whichever is chosen.
+#[derive(Clone, Copy)]
+struct Strategy {
+    /// The partition of a node bins its children's refs as it moves them
+    /// (one pass over the refs per level instead of two).
+    fused: bool,
+    /// Subtrees of at least this many primitives build their two halves on
+    /// two threads, and the root's refs are binned on all.
+    parallel: usize,
+}
+
+impl Strategy {
+    const FAST: Strategy = Strategy {
+        fused: true,
+        parallel: PARALLEL,
+    };
 }
 
 /// The box of some refs.
@@ -317,39 +345,47 @@ impl Bins {
         }
     }
 
-    fn merge(&mut self, o: &Bins) {
+    /// Unions of boxes and sums of counts are exact and do not depend on
+    /// the order: bins merged from parts are the bins of the whole.
+    fn merge(mut self, o: Bins) -> Bins {
         for axis in 0..3 {
             for k in 0..BINS {
                 self.boxes[axis][k] = self.boxes[axis][k].union(o.boxes[axis][k]);
                 self.counts[axis][k] += o.counts[axis][k];
             }
         }
+        self
     }
 
-    /// The bins of `refs`, `bin(r)` giving a ref's bin along each axis.
-    /// Many refs are binned as two halves side by side: neighbours in the
-    /// input often fall into the same bin, and one set of bins would make
-    /// each update wait for the one before.
+    /// The bins of `refs`. Many refs are binned as two halves side by
+    /// side: neighbours in the input often fall into the same bin, and one
+    /// set of bins would make each update wait for the one before.
     #[inline(always)]
-    fn of(refs: &[BuildRef], bin: impl Fn(&BuildRef) -> UVec4) -> Bins {
+    fn of(refs: &[BuildRef], binning: &Binning) -> Bins {
         let mut a = Bins::EMPTY;
         if refs.len() < 256 {
             for r in refs {
-                a.add(bin(r), r);
+                a.add(binning.bin(r), r);
             }
             return a;
         }
         let mut b = Bins::EMPTY;
         let (lo, hi) = refs.split_at(refs.len() / 2);
         for (r, s) in lo.iter().zip(hi) {
-            a.add(bin(r), r);
-            b.add(bin(s), s);
+            a.add(binning.bin(r), r);
+            b.add(binning.bin(s), s);
         }
         if let Some(r) = hi.get(lo.len()) {
-            a.add(bin(r), r);
+            a.add(binning.bin(r), r);
         }
-        a.merge(&b);
-        a
+        a.merge(b)
+    }
+
+    /// [`Bins::of`] on all threads, for the root.
+    fn of_parallel(refs: &[BuildRef], binning: &Binning, chunk: usize) -> Bins {
+        refs.par_chunks(chunk)
+            .map(|c| Bins::of(c, binning))
+            .reduce(|| Bins::EMPTY, Bins::merge)
     }
 }
 
@@ -370,59 +406,125 @@ fn truncate(v: Vec4) -> UVec4 {
     v.as_uvec4()
 }
 
+/// A node's box seen by the build: centroids are binned over the box
+/// itself, so that the children's boxes come from the bins, without
+/// another pass.
+#[derive(Clone, Copy)]
+struct NodeBox {
+    whole: Box3,
+    /// Twice the box's extent (`centre2` is twice the centre: it lies in
+    /// twice the box).
+    ext: Vec3,
+    /// The longest axis.
+    axis: usize,
+    binning: Binning,
+}
+
+/// Which bin a centroid falls into along each axis.
+#[derive(Clone, Copy)]
+struct Binning {
+    origin: Vec4,
+    scale: Vec4,
+}
+
+impl Binning {
+    #[inline(always)]
+    fn bin(&self, r: &BuildRef) -> UVec4 {
+        truncate(
+            ((r.centre2() - self.origin) * self.scale)
+                .max(Vec4::ZERO)
+                .min(Vec4::splat(BINS as f32 - 1.0)),
+        )
+    }
+}
+
+impl NodeBox {
+    fn new(bounds: BuildRef) -> NodeBox {
+        let whole = bounds.decode();
+        let origin = whole.min * 2.0;
+        let ext = whole.extent() * 2.0;
+        let axis = if ext.x >= ext.y && ext.x >= ext.z {
+            0
+        } else if ext.y >= ext.z {
+            1
+        } else {
+            2
+        };
+        let scale = Vec3::select(
+            ext.cmpgt(Vec3::ZERO),
+            Vec3::splat(BINS as f32 * 0.999_99) / ext,
+            Vec3::ZERO,
+        )
+        .extend(0.0);
+        NodeBox {
+            whole,
+            ext,
+            axis,
+            binning: Binning { origin, scale },
+        }
+    }
+
+    /// Whether a node of `count` refs in this box at `depth` is split by
+    /// its bins (else it is a leaf or halved by count).
+    fn binned(&self, count: usize, depth: usize) -> bool {
+        count > MAX_LEAF && self.ext[self.axis] > 0.0 && depth < SAH_DEPTH
+    }
+}
+
 /// How to split `refs`, whose box is `bounds` (partitioning them in
-/// place). Centroids are binned over the box itself: the children's boxes
-/// then come from the bins, without another pass.
-fn plan(refs: &mut [BuildRef], bounds: BuildRef, metric: Metric, depth: usize) -> Plan {
+/// place); `bins`: their bins if the parent's partition made them; `kids`:
+/// where the children's bins may be made.
+fn plan(
+    refs: &mut [BuildRef],
+    bounds: BuildRef,
+    bins: Option<&Bins>,
+    kids: &mut [Bins; 2],
+    build: Build,
+    depth: usize,
+) -> Plan {
+    let (metric, strategy) = (build.metric, build.strategy);
     if refs.len() <= MAX_LEAF {
         return Plan::Leaf;
     }
-    let whole = bounds.decode();
-    // `centre2` is twice the centre: it lies in twice the box.
-    let origin = whole.min * 2.0;
-    let ext = whole.extent() * 2.0;
-    let axis = if ext.x >= ext.y && ext.x >= ext.z {
-        0
-    } else if ext.y >= ext.z {
-        1
-    } else {
-        2
-    };
-    if ext[axis] <= 0.0 {
+    let node = NodeBox::new(bounds);
+    let (whole, ext) = (node.whole, node.ext);
+    if ext[node.axis] <= 0.0 {
         return Plan::Leaf;
     }
     if depth >= SAH_DEPTH {
         // Halve by count: the tree stays shallow whatever the layout
         // (SAH alone can peel one object per level off centroids that
         // grow geometrically).
-        let mid = refs.len() / 2;
+        let (axis, mid) = (node.axis, refs.len() / 2);
         refs.select_nth_unstable_by(mid, |a, b| a.centre2()[axis].total_cmp(&b.centre2()[axis]));
         let (lo, hi) = refs.split_at(mid);
-        return Plan::Split(mid, bounds_of(lo), bounds_of(hi));
+        let child = |r: &[BuildRef]| Child {
+            bounds: bounds_of(r),
+            binned: false,
+        };
+        return Plan::Split(mid, [child(lo), child(hi)]);
     }
     // One pass bins the centroids along all three axes.
-    let scale = Vec3::select(
-        ext.cmpgt(Vec3::ZERO),
-        Vec3::splat(BINS as f32 * 0.999_99) / ext,
-        Vec3::ZERO,
-    )
-    .extend(0.0);
-    let bins_of = |r: &BuildRef| -> UVec4 {
-        truncate(
-            ((r.centre2() - origin) * scale)
-                .max(Vec4::ZERO)
-                .min(Vec4::splat(BINS as f32 - 1.0)),
-        )
-    };
+    let made;
     let Bins {
         boxes: bin_bounds,
         counts: bin_count,
-    } = Bins::of(refs, bins_of);
+    } = match bins {
+        Some(b) => b,
+        None => {
+            made = if refs.len() >= strategy.parallel {
+                Bins::of_parallel(refs, &node.binning, strategy.parallel)
+            } else {
+                Bins::of(refs, &node.binning)
+            };
+            &made
+        }
+    };
     // The cheapest split plane over the bins of every axis, from sweeps
     // from both ends. Only the planes after non-empty bins are tried: a
     // plane after an empty bin splits as the one before it, which is
     // tried first and kept on a tie.
-    let mut best = (f32::INFINITY, 0, axis);
+    let mut best = (f32::INFINITY, 0, node.axis);
     for axis in (0..3).filter(|&a| ext[a] > 0.0) {
         let (boxes, counts) = (&bin_bounds[axis], &bin_count[axis]);
         let mut full = [0usize; BINS];
@@ -461,86 +563,207 @@ fn plan(refs: &mut [BuildRef], bounds: BuildRef, metric: Metric, depth: usize) -
     let boxes = &bin_bounds[axis];
     let left_box = bounds_of(&boxes[..=split_bin]);
     let right_box = bounds_of(&boxes[split_bin + 1..]);
-    // Hoare partition by the same bin computation.
-    let left = |r: &BuildRef| bins_of(r)[axis] as usize <= split_bin;
+    let left_count: u32 = bin_count[axis][..=split_bin].iter().sum();
+    let (left_node, right_node) = (NodeBox::new(left_box), NodeBox::new(right_box));
+    // The children's bins are made on the way only where they will be
+    // used (tiny children are leaves).
+    let fuse = |n: &NodeBox, count: usize| strategy.fused && n.binned(count, depth + 1);
+    let bin_left = fuse(&left_node, left_count as usize);
+    let bin_right = fuse(&right_node, refs.len() - left_count as usize);
+    let [left_bins, right_bins] = kids;
+    if bin_left {
+        *left_bins = Bins::EMPTY;
+    }
+    if bin_right {
+        *right_bins = Bins::EMPTY;
+    }
+    // Hoare partition by the same bin computation; every ref is added to
+    // its child's bins once, where it is passed over or swapped.
+    let left = |r: &BuildRef| node.binning.bin(r)[axis] as usize <= split_bin;
+    let mut to_left = |r: &BuildRef| {
+        if bin_left {
+            left_bins.add(left_node.binning.bin(r), r);
+        }
+    };
+    let mut to_right = |r: &BuildRef| {
+        if bin_right {
+            right_bins.add(right_node.binning.bin(r), r);
+        }
+    };
     let (mut i, mut j) = (0, refs.len());
     loop {
         while i < j && left(&refs[i]) {
+            to_left(&refs[i]);
             i += 1;
         }
         while i < j && !left(&refs[j - 1]) {
+            to_right(&refs[j - 1]);
             j -= 1;
         }
         if i >= j {
             break;
         }
+        // refs[i] goes right and refs[j − 1] left.
+        to_right(&refs[i]);
+        to_left(&refs[j - 1]);
         refs.swap(i, j - 1);
         i += 1;
         j -= 1;
     }
-    Plan::Split(i, left_box, right_box)
+    debug_assert_eq!(i, left_count as usize);
+    Plan::Split(
+        i,
+        [
+            Child {
+                bounds: left_box,
+                binned: bin_left,
+            },
+            Child {
+                bounds: right_box,
+                binned: bin_right,
+            },
+        ],
+    )
 }
 
-/// Builds the subtree over `refs` (with the box `b`) into `nodes[node]`
-/// and nodes pushed after it; `first`: where `refs` starts in the item
-/// order.
+/// What every node of one build shares.
+#[derive(Clone, Copy)]
+struct Build {
+    metric: Metric,
+    strategy: Strategy,
+}
+
+/// Builds the subtree over `refs` (with the box `bounds` and the bins
+/// `bins` if made) into `nodes[node]` and nodes pushed after it; `first`:
+/// where `refs` starts in the item order; `scratch`: bins for the levels
+/// below (one pair per level).
+#[allow(clippy::too_many_arguments)]
 fn split(
     nodes: &mut Vec<Node>,
     node: usize,
     refs: &mut [BuildRef],
-    b: BuildRef,
+    bounds: BuildRef,
+    bins: Option<&Bins>,
     first: usize,
-    metric: Metric,
+    build: Build,
     depth: usize,
+    scratch: &mut [[Bins; 2]],
 ) {
-    let plan = plan(refs, b, metric, depth);
+    // (A tree deeper than the scratch, which the count split rules out,
+    // would keep those levels' bins on the stack.)
+    let mut spare;
+    let (kids, below) = match scratch.split_first_mut() {
+        Some(k) => k,
+        None => {
+            spare = [Bins::EMPTY; 2];
+            (&mut spare, &mut [][..])
+        }
+    };
+    let plan = plan(refs, bounds, bins, kids, build, depth);
     let n = &mut nodes[node];
-    (n.min, n.max) = metric.grid.world(&b);
+    (n.min, n.max) = build.metric.grid.world(&bounds);
     match plan {
         Plan::Leaf => {
             n.first = first as u32;
             n.count = refs.len() as u32;
         }
-        Plan::Split(mid, lb, rb) => {
+        Plan::Split(mid, [l, r]) => {
             let left = nodes.len();
             nodes[node].first = left as u32;
             nodes.push(Node::EMPTY);
             nodes.push(Node::EMPTY);
             let (lo, hi) = refs.split_at_mut(mid);
-            split(nodes, left, lo, lb, first, metric, depth + 1);
-            split(nodes, left + 1, hi, rb, first + mid, metric, depth + 1);
+            let [lb, rb] = &*kids;
+            let (lb, rb) = (l.binned.then_some(lb), r.binned.then_some(rb));
+            split(
+                nodes,
+                left,
+                lo,
+                l.bounds,
+                lb,
+                first,
+                build,
+                depth + 1,
+                below,
+            );
+            let right_first = first + mid;
+            split(
+                nodes,
+                left + 1,
+                hi,
+                r.bounds,
+                rb,
+                right_first,
+                build,
+                depth + 1,
+                below,
+            );
         }
     }
 }
 
-/// The subtree over `refs` (with the box `b`) as its own node list (root
-/// first, leaves indexing `refs` from 0); large ones build their halves in
-/// parallel.
-fn subtree(refs: &mut [BuildRef], b: BuildRef, metric: Metric, depth: usize) -> Vec<Node> {
-    if refs.len() < PARALLEL {
-        let mut nodes = Vec::with_capacity(refs.len());
-        nodes.push(Node::EMPTY);
-        split(&mut nodes, 0, refs, b, 0, metric, depth);
+/// Levels a tree can have (the traversal stacks hold 64 entries).
+const MAX_LEVELS: usize = 64;
+
+/// The subtree over `refs` (with the box `bounds` and the bins `bins` if
+/// made) as its own node list after `lead` unused slots (root first,
+/// children indexed from the root, leaves indexing `refs` from 0); large
+/// ones build their halves in parallel. The slots let a parent put itself
+/// and its children's roots in front of the left child's list without
+/// moving it.
+fn subtree(
+    refs: &mut [BuildRef],
+    bounds: BuildRef,
+    bins: Option<&Bins>,
+    build: Build,
+    depth: usize,
+    lead: usize,
+) -> Vec<Node> {
+    if refs.len() < build.strategy.parallel {
+        let mut nodes = Vec::with_capacity(lead + refs.len());
+        nodes.resize(lead + 1, Node::EMPTY);
+        let mut scratch = vec![[Bins::EMPTY; 2]; MAX_LEVELS.saturating_sub(depth) + 1];
+        split(
+            &mut nodes,
+            lead,
+            refs,
+            bounds,
+            bins,
+            0,
+            build,
+            depth,
+            &mut scratch,
+        );
+        for n in &mut nodes[lead..] {
+            if n.count == 0 {
+                n.first -= lead as u32;
+            }
+        }
         return nodes;
     }
-    let (min, max) = metric.grid.world(&b);
-    let Plan::Split(mid, lb, rb) = plan(refs, b, metric, depth) else {
-        return vec![Node {
+    let (min, max) = build.metric.grid.world(&bounds);
+    let mut kids = Box::new([Bins::EMPTY; 2]);
+    let Plan::Split(mid, [l, r]) = plan(refs, bounds, bins, &mut kids, build, depth) else {
+        let mut nodes = vec![Node::EMPTY; lead + 1];
+        nodes[lead] = Node {
             min,
             first: 0,
             max,
             count: refs.len() as u32,
-        }];
+        };
+        return nodes;
     };
     let (lo, hi) = refs.split_at_mut(mid);
+    let [lb, rb] = &*kids;
+    let (lb, rb) = (l.binned.then_some(lb), r.binned.then_some(rb));
     let (mut left, right) = rayon::join(
-        || subtree(lo, lb, metric, depth + 1),
-        || subtree(hi, rb, metric, depth + 1),
+        || subtree(lo, l.bounds, lb, build, depth + 1, lead + 2),
+        || subtree(hi, r.bounds, rb, build, depth + 1, 0),
     );
-    // [parent, left root, right root, left's others, right's others], in
-    // the left list's allocation.
-    let left_len = left.len() as u32;
-    for n in &mut left {
+    // [parent, left root, right root, left's others, right's others]: the
+    // left list already holds its others there.
+    let left_len = (left.len() - (lead + 2)) as u32;
+    for n in &mut left[lead + 2..] {
         if n.count == 0 {
             n.first += 2;
         }
@@ -553,17 +776,15 @@ fn subtree(refs: &mut [BuildRef], b: BuildRef, metric: Metric, depth: usize) -> 
         }
         n
     };
-    left.reserve_exact(right.len() + 1);
-    left.insert(
-        0,
-        Node {
-            min,
-            first: 1,
-            max,
-            count: 0,
-        },
-    );
-    left.insert(2, moved(right[0]));
+    left[lead] = Node {
+        min,
+        first: 1,
+        max,
+        count: 0,
+    };
+    left[lead + 1] = left[lead + 2];
+    left[lead + 2] = moved(right[0]);
+    left.reserve_exact(right.len() - 1);
     left.extend(right[1..].iter().map(|&n| moved(n)));
     left
 }
@@ -590,6 +811,15 @@ impl Bvh {
         item: impl Fn(usize) -> (u32, Aabb) + Sync,
         weights: DVec3,
     ) -> Bvh {
+        Self::build_by(count, item, weights, Strategy::FAST)
+    }
+
+    fn build_by(
+        count: usize,
+        item: impl Fn(usize) -> (u32, Aabb) + Sync,
+        weights: DVec3,
+        strategy: Strategy,
+    ) -> Bvh {
         if count == 0 {
             return Bvh::default();
         }
@@ -607,15 +837,18 @@ impl Bvh {
                 grid.record(id, &b)
             })
             .collect();
-        let metric = Metric {
-            weights: weights.as_vec3(),
-            grid,
+        let build = Build {
+            metric: Metric {
+                weights: weights.as_vec3(),
+                grid,
+            },
+            strategy,
         };
-        let b = refs
+        let bounds = refs
             .par_chunks(PARALLEL)
             .map(bounds_of)
             .reduce(|| BuildRef::EMPTY, BuildRef::union);
-        let mut nodes = subtree(&mut refs, b, metric, 0);
+        let mut nodes = subtree(&mut refs, bounds, None, build, 0, 0);
         nodes.shrink_to_fit();
         let items = refs.iter().map(|r| r.id()).collect();
         Bvh { nodes, items }
@@ -831,5 +1064,108 @@ mod tests {
             hits += found.is_some() as u32;
         }
         assert!(hits > 100, "{hits}");
+    }
+
+    /// Node arrays and item orders equal bit for bit.
+    fn assert_same_tree(a: &Bvh, b: &Bvh) {
+        assert_eq!(a.nodes.len(), b.nodes.len());
+        for (i, (m, n)) in a.nodes.iter().zip(&b.nodes).enumerate() {
+            let bits = |n: &Node| {
+                (
+                    n.min.to_array().map(f32::to_bits),
+                    n.max.to_array().map(f32::to_bits),
+                    n.first,
+                    n.count,
+                )
+            };
+            assert_eq!(bits(m), bits(n), "node {i}");
+        }
+        assert_eq!(a.items, b.items);
+    }
+
+    /// The fused, parallel build makes the tree of the plain one (bin,
+    /// then partition, one node after the other), node for node: on random
+    /// boxes, on a torus's triangles (many equal sizes, a hole), on
+    /// clusters of equal centroids, with and without face weights, and
+    /// past the depth where nodes are halved by count.
+    #[test]
+    fn fused_parallel_build_equals_the_plain_sequential_one() {
+        let plain = Strategy {
+            fused: false,
+            parallel: usize::MAX,
+        };
+        let mut state = 777u64;
+        let mut next = move || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let random: Vec<(u32, Aabb)> = (0..70_000)
+            .map(|i| {
+                let c = DVec3::new(next(), next() * 0.3, next()) * 100.0;
+                let h = DVec3::new(next(), next(), next()) * 0.4 + 0.01;
+                (i as u32, Aabb::new(c - h, c + h))
+            })
+            .collect();
+        // A torus of 2·240·160 triangles' boxes.
+        let (nu, nv) = (240, 160);
+        let at = |i: usize, j: usize| {
+            let (u, v) = (
+                std::f64::consts::TAU * i as f64 / nu as f64,
+                std::f64::consts::TAU * j as f64 / nv as f64,
+            );
+            let r = 2.0 + 0.6 * v.cos();
+            DVec3::new(r * u.cos(), 0.6 * v.sin(), r * u.sin())
+        };
+        let mut torus = Vec::new();
+        for i in 0..nu {
+            for j in 0..nv {
+                let (a, b, c, d) = (at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1));
+                for t in [[a, b, c], [a, c, d]] {
+                    let id = torus.len() as u32;
+                    torus.push((
+                        id,
+                        Aabb::new(t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2])),
+                    ));
+                }
+            }
+        }
+        // Clusters of boxes sharing a centroid (leaves that cannot split).
+        let clusters: Vec<(u32, Aabb)> = (0..40_000)
+            .map(|i| {
+                let c = DVec3::splat((i % 37) as f64);
+                let h = DVec3::splat(0.1 + (i % 5) as f64 * 0.01);
+                (i as u32, Aabb::new(c - h, c + h))
+            })
+            .collect();
+        let geometric: Vec<(u32, Aabb)> = (0..230)
+            .map(|i| {
+                let x = 1e-37 * 2f64.powi(i);
+                (
+                    i as u32,
+                    Aabb::new(DVec3::new(x, 0.0, 0.0), DVec3::new(x * 1.001, 1.0, 1.0)),
+                )
+            })
+            .collect();
+        for objects in [&random, &torus, &clusters, &geometric] {
+            for weights in [DVec3::ONE, DVec3::new(2.0, 2.0, 1.0)] {
+                let build = |s: Strategy| Bvh::build_by(objects.len(), |k| objects[k], weights, s);
+                let reference = build(plain);
+                assert!(reference.node_count() > 1);
+                assert_same_tree(&build(Strategy::FAST), &reference);
+                // Each change on its own too.
+                let fused_only = Strategy {
+                    fused: true,
+                    parallel: usize::MAX,
+                };
+                assert_same_tree(&build(fused_only), &reference);
+                let parallel_only = Strategy {
+                    fused: false,
+                    parallel: 1024,
+                };
+                assert_same_tree(&build(parallel_only), &reference);
+            }
+        }
     }
 }

@@ -80,6 +80,10 @@ pub struct Scene {
     pub shadow_bvh: Option<Arc<OccluderBvh>>,
     /// Union of the bounded primitives' bounds.
     pub object_bounds: Option<Aabb>,
+    /// Per object (by id), a plane's signed distances of the light's four
+    /// corners (0 for other objects): the shadow culling compares them
+    /// with each hit point's, so they are computed once per light.
+    pub light_sides: Arc<[[f64; 4]]>,
     /// Size of the scene's finite part (bounded objects, light, camera):
     /// the floor of ray offsets near the origin.
     pub scale: f64,
@@ -87,6 +91,19 @@ pub struct Scene {
     /// zero-area ones left out.
     pub triangles: usize,
     pub degenerate_triangles: usize,
+}
+
+/// Each plane object's signed distances of the light's corners (see
+/// [`Scene::light_sides`]).
+fn light_sides(objects: &[Object], light: &AreaLight) -> Arc<[[f64; 4]]> {
+    let corners = light.shape.corners();
+    objects
+        .iter()
+        .map(|o| match &o.shape {
+            Shape::Plane(pl) => corners.map(|c| pl.signed_distance(c)),
+            _ => [0.0; 4],
+        })
+        .collect()
 }
 
 impl Scene {
@@ -218,6 +235,7 @@ impl Scene {
         };
         super::math::release_free_memory();
         Ok(Scene {
+            light_sides: light_sides(&objects, &light),
             camera,
             light,
             material_names: material_names.into(),
@@ -244,6 +262,7 @@ impl Scene {
         let (a, b) = (&light.shape, &self.light.shape);
         let moved = (a.corner, a.edge_u, a.edge_v) != (b.corner, b.edge_u, b.edge_v);
         Scene {
+            light_sides: light_sides(&self.objects, &light),
             scale: scale_of(self.object_bounds, &light, &camera),
             shadow_bvh: if moved {
                 self.build_shadow_bvh(&light)
@@ -280,6 +299,16 @@ impl Scene {
             Some(o) => o.shape.surface(ray, t),
             None => self.meshes.surface(id - self.objects.len() as u32, ray, t),
         }
+    }
+
+    /// A plane object's signed distances of the light's four corners (0
+    /// for other primitives).
+    #[inline]
+    pub fn light_sides_of(&self, id: u32) -> [f64; 4] {
+        self.light_sides
+            .get(id as usize)
+            .copied()
+            .unwrap_or([0.0; 4])
     }
 
     /// Bounds of primitive `id` (`None` for planes).

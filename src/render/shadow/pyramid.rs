@@ -39,9 +39,12 @@ impl ShadowPyramid {
     /// Conservative: false only if the sphere certainly misses the pyramid.
     #[inline(always)]
     pub(super) fn may_overlap_sphere(&self, centre: DVec3, radius: f64) -> bool {
-        self.planes
-            .iter()
-            .all(|&(n, d)| n.dot(centre) - d <= radius * n.length() * (1.0 + 1e-9))
+        // A centre on the inner side passes without the plane's length (the
+        // right-hand side is never negative): the same answers.
+        self.planes.iter().all(|&(n, d)| {
+            let outside = n.dot(centre) - d;
+            outside <= 0.0 || outside <= radius * n.length() * (1.0 + 1e-9)
+        })
     }
 
     /// Conservative: false only if the box certainly misses the pyramid.

@@ -86,45 +86,21 @@ fn visibility_generic(
     let umbra_tested = skip && count >= UMBRA_TEST_RAYS;
     let corners = light.corners();
     let pyramid = ShadowPyramid::new(q.point, &corners, light.normal, light.centre());
-    // An object as a possible occluder of this hit point, unless it can
-    // certainly block nothing.
-    let candidate = |i: u32| -> Option<Candidate> {
-        let prim = scene.primitive(i);
-        let inside = i == q.object && q.inside;
-        if i == q.object && prim.skips_itself(q.inside) {
-            return None;
-        }
-        let bounds = scene.bounds_of(i);
-        if skip && cannot_block(prim, bounds, q.point, &corners, &pyramid) {
-            return None;
-        }
-        let umbra_test = umbra_tested
-            && !inside
-            && prim.convex()
-            && match bounds {
-                // Planes block a light point iff it lies on their other side:
-                // all four corners there means the whole light.
-                None => true,
-                Some(b) => {
-                    let x = DVec3::select(light.normal.cmpge(DVec3::ZERO), b.min, b.max);
-                    light.signed_distance(x) > 0.0
-                }
-            };
-        Some(Candidate {
-            occ: Occluder::new(prim, q.point, inside),
-            umbra_test,
-        })
+    let culling = Culling {
+        scene,
+        q,
+        skip,
+        umbra_tested,
+        pyramid: &pyramid,
     };
 
     // Objects outside the BVH (planes, and all objects of small scenes).
     buf.occluders.clear();
-    buf.occluders.extend(
-        scene
-            .unbounded
-            .iter()
-            .chain(scene.bounded.iter())
-            .filter_map(|&i| candidate(i)),
-    );
+    for &i in scene.unbounded.iter().chain(scene.bounded.iter()) {
+        if let Some(c) = culling.candidate(i) {
+            buf.occluders.push(c);
+        }
+    }
     if buf.occluders.is_empty() && scene.bvh.is_empty() {
         stats.shadow_unoccluded += facing;
         return;
@@ -212,7 +188,7 @@ fn visibility_generic(
                 q.point,
                 |b| !skip || pyramid.may_overlap(b),
                 |i| {
-                    let Some(c) = candidate(i) else {
+                    let Some(c) = culling.candidate(i) else {
                         return true;
                     };
                     traced = true;
@@ -326,15 +302,70 @@ fn visibility_generic(
     stats.shadow_unoccluded += facing - tested;
 }
 
+/// What decides whether an object is a possible occluder of one hit point.
+struct Culling<'a> {
+    scene: &'a Scene,
+    q: &'a ShadowQuery,
+    skip: bool,
+    umbra_tested: bool,
+    pyramid: &'a ShadowPyramid,
+}
+
+impl Culling<'_> {
+    /// Object `i` as a possible occluder of the hit point, unless it can
+    /// certainly block nothing. A function, not a closure, so that it is
+    /// inlined into (and compiled for the same CPU features as) the
+    /// kernel that calls it: a closure stays a call of baseline code.
+    #[inline(always)]
+    fn candidate(&self, i: u32) -> Option<Candidate> {
+        let (scene, q) = (self.scene, self.q);
+        let light = &scene.light.shape;
+        let prim = scene.primitive(i);
+        let inside = i == q.object && q.inside;
+        if i == q.object && prim.skips_itself(q.inside) {
+            return None;
+        }
+        let bounds = scene.bounds_of(i);
+        if self.skip
+            && cannot_block(
+                prim,
+                bounds,
+                q.point,
+                &scene.light_sides_of(i),
+                self.pyramid,
+            )
+        {
+            return None;
+        }
+        let umbra_test = self.umbra_tested
+            && !inside
+            && prim.convex()
+            && match bounds {
+                // Planes block a light point iff it lies on their other side:
+                // all four corners there means the whole light.
+                None => true,
+                Some(b) => {
+                    let x = DVec3::select(light.normal.cmpge(DVec3::ZERO), b.min, b.max);
+                    light.signed_distance(x) > 0.0
+                }
+            };
+        Some(Candidate {
+            occ: Occluder::new(prim, q.point, inside),
+            umbra_test,
+        })
+    }
+}
+
 /// Whether primitive `prim` (of bounds `bounds`) certainly blocks no
-/// shadow ray from `p` to the light (of corners `corners` and pyramid
-/// `pyramid` from p).
+/// shadow ray from `p` to the light (of pyramid `pyramid` from p; a
+/// plane's `sides`: its signed distances of the light's corners, from
+/// [`Scene::light_sides_of`]).
 #[inline(always)]
 fn cannot_block(
     prim: Primitive,
     bounds: Option<Aabb>,
     p: DVec3,
-    corners: &[DVec3; 4],
+    sides: &[f64; 4],
     pyramid: &ShadowPyramid,
 ) -> bool {
     match prim {
@@ -342,7 +373,7 @@ fn cannot_block(
         // from p.
         Primitive::Shape(Shape::Plane(pl)) => {
             let sp = pl.signed_distance(p);
-            corners.iter().all(|c| pl.signed_distance(*c) * sp > 0.0)
+            sides.iter().all(|&c| c * sp > 0.0)
         }
         // The sphere itself is a tighter test than its box.
         Primitive::Shape(Shape::Sphere(sp)) => !pyramid.may_overlap_sphere(sp.centre, sp.radius),
@@ -363,7 +394,13 @@ pub(crate) fn possible_occluders(scene: &Scene, q: &ShadowQuery, out: &mut Vec<(
         if i == q.object && prim.skips_itself(q.inside) {
             return;
         }
-        if !cannot_block(prim, scene.bounds_of(i), q.point, &corners, &pyramid) {
+        if !cannot_block(
+            prim,
+            scene.bounds_of(i),
+            q.point,
+            &scene.light_sides_of(i),
+            &pyramid,
+        ) {
             out.push((i, i == q.object && q.inside));
         }
     };

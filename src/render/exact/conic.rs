@@ -22,7 +22,7 @@ use std::sync::OnceLock;
 use glam::{DVec2, DVec3};
 
 use super::diffuse::segment_term;
-use super::projection::LightView;
+use super::projection::{LightView, Silhouette};
 use crate::render::geometry::Sphere;
 
 /// Difference between an arc's rule and its halves' (relative to the
@@ -68,12 +68,13 @@ impl ConicShadow {
         if d2.partial_cmp(&(r * r)) != Some(std::cmp::Ordering::Greater) {
             return None;
         }
-        let k = r * r / d2;
-        let centre = oc * (1.0 - k);
-        let rho = r * (1.0 - k).sqrt();
-        let axis = oc / d2.sqrt();
-        let u = axis.any_orthonormal_vector();
-        let w = axis.cross(u);
+        let Silhouette {
+            centre,
+            rho,
+            axis,
+            u,
+            w,
+        } = Silhouette::new(oc, r, d2);
         let top = centre.z + rho * (u.z * u.z + w.z * w.z).sqrt();
         if top.partial_cmp(&(-BELOW * view.h)) != Some(std::cmp::Ordering::Less) {
             return None;

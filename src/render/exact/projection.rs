@@ -326,6 +326,34 @@ pub fn triangle_shadow(
     faces_shadow(view, &[&vertices], &[], s, out);
 }
 
+/// The circle where the tangent cone from q (at the origin) touches a
+/// sphere of centre `oc` and radius `r` (`d2` = |oc|², above r²): its
+/// centre, radius, the cone's unit axis and two unit vectors spanning the
+/// circle's plane. One computation for the polygon and the conic, so both
+/// start from the same bits.
+pub(super) struct Silhouette {
+    pub centre: DVec3,
+    pub rho: f64,
+    pub axis: DVec3,
+    pub u: DVec3,
+    pub w: DVec3,
+}
+
+impl Silhouette {
+    pub(super) fn new(oc: DVec3, r: f64, d2: f64) -> Silhouette {
+        let k = r * r / d2;
+        let axis = oc / d2.sqrt();
+        let u = axis.any_orthonormal_vector();
+        Silhouette {
+            centre: oc * (1.0 - k),
+            rho: r * (1.0 - k).sqrt(),
+            axis,
+            u,
+            w: axis.cross(u),
+        }
+    }
+}
+
 /// The shadow of a sphere from its silhouette as an `n`-gon.
 pub fn sphere_shadow(
     view: &LightView,
@@ -352,12 +380,9 @@ pub fn sphere_shadow(
     }) {
         return Ok(());
     }
-    let k = r * r / d2;
-    let centre = oc * (1.0 - k);
-    let rho = r * (1.0 - k).sqrt();
-    let axis = oc / d2.sqrt();
-    let u = axis.any_orthonormal_vector();
-    let w = axis.cross(u);
+    let Silhouette {
+        centre, rho, u, w, ..
+    } = Silhouette::new(oc, r, d2);
     let step = std::f64::consts::TAU / n as f64;
     let scale = match fit {
         CircleFit::Inscribed => 1.0,

@@ -70,7 +70,7 @@ pub(crate) const WIDE_POINTS: usize = 16;
 
 use std::sync::atomic::{AtomicU8, Ordering};
 
-/// Whether the re-shading kernel runs with AVX-512 (F, VL, DQ, BW): where
+/// Whether the sixteen-lane kernels run with AVX-512 (F, VL, DQ, BW): where
 /// the CPU has it, unless `PENUMBRA_KERNELS` is `portable` or `avx2` (to
 /// compare the paths); chosen once per process.
 #[inline]

@@ -338,13 +338,7 @@ fn sampled_terms_generic(
         let f = ((n.x * x + n.y * y + n.z * z) * inv).max(0.0);
         term_f[j] = f;
         term_d[j] = vis[j] * f;
-        // Blinn's half vector H = L / |L| + V.
-        let (hx, hy, hz) = (x * inv + v.x, y * inv + v.y, z * inv + v.z);
-        let h2 = hx * hx + hy * hy + hz * hz;
-        // N·H / |H|; H = 0 (light exactly behind the viewer) gives 0.
-        let c = ((n.x * hx + n.y * hy + n.z * hz) / h2.sqrt()).max(0.0);
-        let c = if h2 > 0.0 { c } else { 0.0 };
-        term_s[j] = vis[j] * pow_approx(c, shininess);
+        term_s[j] = vis[j] * pow_approx(blinn_cosine(n, v, x, y, z, inv), shininess);
     }
     let [d, f, s] = sequential_sums([
         &buf.term_d[..count],
@@ -372,6 +366,18 @@ fn sequential_sums<const K: usize>(slices: [&[f32]; K]) -> [f32; K] {
         }
     }
     sums
+}
+
+/// max(0, N·H / |H|) for Blinn's half vector H = L / |L| + V, from the
+/// direction (x, y, z) to a light point and `inv` = 1 / |L|; H = 0 (the
+/// light exactly behind the viewer) gives 0. One definition for the
+/// tracer and the re-shade, which must give the same bits.
+#[inline(always)]
+pub(crate) fn blinn_cosine(n: Vec3, v: Vec3, x: f32, y: f32, z: f32, inv: f32) -> f32 {
+    let (hx, hy, hz) = (x * inv + v.x, y * inv + v.y, z * inv + v.z);
+    let h2 = hx * hx + hy * hy + hz * hz;
+    let c = ((n.x * hx + n.y * hy + n.z * hz) / h2.sqrt()).max(0.0);
+    if h2 > 0.0 { c } else { 0.0 }
 }
 
 /// Averages over the light points of one hit point.

@@ -17,7 +17,7 @@ use glam::Vec3;
 use crate::render::progressive::TileRect;
 use crate::render::shading::LightTerms;
 use crate::render::shading_params::ShadingParams;
-use crate::render::shadow::ShadowBuffers;
+use crate::render::shadow::{ShadowBuffers, live_rays};
 use crate::render::tracer::{HitRecord, PathEnd, PathSink};
 
 /// The colour tier of one hit.
@@ -151,7 +151,7 @@ impl PathSink for TileRecorder<'_> {
                 normal: hit.normal,
                 view: hit.view,
             });
-            push_visibility_bits(&buf.vis[..count], &mut s.visible);
+            push_visibility_bits(&buf.vis, count, &mut s.visible);
         }
     }
 
@@ -163,46 +163,24 @@ impl PathSink for TileRecorder<'_> {
     }
 }
 
-/// Appends one bit per light point (bit j of word j / 64), set where `vis`
-/// is not 0, the last word padded with 0s. Each word is built in a
-/// register, four points per compare: or-ing bit by bit into the buffer
-/// made every bit wait on the store of the one before, and was the largest
-/// cost of recording a path (a fifth of a one-shot render's time).
+/// Appends one bit per light point (bit j of word j / 64) for the first
+/// `count` points of `vis`, set where the point is not 0, the last word
+/// padded with 0s. `vis` runs on to a multiple of 8 (as in
+/// [`ShadowBuffers`]; what the padding holds is masked off): each word is
+/// built in a register by the shadow packets' [`live_rays`], eight points
+/// per compare. Or-ing bit by bit into the buffer made every bit wait on
+/// the store of the one before, and was the largest cost of recording a
+/// path (a fifth of a one-shot render's time).
 #[inline]
-pub fn push_visibility_bits(vis: &[f32], out: &mut Vec<u64>) {
-    for points in vis.chunks(64) {
-        let mut word = 0u64;
-        let mut quads = points.chunks_exact(4);
-        for (k, q) in quads.by_ref().enumerate() {
-            word |= (visible_nibble(q.try_into().expect("four points")) as u64) << (4 * k);
-        }
-        let done = points.len() - quads.remainder().len();
-        for (j, &v) in quads.remainder().iter().enumerate() {
-            word |= ((v != 0.0) as u64) << (done + j);
-        }
-        out.push(word);
-    }
-}
-
-/// Bit l set where `q[l] != 0` (NaN included, as `!=` has it).
-#[inline(always)]
-fn visible_nibble(q: &[f32; 4]) -> u32 {
-    #[cfg(target_arch = "x86_64")]
-    {
-        use std::arch::x86_64::{_mm_cmpneq_ps, _mm_loadu_ps, _mm_movemask_ps, _mm_setzero_ps};
-        // SAFETY: SSE is part of x86-64; the load reads the four floats of
-        // `q` (unaligned).
-        unsafe {
-            let v = _mm_loadu_ps(q.as_ptr());
-            _mm_movemask_ps(_mm_cmpneq_ps(v, _mm_setzero_ps())) as u32
-        }
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        q.iter()
-            .enumerate()
-            .map(|(l, &v)| ((v != 0.0) as u32) << l)
-            .fold(0, |a, b| a | b)
+pub fn push_visibility_bits(vis: &[f32], count: usize, out: &mut Vec<u64>) {
+    for (k, points) in vis[..count.next_multiple_of(8)].chunks(64).enumerate() {
+        let word = live_rays(points);
+        let left = count - 64 * k;
+        out.push(if left < 64 {
+            word & ((1 << left) - 1)
+        } else {
+            word
+        });
     }
 }
 
@@ -262,8 +240,11 @@ mod tests {
             for (j, &v) in vis.iter().enumerate() {
                 want[j / 64] |= ((v != 0.0) as u64) << (j % 64);
             }
+            // Padded to a multiple of 8 with leftovers of other points.
+            let mut padded = vis.clone();
+            padded.resize(count.next_multiple_of(8), 1.0);
             let mut got = vec![42];
-            push_visibility_bits(&vis, &mut got);
+            push_visibility_bits(&padded, count, &mut got);
             assert_eq!(got[0], 42, "appends");
             assert_eq!(&got[1..], &want[..], "{count} points");
         }

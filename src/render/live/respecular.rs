@@ -12,9 +12,10 @@
 
 use glam::Vec3;
 
-use crate::render::math::{avx2_dispatch, avx512_kernels, pow_approx};
+use crate::render::math::{avx2_dispatch, avx512_dispatch, pow_approx};
 use crate::render::rng::Rng;
 use crate::render::sampling::Pattern;
+use crate::render::shading::blinn_cosine;
 
 /// Hits computed side by side.
 pub const LANES: usize = 16;
@@ -175,29 +176,19 @@ struct Points<'a> {
     edge_v: Vec3,
 }
 
-/// The specular factor of every lane, with the widest vectors the CPU has
-/// (the same operations lane by lane whatever the width, so the same bits).
-fn specular_lanes(hits: &LaneHits, bits: &[[u32; LANES]], points: &Points<'_>) -> [f32; LANES] {
-    #[cfg(target_arch = "x86_64")]
-    if avx512_kernels() {
-        // SAFETY: the CPU supports AVX-512 F, VL, DQ and BW
-        // (`avx512_kernels` checks).
-        return unsafe { specular_lanes_avx512(hits, bits, points) };
-    }
-    specular_lanes_avx2(hits, bits, points)
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f,avx512vl,avx512dq,avx512bw")]
-fn specular_lanes_avx512(
-    hits: &LaneHits,
-    bits: &[[u32; LANES]],
-    points: &Points<'_>,
-) -> [f32; LANES] {
-    specular_lanes_generic(hits, bits, points)
-}
+avx512_dispatch!(
+    /// The specular factor of every lane, with the widest vectors the CPU
+    /// has (the same operations lane by lane whatever the width, so the
+    /// same bits).
+    fn specular_lanes(
+        hits: &LaneHits,
+        bits: &[[u32; LANES]],
+        points: &Points<'_>,
+    ) -> [f32; LANES] => specular_lanes_generic if true, else specular_lanes_avx2
+);
 
 avx2_dispatch!(
+    /// [`specular_lanes`] on eight-lane vectors.
     fn specular_lanes_avx2(
         hits: &LaneHits,
         bits: &[[u32; LANES]],
@@ -250,10 +241,11 @@ fn lane_sums(
                     cz[h] + eu.z * a + ev.z * b,
                 );
                 let inv = 1.0 / (x * x + y * y + z * z).sqrt();
-                let (hx, hy, hz) = (x * inv + vx[h], y * inv + vy[h], z * inv + vz[h]);
-                let h2 = hx * hx + hy * hy + hz * hz;
-                let c = ((nx[h] * hx + ny[h] * hy + nz[h] * hz) / h2.sqrt()).max(0.0);
-                let c = if h2 > 0.0 { c } else { 0.0 };
+                let (n, v) = (
+                    Vec3::new(nx[h], ny[h], nz[h]),
+                    Vec3::new(vx[h], vy[h], vz[h]),
+                );
+                let c = blinn_cosine(n, v, x, y, z, inv);
                 // The tracer multiplies by the visibility (1 or 0): the
                 // term, or +0 (it is finite and not negative).
                 let term = pow_approx(c, hits.shininess[h]);
@@ -299,20 +291,14 @@ mod tests {
         terms.iter().sum::<f32>() * (1.0 / a.len() as f32)
     }
 
-    /// Every kernel this CPU runs: the baseline build, AVX2, AVX-512.
+    /// Every kernel this CPU runs: the baseline build, AVX2 (where the CPU
+    /// has it) and the widest (AVX-512 where the CPU has it).
     fn kernels() -> Vec<(&'static str, Kernel)> {
-        let mut k: Vec<(&'static str, Kernel)> = vec![
+        vec![
             ("portable", specular_lanes_generic),
             ("avx2 or portable", specular_lanes_avx2),
-        ];
-        #[cfg(target_arch = "x86_64")]
-        if avx512_kernels() {
-            // SAFETY: the CPU supports AVX-512 F, VL, DQ and BW.
-            k.push(("avx512", |h, b, p| unsafe {
-                specular_lanes_avx512(h, b, p)
-            }));
-        }
-        k
+            ("widest", specular_lanes),
+        ]
     }
 
     #[test]

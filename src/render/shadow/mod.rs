@@ -39,6 +39,7 @@ mod visibility;
 
 pub use buffers::ShadowBuffers;
 pub use light_frame::OccluderBvh;
+pub(crate) use packet::live_rays;
 pub(crate) use visibility::{ShadowQuery, possible_occluders, visibility};
 
 /// Shadow rays end at this fraction of the way to their light point: a

@@ -222,7 +222,7 @@ fn sort_far_first<K: PartialOrd + Copy, T: Copy>(v: &mut [(K, T)]) {
 /// Bit j set where `vis[j]` is not 0 (at most 64 rays, whole chunks of 8:
 /// each chunk becomes one compare and one move-mask).
 #[inline(always)]
-pub(super) fn live_rays(vis: &[f32]) -> u64 {
+pub(crate) fn live_rays(vis: &[f32]) -> u64 {
     let mut m = 0;
     for (c, chunk) in vis.chunks_exact(8).enumerate() {
         let mut byte = 0u64;

@@ -259,6 +259,60 @@ fn above_the_memory_cap_edits_fall_back_to_tracing_and_stay_exact() {
 }
 
 #[test]
+fn logarithms_kept_by_a_reshade_give_the_next_ones_exactly_within_the_cap() {
+    let d0 = room(80, 45);
+    // How much the records take, and how much with every tile's logarithms.
+    let mut live = LiveRender::default();
+    let bare = step(&mut live, &d0, "first").record_bytes;
+    let mut d = d0.clone();
+    d.render.shininess_override = Some(12.0);
+    let full = step(&mut live, &d, "keeps logarithms").record_bytes;
+    assert!(
+        full > bare + bare / 4,
+        "logarithms kept: {bare} → {full} bytes"
+    );
+    // All tiles, about half of them, none.
+    for cap in [live.cap(), (bare + full) / 2, bare + 1000] {
+        let mut live = LiveRender::new(cap);
+        let mut d = d0.clone();
+        step(&mut live, &d, "first");
+        let check = |live: &mut LiveRender, d: &SceneDesc, what: &str| {
+            let r = step(live, d, what);
+            assert_eq!(r.class, EditClass::Reshade, "{what}");
+            assert_eq!(r.stats.traced(), 0, "{what}: no ray");
+            assert!(
+                r.record_bytes <= cap,
+                "{what}: {} > cap {cap}",
+                r.record_bytes
+            );
+            r.record_bytes
+        };
+        d.render.shininess_override = Some(12.0);
+        let kept = check(&mut live, &d, "override (keeps)");
+        if cap == bare + 1000 {
+            assert!(kept <= bare + 1000, "no room: no tile keeps");
+        } else {
+            assert!(kept > bare, "some tiles keep logarithms");
+        }
+        d.render.shininess_override = Some(300.0);
+        check(&mut live, &d, "override from the logarithms");
+        d.render.shininess_override = None;
+        check(&mut live, &d, "override off");
+        material(&mut d, "steel").shininess = 3.5;
+        check(&mut live, &d, "one material's shininess");
+        material(&mut d, "white").shininess = 0.25;
+        check(&mut live, &d, "another material's shininess");
+        // Longer paths traced again: those tiles' logarithms go.
+        material(&mut d, "white").reflectivity = 0.5;
+        step(&mut live, &d, "reflectivity from 0");
+        d.render.shininess_override = Some(40.0);
+        step(&mut live, &d, "override after the re-traced tiles");
+        d.render.shininess_override = Some(41.0);
+        step(&mut live, &d, "and again");
+    }
+}
+
+#[test]
 fn a_cancelled_edit_leaves_the_next_one_exact() {
     let mut live = LiveRender::default();
     let mut d = room(64, 36);

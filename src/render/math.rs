@@ -162,8 +162,20 @@ pub fn srgb_to_linear(x: f32) -> f32 {
 /// exp: no table and no branch, so loops over it vectorize (`powf` is a
 /// libm call per value). Relative error about 1e-7 · max(1, |y·log2 x|);
 /// inputs below the smallest normal f32 give 0.
+///
+/// The two halves are functions of their own so that a re-shade can keep
+/// [`pow_log2`] of a cosine (it does not depend on the exponent) and apply
+/// only [`pow_from_log2`] for a new exponent, with the same bits.
 #[inline(always)]
 pub fn pow_approx(x: f32, y: f32) -> f32 {
+    pow_from_log2(pow_log2(x), y)
+}
+
+/// The first half of [`pow_approx`]: log2 x for x at least the smallest
+/// normal f32, −∞ below it (and for NaN), which [`pow_from_log2`] turns into
+/// 0 for every y > 0.
+#[inline(always)]
+pub fn pow_log2(x: f32) -> f32 {
     // x = m · 2^e with m in [√½, √2).
     let bits = x.to_bits() as i32;
     let mut e = ((bits >> 23) & 0xff) - 127;
@@ -177,6 +189,17 @@ pub fn pow_approx(x: f32, y: f32) -> f32 {
     let ln_m =
         2.0 * t * (1.0 + t2 * (1.0 / 3.0 + t2 * (1.0 / 5.0 + t2 * (1.0 / 7.0 + t2 * (1.0 / 9.0)))));
     let log2_x = e as f32 + ln_m * std::f32::consts::LOG2_E;
+    if x >= f32::MIN_POSITIVE {
+        log2_x
+    } else {
+        f32::NEG_INFINITY
+    }
+}
+
+/// The second half of [`pow_approx`]: 2^(y · log2_x) for y > 0, 0 where
+/// y · log2_x ≤ −126 (so 0 for log2_x = −∞).
+#[inline(always)]
+pub fn pow_from_log2(log2_x: f32, y: f32) -> f32 {
     // 2^z = 2^k · 2^f with k = round(z), f in [−½, ½].
     let z = (y * log2_x).max(-126.0);
     // Round to nearest by adding and removing 1.5·2²³ (exact for |z| < 2²²);
@@ -194,11 +217,7 @@ pub fn pow_approx(x: f32, y: f32) -> f32 {
                     + f * (1.0 / 24.0
                         + f * (1.0 / 120.0 + f * (1.0 / 720.0 + f * (1.0 / 5040.0)))))));
     let scaled = p * f32::from_bits(((k_int + 127) << 23) as u32);
-    if x >= f32::MIN_POSITIVE && z > -126.0 {
-        scaled
-    } else {
-        0.0
-    }
+    if z > -126.0 { scaled } else { 0.0 }
 }
 
 /// The n-point Gauss–Legendre rule on [−1, 1], as (node, weight) pairs:

@@ -14,6 +14,7 @@
 //! (`tracer::replay`), so the image after any sequence of edits equals a
 //! fresh one-shot render of the same description, bit for bit.
 
+pub mod cosine_logs;
 pub mod edit;
 pub mod record;
 pub mod respecular;
@@ -24,9 +25,10 @@ use std::time::{Duration, Instant};
 
 use glam::Vec3;
 
+use cosine_logs::{CosineLogs, LogBudget, NO_HIT, fully_lit};
 pub use edit::{EditClass, classify};
 use record::{Budget, TileRecord, TileRecorder, shininess_of};
-use respecular::{RecordedHit, ReshadeBatch};
+use respecular::{RecordedHit, ReshadeBatch, specular_from_logs};
 
 use super::error::SceneError;
 use super::film::Film;
@@ -44,8 +46,10 @@ use super::stats::RayStats;
 use super::tracer::{ReplayMaterial, Tracer, replay_materials, replay_pixel};
 
 /// Default memory cap of the records (see `record.rs` for the bytes per
-/// hit): the seed room at 960×540, 64 shadow rays, depth 4 needs ~40 MB.
-pub const DEFAULT_RECORD_CAP: usize = 64 << 20;
+/// hit): the seed room at 960×540, 64 shadow rays, depth 4 needs ~35 MB,
+/// and a re-shade keeps logarithms for the next one in the rest
+/// (`cosine_logs.rs`). 64 MB in decimal units, as the bench prints them.
+pub const DEFAULT_RECORD_CAP: usize = 64_000_000;
 
 /// What one live render did.
 #[derive(Debug, Clone)]
@@ -343,17 +347,15 @@ impl LiveRender {
             pass_index: 0,
             pass_count: 1,
         };
+        // What the records leave under the cap may keep logarithms for the
+        // next re-shade (a reflectivity edit's longer paths may take some
+        // back: see below).
+        let log_budget = LogBudget::new(self.cap.saturating_sub(frame.bytes()));
         let result = in_pool(options.threads, || {
             job.run(&tracer, |i, _, scratch, pixels| {
                 let mut record = lock(&records[i]);
                 if record.shininess != shininess {
-                    respecular_tile(
-                        &scene,
-                        &tracer,
-                        &shininess,
-                        &mut record,
-                        &mut ReshadeBatch::default(),
-                    );
+                    respecular_tile(&scene, &tracer, &shininess, &mut record, &log_budget);
                 }
                 let n = replay_tile(&tracer, &materials, &mut record, scratch, pixels);
                 retraced.fetch_add(n, Ordering::Relaxed);
@@ -361,6 +363,16 @@ impl LiveRender {
             })
         });
         let film = film.into_inner().unwrap_or_else(|e| e.into_inner());
+        // Tiles traced again may have grown: the kept logarithms go first.
+        let mut over = frame.bytes().saturating_sub(self.cap);
+        for tile in records.iter().rev() {
+            if over == 0 {
+                break;
+            }
+            if let Some(logs) = lock(tile).logs.take() {
+                over = over.saturating_sub(logs.bytes());
+            }
+        }
         // Cancelled: every tile is consistent on its own (it knows the
         // shininess of its factors), so the records stay.
         let stats = result?;
@@ -380,13 +392,15 @@ impl LiveRender {
 
 /// Computes the specular factors of a tile's hits whose material's
 /// shininess differs from `shininess`, from their recorded visibility, in
-/// batches of [`respecular::LANES`] hits.
+/// batches of [`respecular::LANES`] hits — or from the logarithms a
+/// previous re-shade kept, which the first re-shade of the tile keeps for
+/// its fully lit hits if `budget` has room.
 fn respecular_tile(
     scene: &Scene,
     tracer: &Tracer,
     shininess: &Arc<[f32]>,
     record: &mut TileRecord,
-    batch: &mut ReshadeBatch,
+    budget: &LogBudget,
 ) {
     let respecular: Vec<bool> = shininess
         .iter()
@@ -401,29 +415,70 @@ fn respecular_tile(
         starts,
         hits,
         shapes,
+        logs,
         ..
     } = record;
     let shapes = shapes.as_ref().expect("the shininess tier");
     let words = shapes.words;
+    let visible_of = |h: usize| &shapes.visible[h * words..(h + 1) * words];
     let spp = tracer.samples() as usize;
     let light = &scene.light.shape;
     let (edge_u, edge_v) = (light.edge_u.as_vec3(), light.edge_v.as_vec3());
+    let nearest = settings.model == AreaLightModel::NearestPoint;
+    // The kept hits, from their logarithms.
+    if let Some(kept) = logs.as_ref() {
+        for (b, lanes) in kept.batches.iter().enumerate() {
+            let wanted = |&i: &u32| i != NO_HIT && respecular[hits[i as usize].material as usize];
+            if !lanes.iter().any(wanted) {
+                continue;
+            }
+            let y = lanes.map(|i| match i {
+                NO_HIT => 1.0,
+                i => shading.materials[hits[i as usize].material as usize].shininess,
+            });
+            let sums = specular_from_logs(&kept.logs[b * count..(b + 1) * count], &y);
+            for (&i, s) in lanes.iter().zip(sums) {
+                if i != NO_HIT {
+                    hits[i as usize].factors.specular = s;
+                }
+            }
+        }
+    }
+    let kept_materials = logs.as_ref().map(|k| k.materials.clone());
+    let is_kept = |material: usize, visible: &[u64]| {
+        kept_materials
+            .as_ref()
+            .is_some_and(|m| m[material] && fully_lit(visible, count))
+    };
+    // Or keep them now, if there is room for all of this tile's.
+    let mut keeping = None;
+    if logs.is_none() && !nearest {
+        let lit = (0..hits.len())
+            .filter(|&h| respecular[hits[h].material as usize] && fully_lit(visible_of(h), count))
+            .count();
+        if lit > 0 && budget.take(CosineLogs::bytes_for(respecular.len(), lit, count)) {
+            keeping = Some(CosineLogs::with_room(respecular.clone(), lit, count));
+        }
+    }
+    let mut batch = ReshadeBatch::default();
+    let mut lit_batch = ReshadeBatch::default();
     batch.start(pattern);
+    lit_batch.start(pattern);
     // One path per camera sample, pixel by pixel.
     for (path, w) in starts.windows(2).enumerate() {
         let (i, sample) = (path / spp, (path % spp) as u32);
         let (x, y) = (rect.x + i as u32 % rect.w, rect.y + i as u32 / rect.w);
         for (k, h) in (w[0] as usize..w[1] as usize).enumerate() {
-            let hit = &mut hits[h];
-            if !respecular[hit.material as usize] {
+            let material = hits[h].material as usize;
+            if !respecular[material] {
                 continue;
             }
             let shape = &shapes.hits[h];
-            let visible = &shapes.visible[h * words..(h + 1) * words];
-            let shininess = shading.materials[hit.material as usize].shininess;
-            if settings.model == AreaLightModel::NearestPoint {
+            let visible = visible_of(h);
+            let shininess = shading.materials[material].shininess;
+            if nearest {
                 let seen: u32 = visible.iter().map(|w| w.count_ones()).sum();
-                hit.factors.specular =
+                hits[h].factors.specular =
                     nearest_point_specular(shape.normal, shape.to_light, shape.view, shininess)
                         * (seen as f32 / count as f32);
                 continue;
@@ -432,7 +487,10 @@ fn respecular_tile(
             // tier, see `retrace`: their factors come from no bits).
             if visible.iter().all(|&w| w == 0) {
                 // Every term of the average is 0 × a finite factor.
-                hit.factors.specular = 0.0;
+                hits[h].factors.specular = 0.0;
+                continue;
+            }
+            if is_kept(material, visible) {
                 continue;
             }
             let recorded = RecordedHit {
@@ -442,12 +500,29 @@ fn respecular_tile(
                 shininess,
             };
             let rng = || Rng::for_sample(settings.seed, x, y, sample, k as u32 + 1);
-            if batch.push(h, recorded, visible, pattern, rng) {
-                batch.flush(edge_u, edge_v, |i, s| hits[i].factors.specular = s);
+            match &mut keeping {
+                Some(kept) if fully_lit(visible, count) => {
+                    if lit_batch.push(h, recorded, visible, pattern, rng) {
+                        lit_batch.flush_keeping(edge_u, edge_v, kept, |i, s| {
+                            hits[i].factors.specular = s
+                        });
+                    }
+                }
+                _ => {
+                    if batch.push(h, recorded, visible, pattern, rng) {
+                        batch.flush(edge_u, edge_v, |i, s| hits[i].factors.specular = s);
+                    }
+                }
             }
         }
     }
     batch.flush(edge_u, edge_v, |i, s| hits[i].factors.specular = s);
+    if let Some(mut kept) = keeping {
+        lit_batch.flush_keeping(edge_u, edge_v, &mut kept, |i, s| {
+            hits[i].factors.specular = s
+        });
+        *logs = Some(kept);
+    }
 }
 
 /// The pixels of a tile from its records (into `out`), tracing the pixels

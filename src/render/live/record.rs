@@ -14,6 +14,7 @@ use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
 use glam::Vec3;
 
+use super::cosine_logs::CosineLogs;
 use crate::render::progressive::TileRect;
 use crate::render::shading::LightTerms;
 use crate::render::shading_params::ShadingParams;
@@ -50,6 +51,8 @@ pub struct TileRecord {
     /// with: each tile knows its own, so that a re-shade cancelled half-way
     /// leaves every tile consistent (shared between tiles, not counted).
     pub shininess: Arc<[f32]>,
+    /// What a re-shade kept for the next one (see `cosine_logs.rs`).
+    pub logs: Option<CosineLogs>,
 }
 
 /// The shininess tier of a tile.
@@ -85,6 +88,7 @@ impl TileRecord {
                 words: light_points.div_ceil(64),
             }),
             shininess,
+            logs: None,
         }
     }
 
@@ -97,6 +101,7 @@ impl TileRecord {
             + self.ends.capacity() * size_of::<PathEnd>()
             + self.hits.capacity() * size_of::<ColourHit>()
             + shapes
+            + self.logs.as_ref().map_or(0, CosineLogs::bytes)
     }
 
     /// The hits of path `p` of the tile (pixel p / spp, sample p % spp).
@@ -119,6 +124,7 @@ impl TileRecord {
     /// Drops the shininess tier and the spare capacity.
     pub fn drop_shapes(&mut self) {
         self.shapes = None;
+        self.logs = None;
         self.starts.shrink_to_fit();
         self.ends.shrink_to_fit();
         self.hits.shrink_to_fit();

@@ -12,7 +12,8 @@
 
 use glam::Vec3;
 
-use crate::render::math::{avx2_dispatch, avx512_dispatch, pow_approx};
+use super::cosine_logs::{CosineLogs, NO_HIT};
+use crate::render::math::{avx2_dispatch, avx512_dispatch, pow_from_log2, pow_log2};
 use crate::render::rng::Rng;
 use crate::render::sampling::Pattern;
 use crate::render::shading::blinn_cosine;
@@ -129,7 +130,36 @@ impl ReshadeBatch {
     /// Computes the waiting hits' specular factors: `store(index, factor)`
     /// for each.
     pub fn flush(&mut self, edge_u: Vec3, edge_v: Vec3, store: impl FnMut(usize, f32)) {
-        self.flush_by(specular_lanes, edge_u, edge_v, store);
+        self.flush_by(specular_lanes, edge_u, edge_v, &mut [], store);
+    }
+
+    /// As [`ReshadeBatch::flush`], and appends the batch (all of whose hits
+    /// see every light point) with its cosines' logarithms to `logs`.
+    pub fn flush_keeping(
+        &mut self,
+        edge_u: Vec3,
+        edge_v: Vec3,
+        logs: &mut CosineLogs,
+        store: impl FnMut(usize, f32),
+    ) {
+        if self.index.is_empty() {
+            return;
+        }
+        let mut lanes = [NO_HIT; LANES];
+        for (lane, &i) in lanes.iter_mut().zip(&self.index) {
+            *lane = i as u32;
+        }
+        logs.batches.push(lanes);
+        let from = logs.logs.len();
+        logs.logs
+            .resize(from + self.count, [f32::NEG_INFINITY; LANES]);
+        self.flush_by(
+            specular_lanes,
+            edge_u,
+            edge_v,
+            &mut logs.logs[from..],
+            store,
+        );
     }
 
     fn flush_by(
@@ -137,6 +167,7 @@ impl ReshadeBatch {
         kernel: Kernel,
         edge_u: Vec3,
         edge_v: Vec3,
+        logs: &mut [[f32; LANES]],
         mut store: impl FnMut(usize, f32),
     ) {
         if self.index.is_empty() {
@@ -154,7 +185,7 @@ impl ReshadeBatch {
         };
         // Lanes past the waiting hits hold finite leftovers of earlier
         // batches (or zeros) and are not read out.
-        let sums = kernel(&self.hits, &self.bits, &points);
+        let sums = kernel(&self.hits, &self.bits, &points, logs);
         for (&i, s) in self.index.iter().zip(sums) {
             store(i, s);
         }
@@ -162,7 +193,7 @@ impl ReshadeBatch {
     }
 }
 
-type Kernel = fn(&LaneHits, &[[u32; LANES]], &Points<'_>) -> [f32; LANES];
+type Kernel = fn(&LaneHits, &[[u32; LANES]], &Points<'_>, &mut [[f32; LANES]]) -> [f32; LANES];
 
 /// The light points of a batch.
 struct Points<'a> {
@@ -179,11 +210,13 @@ struct Points<'a> {
 avx512_dispatch!(
     /// The specular factor of every lane, with the widest vectors the CPU
     /// has (the same operations lane by lane whatever the width, so the
-    /// same bits).
+    /// same bits); unless `logs` is empty, also each point's log2 of the
+    /// cosine (`logs[j][h]`).
     fn specular_lanes(
         hits: &LaneHits,
         bits: &[[u32; LANES]],
         points: &Points<'_>,
+        logs: &mut [[f32; LANES]],
     ) -> [f32; LANES] => specular_lanes_generic if true, else specular_lanes_avx2
 );
 
@@ -193,6 +226,7 @@ avx2_dispatch!(
         hits: &LaneHits,
         bits: &[[u32; LANES]],
         points: &Points<'_>,
+        logs: &mut [[f32; LANES]],
     ) -> [f32; LANES] => specular_lanes_generic
 );
 
@@ -201,25 +235,37 @@ fn specular_lanes_generic(
     hits: &LaneHits,
     bits: &[[u32; LANES]],
     points: &Points<'_>,
+    logs: &mut [[f32; LANES]],
 ) -> [f32; LANES] {
+    let count = points.count;
+    let keep = !logs.is_empty();
     if points.fixed {
-        let (a, b) = (&points.a[..points.count], &points.b[..points.count]);
-        lane_sums(hits, bits, points, |j, _| (a[j], b[j]))
+        let (a, b) = (&points.a[..count], &points.b[..count]);
+        let point = |j: usize, _: usize| (a[j], b[j]);
+        if keep {
+            lane_sums::<true>(hits, bits, points, &mut logs[..count], point)
+        } else {
+            lane_sums::<false>(hits, bits, points, &mut [], point)
+        }
     } else {
-        let (a, b) = (
-            &points.lane_a[..points.count],
-            &points.lane_b[..points.count],
-        );
-        lane_sums(hits, bits, points, |j, h| (a[j][h], b[j][h]))
+        let (a, b) = (&points.lane_a[..count], &points.lane_b[..count]);
+        let point = |j: usize, h: usize| (a[j][h], b[j][h]);
+        if keep {
+            lane_sums::<true>(hits, bits, points, &mut logs[..count], point)
+        } else {
+            lane_sums::<false>(hits, bits, points, &mut [], point)
+        }
     }
 }
 
-/// Each lane's average of max(0, N·H)^shininess over its visible points.
+/// Each lane's average of max(0, N·H)^shininess over its visible points
+/// (and with `KEEP`, each point's log2 of the cosine into `logs[j][h]`).
 #[inline(always)]
-fn lane_sums(
+fn lane_sums<const KEEP: bool>(
     hits: &LaneHits,
     bits: &[[u32; LANES]],
     points: &Points<'_>,
+    logs: &mut [[f32; LANES]],
     point: impl Fn(usize, usize) -> (f32, f32),
 ) -> [f32; LANES] {
     let count = points.count;
@@ -248,7 +294,12 @@ fn lane_sums(
                 let c = blinn_cosine(n, v, x, y, z, inv);
                 // The tracer multiplies by the visibility (1 or 0): the
                 // term, or +0 (it is finite and not negative).
-                let term = pow_approx(c, hits.shininess[h]);
+                let log = pow_log2(c);
+                if KEEP {
+                    logs[j][h] = log;
+                }
+                // `pow_approx` in its two halves.
+                let term = pow_from_log2(log, hits.shininess[h]);
                 sums[h] += if (word[h] >> l) & 1 != 0 { term } else { 0.0 };
             }
         }
@@ -256,9 +307,39 @@ fn lane_sums(
     sums.map(|s| s * (1.0 / count as f32))
 }
 
+avx512_dispatch!(
+    /// The specular factor of every lane of a kept batch of fully lit hits
+    /// from its logarithms (`logs[j][h]`, one row per light point) for the
+    /// lanes' `shininess`: the tracer's terms and sum from their second half.
+    pub fn specular_from_logs(
+        logs: &[[f32; LANES]],
+        shininess: &[f32; LANES],
+    ) -> [f32; LANES] => specular_from_logs_generic if true, else specular_from_logs_avx2
+);
+
+avx2_dispatch!(
+    /// [`specular_from_logs`] on eight-lane vectors.
+    fn specular_from_logs_avx2(
+        logs: &[[f32; LANES]],
+        shininess: &[f32; LANES],
+    ) -> [f32; LANES] => specular_from_logs_generic
+);
+
+#[inline(always)]
+fn specular_from_logs_generic(logs: &[[f32; LANES]], shininess: &[f32; LANES]) -> [f32; LANES] {
+    let mut sums = [-0.0f32; LANES];
+    for row in logs {
+        for h in 0..LANES {
+            sums[h] += pow_from_log2(row[h], shininess[h]);
+        }
+    }
+    sums.map(|s| s * (1.0 / logs.len() as f32))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::render::math::pow_approx;
     use crate::render::scene_file::Sampling;
 
     /// The definition, hit by hit: the tracer's specular term with its
@@ -352,11 +433,119 @@ mod tests {
                 let mut got = vec![f32::NAN.to_bits(); hits.len()];
                 for (i, (hit, visible)) in hits.iter().enumerate() {
                     if batch.push(i, *hit, visible, &pattern, || Rng::new(seed(i))) {
-                        batch.flush_by(kernel, eu, ev, |i, s| got[i] = s.to_bits());
+                        batch.flush_by(kernel, eu, ev, &mut [], |i, s| got[i] = s.to_bits());
                     }
                 }
-                batch.flush_by(kernel, eu, ev, |i, s| got[i] = s.to_bits());
+                batch.flush_by(kernel, eu, ev, &mut [], |i, s| got[i] = s.to_bits());
                 assert_eq!(got, want, "{name}: {sampling:?} {rays}");
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod kept_logs_tests {
+    use super::*;
+    use crate::render::math::pow_approx;
+    use crate::render::scene_file::Sampling;
+
+    /// The tracer's average for a fully lit hit, point by point.
+    fn fully_lit_hit(hit: &RecordedHit, a: &[f32], b: &[f32], eu: Vec3, ev: Vec3) -> f32 {
+        let terms: Vec<f32> = (0..a.len())
+            .map(|j| {
+                let (x, y, z) = (
+                    hit.to_corner.x + eu.x * a[j] + ev.x * b[j],
+                    hit.to_corner.y + eu.y * a[j] + ev.y * b[j],
+                    hit.to_corner.z + eu.z * a[j] + ev.z * b[j],
+                );
+                let inv = 1.0 / (x * x + y * y + z * z).sqrt();
+                1.0 * pow_approx(
+                    blinn_cosine(hit.normal, hit.view, x, y, z, inv),
+                    hit.shininess,
+                )
+            })
+            .collect();
+        terms.iter().sum::<f32>() * (1.0 / a.len() as f32)
+    }
+
+    #[test]
+    fn kept_logs_give_the_bits_of_the_full_term_for_any_shininess() {
+        let (eu, ev) = (Vec3::new(1.0, 0.0, 0.2), Vec3::new(0.1, 0.0, 1.0));
+        for (sampling, rays) in [(Sampling::Grid, 64), (Sampling::Random, 20)] {
+            let pattern = Pattern::new(sampling, rays);
+            let count = pattern.count();
+            let all = vec![u64::MAX; count.div_ceil(64)];
+            let visible: Vec<u64> = all
+                .iter()
+                .enumerate()
+                .map(|(k, &w)| {
+                    let left = count - 64 * k;
+                    if left < 64 { (1 << left) - 1 } else { w }
+                })
+                .collect();
+            let mut rng = Rng::new(3);
+            let r = |rng: &mut Rng| rng.next_f32() * 2.0 - 1.0;
+            // 21 hits: a full batch and a partial one; some facing away
+            // from the light (cosine 0, whose log is −∞).
+            let hits: Vec<RecordedHit> = (0..21)
+                .map(|i| RecordedHit {
+                    to_corner: Vec3::new(r(&mut rng), 2.0 + r(&mut rng), r(&mut rng)),
+                    normal: Vec3::new(
+                        r(&mut rng),
+                        if i % 5 == 0 { -1.0 } else { 1.0 },
+                        r(&mut rng),
+                    )
+                    .normalize(),
+                    view: Vec3::new(r(&mut rng), 0.5, r(&mut rng)).normalize(),
+                    shininess: [3.0, 20.0, 150.0][i % 3],
+                })
+                .collect();
+            let points = |i: usize| {
+                let (mut a, mut b) = (vec![0.0; count + 8], vec![0.0; count + 8]);
+                pattern.fill(&mut Rng::new(50 + i as u64), &mut a, &mut b);
+                (a[..count].to_vec(), b[..count].to_vec())
+            };
+            let mut batch = ReshadeBatch::default();
+            batch.start(&pattern);
+            let mut logs = CosineLogs::with_room(vec![true], hits.len(), count);
+            let mut got = vec![f32::NAN.to_bits(); hits.len()];
+            for (i, hit) in hits.iter().enumerate() {
+                if batch.push(i, *hit, &visible, &pattern, || Rng::new(50 + i as u64)) {
+                    batch.flush_keeping(eu, ev, &mut logs, |i, s| got[i] = s.to_bits());
+                }
+            }
+            batch.flush_keeping(eu, ev, &mut logs, |i, s| got[i] = s.to_bits());
+            let want = |shininess: &dyn Fn(usize) -> f32| -> Vec<u32> {
+                (0..hits.len())
+                    .map(|i| {
+                        let (a, b) = points(i);
+                        let hit = RecordedHit {
+                            shininess: shininess(i),
+                            ..hits[i]
+                        };
+                        fully_lit_hit(&hit, &a, &b, eu, ev).to_bits()
+                    })
+                    .collect()
+            };
+            assert_eq!(got, want(&|i| hits[i].shininess), "{sampling:?}: kept");
+            assert_eq!(logs.batches.len(), 2);
+            assert_eq!(logs.logs.len(), 2 * count);
+            assert!(logs.bytes() <= CosineLogs::bytes_for(1, hits.len(), count));
+            assert!(logs.logs.iter().flatten().any(|&l| l == f32::NEG_INFINITY));
+            // A new shininess from the logs alone.
+            for new in [1.0f32, 47.5, 900.0] {
+                let mut from_logs = vec![f32::NAN.to_bits(); hits.len()];
+                for (b, lanes) in logs.batches.iter().enumerate() {
+                    let y = [new; LANES];
+                    let sums = specular_from_logs(&logs.logs[b * count..(b + 1) * count], &y);
+                    for (&i, s) in lanes.iter().zip(sums) {
+                        if i != NO_HIT {
+                            from_logs[i as usize] = s.to_bits();
+                        }
+                    }
+                }
+                assert_eq!(from_logs, want(&|_| new), "{sampling:?}: shininess {new}");
+                assert!(from_logs.iter().any(|&s| f32::from_bits(s) > 0.0));
             }
         }
     }

@@ -1,17 +1,17 @@
-//! What a re-shade keeps for the next one while memory allows: for the
-//! fully lit hits of a tile, log2 of Blinn's cosine at every light point
+//! What a re-shade keeps for the next one while memory allows: for the lit
+//! hits of a tile, log2 of Blinn's cosine at every light point
 //! (`math::pow_log2`, the half of the tracer's power that does not depend
-//! on the shininess). A later shininess edit of those hits then needs only
-//! the other half (`math::pow_from_log2`) per point — no square root, no
-//! division — and gives the same bits: the same operations on the same
-//! values, summed in the same order (every point is visible, so every term
-//! is added).
+//! on the shininess; −∞ at a hidden point, whose term is +0 as in the
+//! tracer). A later shininess edit of those hits then needs only the other
+//! half (`math::pow_from_log2`) per point — no square root, no division —
+//! and gives the same bits: the same operations on the same values, summed
+//! in the same order.
 //!
-//! 4 bytes per light point of a kept hit (256 at 64 points), kept in
-//! batches of [`LANES`] hits, point by point. They are built by the first
-//! re-shade of a frame from the memory the records leave under the cap,
-//! tile by tile until it is used up, and dropped first when a tile's
-//! records grow past the cap.
+//! 4 bytes per light point of a kept hit (256 at 64 points), in batches of
+//! [`LANES`] hits, point by point. They are built by the first re-shade of
+//! a frame (which computes them anyway, see `respecular.rs`) in the memory
+//! the records leave under the cap, tile by tile until it is used up, and
+//! dropped first when a tile's records grow past the cap.
 
 use std::sync::atomic::{AtomicUsize, Ordering};
 
@@ -61,15 +61,6 @@ impl CosineLogs {
     }
 }
 
-/// Whether a hit's visibility words (`count` light points) see every point.
-#[inline]
-pub fn fully_lit(visible: &[u64], count: usize) -> bool {
-    visible.iter().enumerate().all(|(k, &w)| {
-        let left = count - 64 * k;
-        w == if left < 64 { (1 << left) - 1 } else { u64::MAX }
-    })
-}
-
 /// The memory a re-shade may give to new logs, shared by its threads.
 #[derive(Debug)]
 pub struct LogBudget {
@@ -98,16 +89,6 @@ mod tests {
     use super::*;
 
     #[test]
-    fn fully_lit_means_every_point_of_the_count() {
-        assert!(fully_lit(&[u64::MAX], 64));
-        assert!(!fully_lit(&[u64::MAX - 1], 64));
-        assert!(fully_lit(&[u64::MAX, 0b111], 67));
-        assert!(!fully_lit(&[u64::MAX, 0b101], 67));
-        assert!(fully_lit(&[(1 << 9) - 1], 9));
-        assert!(!fully_lit(&[(1 << 8) - 1], 9));
-    }
-
-    #[test]
     fn the_budget_gives_no_more_than_it_has() {
         let budget = LogBudget::new(100);
         assert!(budget.take(60));
@@ -118,8 +99,10 @@ mod tests {
 
     #[test]
     fn room_is_counted_as_allocated() {
-        let logs = CosineLogs::with_room(vec![true; 3], 37, 64);
-        assert_eq!(logs.bytes(), CosineLogs::bytes_for(3, 37, 64));
-        assert_eq!(logs.bytes(), 3 + 3 * 64 + 3 * 64 * 64);
+        let hits = 2 * LANES + 5;
+        let logs = CosineLogs::with_room(vec![true; 3], hits, 64);
+        assert_eq!(logs.bytes(), CosineLogs::bytes_for(3, hits, 64));
+        // Three batches: their indices and 64 rows of logs each.
+        assert_eq!(logs.bytes(), 3 + 3 * 4 * LANES + 3 * 64 * 4 * LANES);
     }
 }

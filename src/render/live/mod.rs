@@ -25,7 +25,7 @@ use std::time::{Duration, Instant};
 
 use glam::Vec3;
 
-use cosine_logs::{CosineLogs, LogBudget, NO_HIT, fully_lit};
+use cosine_logs::{CosineLogs, LogBudget, NO_HIT};
 pub use edit::{EditClass, classify};
 use record::{Budget, TileRecord, TileRecorder, shininess_of};
 use respecular::{RecordedHit, ReshadeBatch, specular_from_logs};
@@ -394,7 +394,7 @@ impl LiveRender {
 /// shininess differs from `shininess`, from their recorded visibility, in
 /// batches of [`respecular::LANES`] hits — or from the logarithms a
 /// previous re-shade kept, which the first re-shade of the tile keeps for
-/// its fully lit hits if `budget` has room.
+/// its lit hits if `budget` has room.
 fn respecular_tile(
     scene: &Scene,
     tracer: &Tracer,
@@ -445,25 +445,21 @@ fn respecular_tile(
         }
     }
     let kept_materials = logs.as_ref().map(|k| k.materials.clone());
-    let is_kept = |material: usize, visible: &[u64]| {
-        kept_materials
-            .as_ref()
-            .is_some_and(|m| m[material] && fully_lit(visible, count))
-    };
+    let is_kept = |material: usize| kept_materials.as_ref().is_some_and(|m| m[material]);
     // Or keep them now, if there is room for all of this tile's.
     let mut keeping = None;
     if logs.is_none() && !nearest {
         let lit = (0..hits.len())
-            .filter(|&h| respecular[hits[h].material as usize] && fully_lit(visible_of(h), count))
+            .filter(|&h| {
+                respecular[hits[h].material as usize] && visible_of(h).iter().any(|&w| w != 0)
+            })
             .count();
         if lit > 0 && budget.take(CosineLogs::bytes_for(respecular.len(), lit, count)) {
             keeping = Some(CosineLogs::with_room(respecular.clone(), lit, count));
         }
     }
     let mut batch = ReshadeBatch::default();
-    let mut lit_batch = ReshadeBatch::default();
     batch.start(pattern);
-    lit_batch.start(pattern);
     // One path per camera sample, pixel by pixel.
     for (path, w) in starts.windows(2).enumerate() {
         let (i, sample) = (path / spp, (path % spp) as u32);
@@ -490,7 +486,7 @@ fn respecular_tile(
                 hits[h].factors.specular = 0.0;
                 continue;
             }
-            if is_kept(material, visible) {
+            if is_kept(material) {
                 continue;
             }
             let recorded = RecordedHit {
@@ -500,28 +496,22 @@ fn respecular_tile(
                 shininess,
             };
             let rng = || Rng::for_sample(settings.seed, x, y, sample, k as u32 + 1);
-            match &mut keeping {
-                Some(kept) if fully_lit(visible, count) => {
-                    if lit_batch.push(h, recorded, visible, pattern, rng) {
-                        lit_batch.flush_keeping(edge_u, edge_v, kept, |i, s| {
-                            hits[i].factors.specular = s
-                        });
-                    }
-                }
-                _ => {
-                    if batch.push(h, recorded, visible, pattern, rng) {
-                        batch.flush(edge_u, edge_v, |i, s| hits[i].factors.specular = s);
-                    }
+            if batch.push(h, recorded, visible, pattern, rng) {
+                let store = |i: usize, s: f32| hits[i].factors.specular = s;
+                match &mut keeping {
+                    Some(kept) => batch.flush_keeping(edge_u, edge_v, kept, store),
+                    None => batch.flush(edge_u, edge_v, store),
                 }
             }
         }
     }
-    batch.flush(edge_u, edge_v, |i, s| hits[i].factors.specular = s);
-    if let Some(mut kept) = keeping {
-        lit_batch.flush_keeping(edge_u, edge_v, &mut kept, |i, s| {
-            hits[i].factors.specular = s
-        });
-        *logs = Some(kept);
+    let store = |i: usize, s: f32| hits[i].factors.specular = s;
+    match keeping {
+        Some(mut kept) => {
+            batch.flush_keeping(edge_u, edge_v, &mut kept, store);
+            *logs = Some(kept);
+        }
+        None => batch.flush(edge_u, edge_v, store),
     }
 }
 

@@ -18,7 +18,8 @@ use crate::render::rng::Rng;
 use crate::render::sampling::Pattern;
 use crate::render::shading::blinn_cosine;
 
-/// Hits computed side by side.
+/// Hits computed side by side (one AVX-512 vector; 32, two vectors, spilled
+/// registers and was slower).
 pub const LANES: usize = 16;
 
 /// What a recorded hit's specular factor depends on.
@@ -61,6 +62,8 @@ pub struct ReshadeBatch {
     /// Scratch for one hit's points drawn from its generator.
     one_a: Vec<f32>,
     one_b: Vec<f32>,
+    /// The batch's logarithms when they are not kept.
+    logs: Vec<[f32; LANES]>,
 }
 
 impl ReshadeBatch {
@@ -130,11 +133,11 @@ impl ReshadeBatch {
     /// Computes the waiting hits' specular factors: `store(index, factor)`
     /// for each.
     pub fn flush(&mut self, edge_u: Vec3, edge_v: Vec3, store: impl FnMut(usize, f32)) {
-        self.flush_by(specular_lanes, edge_u, edge_v, &mut [], store);
+        self.flush_by(WIDEST, edge_u, edge_v, None, store);
     }
 
-    /// As [`ReshadeBatch::flush`], and appends the batch (all of whose hits
-    /// see every light point) with its cosines' logarithms to `logs`.
+    /// As [`ReshadeBatch::flush`], and appends the batch with its light
+    /// points' logarithms to `logs`.
     pub fn flush_keeping(
         &mut self,
         edge_u: Vec3,
@@ -142,32 +145,15 @@ impl ReshadeBatch {
         logs: &mut CosineLogs,
         store: impl FnMut(usize, f32),
     ) {
-        if self.index.is_empty() {
-            return;
-        }
-        let mut lanes = [NO_HIT; LANES];
-        for (lane, &i) in lanes.iter_mut().zip(&self.index) {
-            *lane = i as u32;
-        }
-        logs.batches.push(lanes);
-        let from = logs.logs.len();
-        logs.logs
-            .resize(from + self.count, [f32::NEG_INFINITY; LANES]);
-        self.flush_by(
-            specular_lanes,
-            edge_u,
-            edge_v,
-            &mut logs.logs[from..],
-            store,
-        );
+        self.flush_by(WIDEST, edge_u, edge_v, Some(logs), store);
     }
 
     fn flush_by(
         &mut self,
-        kernel: Kernel,
+        (logs_kernel, sums_kernel): Kernels,
         edge_u: Vec3,
         edge_v: Vec3,
-        logs: &mut [[f32; LANES]],
+        keep: Option<&mut CosineLogs>,
         mut store: impl FnMut(usize, f32),
     ) {
         if self.index.is_empty() {
@@ -183,9 +169,26 @@ impl ReshadeBatch {
             edge_u,
             edge_v,
         };
+        let logs = match keep {
+            Some(kept) => {
+                let mut lanes = [NO_HIT; LANES];
+                for (lane, &i) in lanes.iter_mut().zip(&self.index) {
+                    *lane = i as u32;
+                }
+                kept.batches.push(lanes);
+                let from = kept.logs.len();
+                kept.logs.resize(from + self.count, [0.0; LANES]);
+                &mut kept.logs[from..]
+            }
+            None => {
+                self.logs.resize(self.count, [0.0; LANES]);
+                &mut self.logs[..]
+            }
+        };
         // Lanes past the waiting hits hold finite leftovers of earlier
         // batches (or zeros) and are not read out.
-        let sums = kernel(&self.hits, &self.bits, &points, logs);
+        logs_kernel(&self.hits, &self.bits, &points, logs);
+        let sums = sums_kernel(logs, &self.hits.shininess);
         for (&i, s) in self.index.iter().zip(sums) {
             store(i, s);
         }
@@ -193,7 +196,13 @@ impl ReshadeBatch {
     }
 }
 
-type Kernel = fn(&LaneHits, &[[u32; LANES]], &Points<'_>, &mut [[f32; LANES]]) -> [f32; LANES];
+/// The two halves of the computation: the logarithms, then the sums.
+type Kernels = (
+    fn(&LaneHits, &[[u32; LANES]], &Points<'_>, &mut [[f32; LANES]]),
+    fn(&[[f32; LANES]], &[f32; LANES]) -> [f32; LANES],
+);
+
+const WIDEST: Kernels = (cosine_logs_lanes, specular_from_logs);
 
 /// The light points of a batch.
 struct Points<'a> {
@@ -208,109 +217,101 @@ struct Points<'a> {
 }
 
 avx512_dispatch!(
-    /// The specular factor of every lane, with the widest vectors the CPU
-    /// has (the same operations lane by lane whatever the width, so the
-    /// same bits); unless `logs` is empty, also each point's log2 of the
-    /// cosine (`logs[j][h]`).
-    fn specular_lanes(
+    /// Into `logs[j][h]`, log2 of Blinn's cosine at light point j of lane
+    /// h (`math::pow_log2`), or −∞ where the point is hidden, with the
+    /// widest vectors the CPU has (the same operations lane by lane
+    /// whatever the width, so the same bits).
+    fn cosine_logs_lanes(
         hits: &LaneHits,
         bits: &[[u32; LANES]],
         points: &Points<'_>,
         logs: &mut [[f32; LANES]],
-    ) -> [f32; LANES] => specular_lanes_generic if true, else specular_lanes_avx2
+    ) => cosine_logs_generic if true, else cosine_logs_avx2
 );
 
 avx2_dispatch!(
-    /// [`specular_lanes`] on eight-lane vectors.
-    fn specular_lanes_avx2(
+    /// [`cosine_logs_lanes`] on eight-lane vectors.
+    fn cosine_logs_avx2(
         hits: &LaneHits,
         bits: &[[u32; LANES]],
         points: &Points<'_>,
         logs: &mut [[f32; LANES]],
-    ) -> [f32; LANES] => specular_lanes_generic
+    ) => cosine_logs_generic
 );
 
 #[inline(always)]
-fn specular_lanes_generic(
+fn cosine_logs_generic(
     hits: &LaneHits,
     bits: &[[u32; LANES]],
     points: &Points<'_>,
     logs: &mut [[f32; LANES]],
-) -> [f32; LANES] {
+) {
     let count = points.count;
-    let keep = !logs.is_empty();
+    let logs = &mut logs[..count];
     if points.fixed {
         let (a, b) = (&points.a[..count], &points.b[..count]);
-        let point = |j: usize, _: usize| (a[j], b[j]);
-        if keep {
-            lane_sums::<true>(hits, bits, points, &mut logs[..count], point)
-        } else {
-            lane_sums::<false>(hits, bits, points, &mut [], point)
-        }
+        lane_cosines(hits, points, logs, |j: usize, _: usize| (a[j], b[j]));
     } else {
         let (a, b) = (&points.lane_a[..count], &points.lane_b[..count]);
-        let point = |j: usize, h: usize| (a[j][h], b[j][h]);
-        if keep {
-            lane_sums::<true>(hits, bits, points, &mut logs[..count], point)
-        } else {
-            lane_sums::<false>(hits, bits, points, &mut [], point)
+        lane_cosines(hits, points, logs, |j: usize, h: usize| (a[j][h], b[j][h]));
+    }
+    // A second pass over the stored cosines: one loop with both halves made
+    // each point a chain of some 90 dependent operations (two square
+    // roots, three divisions, two polynomials) longer than the CPU can
+    // overlap from one point to the next.
+    for (k, word) in bits.iter().enumerate() {
+        for (l, row) in logs[32 * k..].iter_mut().take(32).enumerate() {
+            for h in 0..LANES {
+                // A hidden point's term is +0 in the tracer (0 × a finite
+                // factor), as `pow_from_log2(−∞)`.
+                row[h] = if (word[h] >> l) & 1 != 0 {
+                    pow_log2(row[h])
+                } else {
+                    f32::NEG_INFINITY
+                };
+            }
         }
     }
 }
 
-/// Each lane's average of max(0, N·H)^shininess over its visible points
-/// (and with `KEEP`, each point's log2 of the cosine into `logs[j][h]`).
+/// Blinn's cosine max(0, N·H) at every light point of every lane, into
+/// `out[j][h]`.
 #[inline(always)]
-fn lane_sums<const KEEP: bool>(
+fn lane_cosines(
     hits: &LaneHits,
-    bits: &[[u32; LANES]],
     points: &Points<'_>,
-    logs: &mut [[f32; LANES]],
+    out: &mut [[f32; LANES]],
     point: impl Fn(usize, usize) -> (f32, f32),
-) -> [f32; LANES] {
-    let count = points.count;
+) {
     let (eu, ev) = (points.edge_u, points.edge_v);
     let [cx, cy, cz] = &hits.c;
     let [nx, ny, nz] = &hits.n;
     let [vx, vy, vz] = &hits.v;
-    // Each sum left to right from −0 (as `Iterator::sum`).
-    let mut sums = [-0.0f32; LANES];
-    for (k, word) in bits.iter().enumerate() {
-        for l in 0..(count - 32 * k).min(32) {
-            let j = 32 * k + l;
-            for h in 0..LANES {
-                let (a, b) = point(j, h);
-                // As `light_directions`, then the specular term.
-                let (x, y, z) = (
-                    cx[h] + eu.x * a + ev.x * b,
-                    cy[h] + eu.y * a + ev.y * b,
-                    cz[h] + eu.z * a + ev.z * b,
-                );
-                let inv = 1.0 / (x * x + y * y + z * z).sqrt();
-                let (n, v) = (
-                    Vec3::new(nx[h], ny[h], nz[h]),
-                    Vec3::new(vx[h], vy[h], vz[h]),
-                );
-                let c = blinn_cosine(n, v, x, y, z, inv);
-                // The tracer multiplies by the visibility (1 or 0): the
-                // term, or +0 (it is finite and not negative).
-                let log = pow_log2(c);
-                if KEEP {
-                    logs[j][h] = log;
-                }
-                // `pow_approx` in its two halves.
-                let term = pow_from_log2(log, hits.shininess[h]);
-                sums[h] += if (word[h] >> l) & 1 != 0 { term } else { 0.0 };
-            }
+    for (j, row) in out.iter_mut().enumerate() {
+        for h in 0..LANES {
+            let (a, b) = point(j, h);
+            // As `light_directions`, then the specular term.
+            let (x, y, z) = (
+                cx[h] + eu.x * a + ev.x * b,
+                cy[h] + eu.y * a + ev.y * b,
+                cz[h] + eu.z * a + ev.z * b,
+            );
+            let inv = 1.0 / (x * x + y * y + z * z).sqrt();
+            let (n, v) = (
+                Vec3::new(nx[h], ny[h], nz[h]),
+                Vec3::new(vx[h], vy[h], vz[h]),
+            );
+            row[h] = blinn_cosine(n, v, x, y, z, inv);
         }
     }
-    sums.map(|s| s * (1.0 / count as f32))
 }
 
 avx512_dispatch!(
-    /// The specular factor of every lane of a kept batch of fully lit hits
-    /// from its logarithms (`logs[j][h]`, one row per light point) for the
-    /// lanes' `shininess`: the tracer's terms and sum from their second half.
+    /// The specular factor of every lane from its light points' logarithms
+    /// (`logs[j][h]`, one row per point, −∞ for a hidden one) for the
+    /// lanes' `shininess`: the tracer's terms (`pow_approx` is
+    /// `pow_from_log2 ∘ pow_log2`) and its left-to-right sum from −0 (as
+    /// `Iterator::sum`), times 1 / the number of points.
     pub fn specular_from_logs(
         logs: &[[f32; LANES]],
         shininess: &[f32; LANES],
@@ -374,11 +375,17 @@ mod tests {
 
     /// Every kernel this CPU runs: the baseline build, AVX2 (where the CPU
     /// has it) and the widest (AVX-512 where the CPU has it).
-    fn kernels() -> Vec<(&'static str, Kernel)> {
+    fn kernels() -> Vec<(&'static str, Kernels)> {
         vec![
-            ("portable", specular_lanes_generic),
-            ("avx2 or portable", specular_lanes_avx2),
-            ("widest", specular_lanes),
+            (
+                "portable",
+                (cosine_logs_generic, specular_from_logs_generic),
+            ),
+            (
+                "avx2 or portable",
+                (cosine_logs_avx2, specular_from_logs_avx2),
+            ),
+            ("widest", WIDEST),
         ]
     }
 
@@ -394,8 +401,8 @@ mod tests {
             let count = pattern.count();
             let mut rng = Rng::new(7);
             let r = |rng: &mut Rng| rng.next_f32() * 2.0 - 1.0;
-            // 37 hits: two full batches and a partial one.
-            let hits: Vec<(RecordedHit, Vec<u64>)> = (0..37)
+            // Two full batches and a partial one.
+            let hits: Vec<(RecordedHit, Vec<u64>)> = (0..2 * LANES + 5)
                 .map(|i| {
                     let hit = RecordedHit {
                         to_corner: Vec3::new(r(&mut rng), 3.0 + r(&mut rng), r(&mut rng)),
@@ -433,10 +440,10 @@ mod tests {
                 let mut got = vec![f32::NAN.to_bits(); hits.len()];
                 for (i, (hit, visible)) in hits.iter().enumerate() {
                     if batch.push(i, *hit, visible, &pattern, || Rng::new(seed(i))) {
-                        batch.flush_by(kernel, eu, ev, &mut [], |i, s| got[i] = s.to_bits());
+                        batch.flush_by(kernel, eu, ev, None, |i, s| got[i] = s.to_bits());
                     }
                 }
-                batch.flush_by(kernel, eu, ev, &mut [], |i, s| got[i] = s.to_bits());
+                batch.flush_by(kernel, eu, ev, None, |i, s| got[i] = s.to_bits());
                 assert_eq!(got, want, "{name}: {sampling:?} {rays}");
             }
         }
@@ -485,9 +492,9 @@ mod kept_logs_tests {
                 .collect();
             let mut rng = Rng::new(3);
             let r = |rng: &mut Rng| rng.next_f32() * 2.0 - 1.0;
-            // 21 hits: a full batch and a partial one; some facing away
-            // from the light (cosine 0, whose log is −∞).
-            let hits: Vec<RecordedHit> = (0..21)
+            // A full batch and a partial one; some facing away from the
+            // light (cosine 0, whose log is −∞).
+            let hits: Vec<RecordedHit> = (0..LANES + 5)
                 .map(|i| RecordedHit {
                     to_corner: Vec3::new(r(&mut rng), 2.0 + r(&mut rng), r(&mut rng)),
                     normal: Vec3::new(

@@ -275,7 +275,7 @@ fn logarithms_kept_by_a_reshade_give_the_next_ones_exactly_within_the_cap() {
     for cap in [live.cap(), (bare + full) / 2, bare + 1000] {
         let mut live = LiveRender::new(cap);
         let mut d = d0.clone();
-        step(&mut live, &d, "first");
+        let paths = step(&mut live, &d, "first").record_bytes;
         let check = |live: &mut LiveRender, d: &SceneDesc, what: &str| {
             let r = step(live, d, what);
             assert_eq!(r.class, EditClass::Reshade, "{what}");
@@ -289,6 +289,8 @@ fn logarithms_kept_by_a_reshade_give_the_next_ones_exactly_within_the_cap() {
         };
         d.render.shininess_override = Some(12.0);
         let kept = check(&mut live, &d, "override (keeps)");
+        // The paths' records alone (what more samples would scale) stay.
+        assert_eq!(live.path_record_bytes(), paths);
         if cap == bare + 1000 {
             assert!(kept <= bare + 1000, "no room: no tile keeps");
         } else {

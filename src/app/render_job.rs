@@ -491,7 +491,7 @@ fn refine(
     let source = if from_kept { &kept.live } else { live };
     let (Some(scene), per_sample) = (
         source.scene().cloned(),
-        source.record_bytes() / samples.max(1) as usize,
+        source.path_record_bytes() / samples.max(1) as usize,
     ) else {
         return;
     };

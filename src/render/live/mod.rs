@@ -97,6 +97,11 @@ impl Frame {
     fn bytes(&self) -> usize {
         self.tiles.iter().map(|t| lock(t).bytes()).sum()
     }
+
+    /// Without the kept logarithms.
+    fn path_bytes(&self) -> usize {
+        self.tiles.iter().map(|t| lock(t).path_bytes()).sum()
+    }
 }
 
 /// A render that keeps what the next edit does not change.
@@ -158,6 +163,17 @@ impl LiveRender {
             .as_ref()
             .and_then(|c| c.frame.as_ref())
             .map_or(0, Frame::bytes)
+    }
+
+    /// Bytes the records of the paths hold now: without the logarithms a
+    /// re-shade kept for the next one in the room they left (which a
+    /// re-trace's records take back), so what a render with more samples
+    /// would need scales from it.
+    pub fn path_record_bytes(&self) -> usize {
+        self.current
+            .as_ref()
+            .and_then(|c| c.frame.as_ref())
+            .map_or(0, Frame::path_bytes)
     }
 
     /// What rendering `desc` now would cost.

@@ -94,6 +94,11 @@ impl TileRecord {
 
     /// Heap bytes held.
     pub fn bytes(&self) -> usize {
+        self.path_bytes() + self.logs.as_ref().map_or(0, CosineLogs::bytes)
+    }
+
+    /// Heap bytes held by the paths' records (all but the kept logarithms).
+    pub fn path_bytes(&self) -> usize {
         let shapes = self.shapes.as_ref().map_or(0, |s| {
             s.hits.capacity() * size_of::<ShapeHit>() + s.visible.capacity() * 8
         });
@@ -101,7 +106,6 @@ impl TileRecord {
             + self.ends.capacity() * size_of::<PathEnd>()
             + self.hits.capacity() * size_of::<ColourHit>()
             + shapes
-            + self.logs.as_ref().map_or(0, CosineLogs::bytes)
     }
 
     /// The hits of path `p` of the tile (pixel p / spp, sample p % spp).

@@ -23,10 +23,13 @@ const SMALL_LIGHT: f64 = 0.05;
 /// One directed edge, with its endpoints in a canonical order.
 #[derive(Debug, Clone, Copy)]
 pub struct Edge {
-    lo: DVec2,
-    hi: DVec2,
-    /// +1 if the piece runs lo → hi, −1 if hi → lo.
-    sign: f64,
+    /// The sort key: `key(lo)`, `key(hi)`.
+    order: [u64; 4],
+    pub lo: DVec2,
+    pub hi: DVec2,
+    /// +1 if the piece runs lo → hi, −1 if hi → lo (after
+    /// [`outline`]: the net count of crossings).
+    pub sign: f64,
 }
 
 fn key(p: DVec2) -> (u64, u64) {
@@ -53,49 +56,101 @@ pub fn diffuse_over_pieces(
         .iter()
         .map(|&p| (p - centre).length())
         .fold(0.0, f64::max);
-    if pieces.len() < 2 || radius < SMALL_LIGHT * (centre.length_squared() + h * h).sqrt() {
+    if radius < SMALL_LIGHT * (centre.length_squared() + h * h).sqrt() {
         return pieces
             .iter()
             .map(|poly| diffuse_polygon_integral(poly, a, b, h))
             .sum();
     }
+    if pieces.len() < 2 {
+        return pieces
+            .iter()
+            .map(|poly| piece_integral(poly, a, b, h))
+            .sum();
+    }
+    outline(pieces, edges);
+    edges
+        .iter()
+        .map(|e| e.sign * segment_term(e.lo, e.hi, a, b, h))
+        .sum()
+}
+
+/// The outline of the pieces into `edges`: each edge with its net
+/// crossings (`sign`, ±1 where the outline runs lo → hi or back), the edges
+/// two pieces share left out.
+pub fn outline(pieces: &Pieces, edges: &mut Vec<Edge>) {
     edges.clear();
     for poly in pieces.iter() {
         let n = poly.len();
+        let mut kp = key(poly[0]);
         for i in 0..n {
             let (p, q) = (poly[i], poly[(i + 1) % n]);
-            match key(p).cmp(&key(q)) {
+            let kq = key(q);
+            match kp.cmp(&kq) {
                 std::cmp::Ordering::Less => edges.push(Edge {
+                    order: [kp.0, kp.1, kq.0, kq.1],
                     lo: p,
                     hi: q,
                     sign: 1.0,
                 }),
                 std::cmp::Ordering::Greater => edges.push(Edge {
+                    order: [kq.0, kq.1, kp.0, kp.1],
                     lo: q,
                     hi: p,
                     sign: -1.0,
                 }),
                 std::cmp::Ordering::Equal => {}
             }
+            kp = kq;
         }
     }
-    edges.sort_unstable_by_key(|e| (key(e.lo), key(e.hi)));
-    let mut total = 0.0;
-    let mut i = 0;
+    edges.sort_unstable_by_key(|e| e.order);
+    // Merge runs of the same edge in place.
+    let (mut i, mut kept) = (0, 0);
     while i < edges.len() {
-        let e = edges[i];
-        let mut net = e.sign;
+        let mut e = edges[i];
         let mut j = i + 1;
-        while j < edges.len() && key(edges[j].lo) == key(e.lo) && key(edges[j].hi) == key(e.hi) {
-            net += edges[j].sign;
+        while j < edges.len() && edges[j].order == e.order {
+            e.sign += edges[j].sign;
             j += 1;
         }
-        if net != 0.0 {
-            total += net * segment_term(e.lo, e.hi, a, b, h);
+        if e.sign != 0.0 {
+            edges[kept] = e;
+            kept += 1;
         }
         i = j;
     }
-    total
+    edges.truncate(kept);
+}
+
+/// One counter-clockwise convex piece: `analytic.rs`'s integral where the
+/// piece is small against its distance (its quadrature branch), else the
+/// edge sum with this file's cheaper inverse hyperbolic sine.
+fn piece_integral(poly: &[DVec2], a: DVec2, b: f64, h: f64) -> f64 {
+    let k = poly.len();
+    if k < 3 {
+        return 0.0;
+    }
+    let centroid = poly.iter().copied().sum::<DVec2>() / k as f64;
+    let radius = poly
+        .iter()
+        .map(|q| (*q - centroid).length())
+        .fold(0.0, f64::max);
+    if radius < SMALL_LIGHT * (centroid.length_squared() + h * h).sqrt() {
+        return diffuse_polygon_integral(poly, a, b, h);
+    }
+    (0..k)
+        .map(|i| segment_term(poly[i], poly[(i + 1) % k], a, b, h))
+        .sum()
+}
+
+/// asinh(τ/c) for c > 0, given r = √(τ² + c²): ln((|τ| + r)/c) as
+/// log1p of (|τ| + r − c)/c, with r − c = τ²/(r + c) (no cancellation, and
+/// no second square root as in `f64::asinh`'s hypot).
+#[inline]
+fn asinh_ratio(tau: f64, r: f64, c: f64) -> f64 {
+    let t = tau.abs();
+    ((t + t * t / (r + c)) / c).ln_1p().copysign(tau)
 }
 
 /// The flux of F(x) = a g(x) + b x/(g(x) + |h|) out through the straight
@@ -118,9 +173,32 @@ pub fn segment_term(p: DVec2, q: DVec2, a: DVec2, b: f64, h: f64) -> f64 {
         let r = (tau * tau + c2).sqrt();
         // asinh(τ/c) only ever appears multiplied by c² or d, both zero
         // when c is.
-        let ash = if c > 0.0 { (tau / c).asinh() } else { 0.0 };
+        let ash = if c > 0.0 { asinh_ratio(tau, r, c) } else { 0.0 };
         let phi = (-tau * d * (tau * tau + d * d) / (r + ah)).atan2(d * d * r + ah * tau * tau);
         an * (tau * r + c2 * ash) * 0.5 + b * (d * ash + ah * phi)
     };
     g(q.dot(t)) - g(p.dot(t))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::asinh_ratio;
+
+    /// The log1p form of asinh against the standard library's, τ of either
+    /// sign and of magnitudes from 1e-12 to 1e6 of c.
+    #[test]
+    fn asinh_ratio_matches_asinh() {
+        for c in [1e-3, 0.7, 1.0, 42.0] {
+            for i in -180..=180 {
+                let x = (i as f64).signum() * 10f64.powf((i as f64).abs() / 10.0 - 12.0);
+                let tau = x * c;
+                let r = (tau * tau + c * c).sqrt();
+                let (got, want) = (asinh_ratio(tau, r, c), x.asinh());
+                assert!(
+                    (got - want).abs() <= 4.0 * f64::EPSILON * want.abs(),
+                    "asinh({x}): {got} vs {want}"
+                );
+            }
+        }
+    }
 }

@@ -428,14 +428,30 @@ fn edge_moments_generic(
     }
 }
 
+/// Bonnet's recurrence without divisions: P_{k+1} = A_k x P_k − B_k P_{k−1}
+/// with A_k = (2k + 1)/(k + 1), B_k = k/(k + 1); and 1/(2k + 1) for R_k.
+const fn recurrence() -> ([f64; ORDER], [f64; ORDER], [f64; ORDER]) {
+    let (mut a, mut b, mut inv) = ([0.0; ORDER], [0.0; ORDER], [0.0; ORDER]);
+    let mut k = 0;
+    while k < ORDER {
+        a[k] = (2 * k + 1) as f64 / (k + 1) as f64;
+        b[k] = k as f64 / (k + 1) as f64;
+        inv[k] = 1.0 / (2 * k + 1) as f64;
+        k += 1;
+    }
+    (a, b, inv)
+}
+const RECURRENCE: ([f64; ORDER], [f64; ORDER], [f64; ORDER]) = recurrence();
+
 /// P_0 … P_ORDER at x.
 #[inline]
 fn legendre_plus(x: f64) -> [f64; ORDER + 1] {
+    let (a, b, _) = &RECURRENCE;
     let mut p = [0.0; ORDER + 1];
     p[0] = 1.0;
     p[1] = x;
     for k in 1..ORDER {
-        p[k + 1] = ((2 * k + 1) as f64 * x * p[k] - k as f64 * p[k - 1]) / (k + 1) as f64;
+        p[k + 1] = a[k] * x * p[k] - b[k] * p[k - 1];
     }
     p
 }
@@ -454,7 +470,7 @@ fn legendre_integrals(x: f64) -> [f64; ORDER] {
         if k == 0 {
             x + 1.0
         } else {
-            (p[k + 1] - p[k - 1]) / (2 * k + 1) as f64
+            (p[k + 1] - p[k - 1]) * RECURRENCE.2[k]
         }
     })
 }

@@ -43,7 +43,7 @@ const ORDER: usize = 8;
 /// Deepest split of the light's square (cells of 1/256 of its side).
 const MAX_DEPTH: u32 = 8;
 /// Estimated error of the specular factor above which a cell is split.
-pub const TOLERANCE: f64 = 1e-5;
+pub const TOLERANCE: f64 = 1e-4;
 
 /// The integrand: max(0, n·H)^s at light point (a, b), in the light's frame
 /// seen from the shadow point.

@@ -225,20 +225,14 @@ fn nested_rule() -> &'static NestedRule {
 /// tolerance.
 fn nested_cell(lobe: &Lobe, lo: DVec2, size: f64) -> Option<(f64, f64)> {
     let r = nested_rule();
-    let (mut a, mut b, mut f) = (
-        [0.0; NESTED_NODES],
-        [0.0; NESTED_NODES],
-        [0.0; NESTED_NODES],
-    );
-    for i in 0..NESTED_NODES {
-        a[i] = lo.x + r.x[i] * size;
-        b[i] = lo.y + r.y[i] * size;
-    }
+    let a = r.x.map(|x| lo.x + x * size);
+    let b = r.y.map(|y| lo.y + y * size);
+    let mut f = [0.0; NESTED_NODES];
     lobe_at_nested_nodes(lobe, &a, &b, &mut f);
     let (mut q_lo, mut q_hi) = (0.0, 0.0);
-    for i in 0..NESTED_NODES {
-        q_lo += r.w_lo[i] * f[i];
-        q_hi += r.w_hi[i] * f[i];
+    for ((fi, wl), wh) in f.iter().zip(&r.w_lo).zip(&r.w_hi) {
+        q_lo += wl * fi;
+        q_hi += wh * fi;
     }
     let area = size * size;
     let estimate = (q_hi - q_lo).abs() * area;

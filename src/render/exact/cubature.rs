@@ -838,7 +838,7 @@ mod tests {
 
     /// The f32 lobe against max(0, N·H)^s in f64 at random nodes, normals,
     /// views and shininesses up to 2000: within 5e-6 (absolute, the
-    /// factor's scale; half the cubature's tolerance) and 2e-5 relative.
+    /// factor's scale; a twentieth of the cubature's tolerance) and 2e-5 relative.
     #[test]
     fn f32_lobe_matches_the_f64_formula() {
         let mut state = 0x2545_f491_4f6c_dd1d_u64;

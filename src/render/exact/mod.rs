@@ -17,7 +17,7 @@
 //!    (`conic.rs`: over the pieces before the spheres were subtracted,
 //!    minus each sphere's part, whose arcs are integrated by an adaptive
 //!    Gauss–Legendre rule), the specular factor max(0, N·H)^s by an
-//!    adaptive cubature with an error estimate below 1e-5 (`cubature.rs`).
+//!    adaptive cubature with an error estimate below 1e-4 (`cubature.rs`).
 //!
 //! It is the integrand of `sampled` — the same directions (from the shadow
 //! point), the same visibility test (blocked at t in (0, `RAY_END`), light

@@ -84,11 +84,27 @@ fn sides(poly: &[DVec2], h: HalfPlane) -> (bool, bool) {
 }
 
 /// Convex pieces, stored back to back in one buffer.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Default)]
 pub struct Pieces {
     pub verts: Vec<DVec2>,
     /// Piece i is `verts[ends[i-1]..ends[i]]`.
     pub ends: Vec<usize>,
+}
+
+// By hand: the derived `clone_from` would allocate anew on every hit point
+// instead of reusing the warm buffers.
+impl Clone for Pieces {
+    fn clone(&self) -> Self {
+        Pieces {
+            verts: self.verts.clone(),
+            ends: self.ends.clone(),
+        }
+    }
+
+    fn clone_from(&mut self, source: &Self) {
+        self.verts.clone_from(&source.verts);
+        self.ends.clone_from(&source.ends);
+    }
 }
 
 impl Pieces {

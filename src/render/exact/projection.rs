@@ -198,15 +198,35 @@ pub struct ProjectScratch {
     points: Vec<DVec2>,
 }
 
-/// Clips a planar polygon (frame coordinates) to the frustum, appending
-/// its projection to `points`.
+/// Bit i set: some of `points` (frame coordinates) lie outside the
+/// frustum's plane i. The polygons of those points need clipping by those
+/// planes only.
+fn planes_crossed(view: &LightView, points: &[DVec3]) -> u8 {
+    let mut mask = 0;
+    for (i, &(n, c)) in view.planes.iter().enumerate() {
+        if points.iter().any(|&x| n.dot(x) + c < 0.0) {
+            mask |= 1 << i;
+        }
+    }
+    mask
+}
+
+/// Clips a planar polygon (frame coordinates) to the frustum's planes of
+/// `mask` (the others hold all of it), appending its projection to
+/// `points`.
 fn clip_and_project(
     view: &LightView,
+    mask: u8,
     face: &mut Vec<DVec3>,
     tmp: &mut Vec<DVec3>,
     points: &mut Vec<DVec2>,
 ) {
-    for &(n, c) in &view.planes {
+    for (_, &(n, c)) in view
+        .planes
+        .iter()
+        .enumerate()
+        .filter(|&(i, _)| mask & (1 << i) != 0)
+    {
         tmp.clear();
         let k = face.len();
         for i in 0..k {
@@ -239,10 +259,16 @@ fn faces_shadow(
 ) {
     s.points.clear();
     s.points.extend_from_slice(extra);
+    // The planes that cut any face (each face lies in the faces' hull).
+    s.clipped.clear();
+    for f in faces {
+        s.clipped.extend(f.iter().map(|&x| view.local(x)));
+    }
+    let mask = planes_crossed(view, &s.clipped);
     for f in faces {
         s.face.clear();
         s.face.extend(f.iter().map(|&x| view.local(x)));
-        clip_and_project(view, &mut s.face, &mut s.clipped, &mut s.points);
+        clip_and_project(view, mask, &mut s.face, &mut s.clipped, &mut s.points);
     }
     hull_into(&mut s.points, out);
 }
@@ -395,13 +421,21 @@ pub fn sphere_shadow(
         ring.iter()
             .map(|&(sn, cs)| centre + (u * cs + w * sn) * (rho * scale)),
     );
+    // Only the planes the polygon may cross: its vertices lie within
+    // r · scale of the centre (the circle lies on the sphere).
+    let mut mask = 0;
+    for (i, &(pn, c)) in view.planes.iter().enumerate() {
+        if pn.dot(oc) + c < r * scale * pn.length() * (1.0 + 1e-9) {
+            mask |= 1 << i;
+        }
+    }
     s.points.clear();
     let ProjectScratch {
         face,
         clipped,
         points,
     } = s;
-    clip_and_project(view, face, clipped, points);
+    clip_and_project(view, mask, face, clipped, points);
     // The projection of a convex polygon is convex and keeps its order;
     // only the winding may turn.
     out.extend_from_slice(points);

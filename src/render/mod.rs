@@ -47,6 +47,7 @@ pub(crate) mod live;
 pub(crate) mod pixel_filter;
 pub(crate) mod progressive;
 pub(crate) mod reference;
+pub(crate) mod sampled_lanes;
 pub(crate) mod scene;
 pub(crate) mod scene_transform;
 pub(crate) mod settings;

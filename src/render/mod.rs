@@ -54,6 +54,7 @@ pub(crate) mod settings;
 pub(crate) mod shading_params;
 pub(crate) mod sobol;
 pub(crate) mod stats;
+pub(crate) mod tile_frustum;
 
 pub use display::{DisplayTransform, ToneCurve};
 pub use error::{ImageError, SceneError};

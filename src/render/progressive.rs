@@ -421,7 +421,7 @@ fn render_tile(
     scratch: &mut TraceScratch,
     out: &mut Vec<Vec3>,
 ) -> bool {
-    if block == 1 && tracer.shades_in_lanes() {
+    if block == 1 && tracer.traces_tiles() {
         return tracer.tile(rect, cancel, scratch, out);
     }
     out.clear();

@@ -27,6 +27,7 @@ use super::shading::{
 use super::shading_params::ShadingParams;
 use super::shadow::ShadowBuffers;
 use super::stats::RayStats;
+use super::tile_frustum::camera_objects;
 
 /// Reflected rays whose path weight falls below this are not traced (when
 /// skipping is on): they could change the pixel by at most this fraction of
@@ -100,6 +101,8 @@ pub struct TraceScratch {
     lanes: SampledLanes,
     terms: Vec<Term>,
     factors: Vec<LightTerms>,
+    /// The objects [`Tracer::tile`]'s camera rays test.
+    camera_objects: Vec<u32>,
 }
 
 impl<'a> Tracer<'a> {
@@ -132,6 +135,7 @@ impl<'a> Tracer<'a> {
             lanes: SampledLanes::default(),
             terms: Vec::new(),
             factors: Vec::new(),
+            camera_objects: Vec::new(),
         }
     }
 
@@ -156,7 +160,7 @@ impl<'a> Tracer<'a> {
         let Some(filter) = &self.filter else {
             let mut colour = Sum(Vec3::ZERO);
             let ray = camera.pixel_ray(x, y);
-            self.trace_path(x, y, 0, ray, scratch, sink, &mut colour);
+            self.trace_path(x, y, 0, ray, None, scratch, sink, &mut colour);
             return colour.0;
         };
         let spp = self.settings.samples_per_pixel;
@@ -165,27 +169,34 @@ impl<'a> Tracer<'a> {
         for sample in 0..spp {
             let (px, py) = filter.position(x, y, sample, pixel_seed);
             let mut colour = Sum(Vec3::ZERO);
-            self.trace_path(x, y, sample, camera.ray(px, py), scratch, sink, &mut colour);
+            let ray = camera.ray(px, py);
+            self.trace_path(x, y, sample, ray, None, scratch, sink, &mut colour);
             sum += colour.0;
         }
         sum * (1.0 / spp as f32)
     }
 
-    /// Whether [`Tracer::tile`] shades its hits side by side: one camera
-    /// sample per pixel under the `sampled` model, with fewer light points
-    /// per hit than [`LANE_POINTS`].
-    pub fn shades_in_lanes(&self) -> bool {
+    /// Whether [`Tracer::tile`] renders this tracer's tiles: one camera
+    /// sample per pixel.
+    pub fn traces_tiles(&self) -> bool {
         self.filter.is_none()
-            && self.settings.model == AreaLightModel::Sampled
-            && self.pattern.count() < LANE_POINTS
+    }
+
+    /// Whether [`Tracer::tile`] shades its hits side by side: under the
+    /// `sampled` model, with fewer light points per hit than
+    /// [`LANE_POINTS`].
+    pub fn shades_in_lanes(&self) -> bool {
+        self.settings.model == AreaLightModel::Sampled && self.pattern.count() < LANE_POINTS
     }
 
     /// Linear RGB of the pixels of `rect` (rows packed) into `out`, as
-    /// [`Tracer::pixel`] gives each (the same bits): the paths are traced
-    /// one by one, but their hits wait for their light factors in
-    /// [`SampledLanes`] and are shaded [`LANES`](super::sampled_lanes::LANES)
-    /// at a time, the colours then summed path by path in their order.
-    /// Needs [`Tracer::shades_in_lanes`]; false if cancelled part-way.
+    /// [`Tracer::pixel`] gives each (the same bits): the camera rays test
+    /// only the objects the tile's rays may meet ([`camera_objects`]), and
+    /// with [`Tracer::shades_in_lanes`] the paths' hits wait for their light
+    /// factors in [`SampledLanes`] and are shaded
+    /// [`LANES`](super::sampled_lanes::LANES) at a time, the colours then
+    /// summed path by path in their order. Needs [`Tracer::traces_tiles`];
+    /// false if cancelled part-way.
     pub fn tile(
         &self,
         rect: TileRect,
@@ -193,7 +204,42 @@ impl<'a> Tracer<'a> {
         scratch: &mut TraceScratch,
         out: &mut Vec<Vec3>,
     ) -> bool {
-        debug_assert!(self.shades_in_lanes());
+        debug_assert!(self.traces_tiles());
+        let mut objects = std::mem::take(&mut scratch.camera_objects);
+        camera_objects(self.scene, rect, &mut objects);
+        let finished = if self.shades_in_lanes() {
+            self.tile_in_lanes(rect, &objects, cancel, scratch, out)
+        } else {
+            out.clear();
+            let camera = &self.scene.camera;
+            let mut finished = true;
+            'rows: for y in rect.y..rect.y + rect.h {
+                if cancel.is_cancelled() {
+                    finished = false;
+                    break 'rows;
+                }
+                for x in rect.x..rect.x + rect.w {
+                    let mut colour = Sum(Vec3::ZERO);
+                    let ray = camera.pixel_ray(x, y);
+                    self.trace_path(x, y, 0, ray, Some(&objects), scratch, &mut (), &mut colour);
+                    out.push(colour.0);
+                }
+            }
+            finished
+        };
+        scratch.camera_objects = objects;
+        finished
+    }
+
+    /// [`Tracer::tile`] with its hits shaded side by side.
+    fn tile_in_lanes(
+        &self,
+        rect: TileRect,
+        objects: &[u32],
+        cancel: &CancelToken,
+        scratch: &mut TraceScratch,
+        out: &mut Vec<Vec3>,
+    ) -> bool {
         let mut lanes = std::mem::take(&mut scratch.lanes);
         lanes.start(&self.pattern);
         let mut colour = Deferred {
@@ -215,15 +261,8 @@ impl<'a> Tracer<'a> {
                 break 'rows;
             }
             for x in rect.x..rect.x + rect.w {
-                self.trace_path(
-                    x,
-                    y,
-                    0,
-                    camera.pixel_ray(x, y),
-                    scratch,
-                    &mut (),
-                    &mut colour,
-                );
+                let ray = camera.pixel_ray(x, y);
+                self.trace_path(x, y, 0, ray, Some(objects), scratch, &mut (), &mut colour);
                 colour.terms.push(Term::PixelEnd);
             }
         }
@@ -259,7 +298,9 @@ impl<'a> Tracer<'a> {
         finished
     }
 
-    /// One camera sample's path, its linear RGB added to `colour`.
+    /// One camera sample's path, its linear RGB added to `colour`;
+    /// `camera_objects`: the only unbounded and bounded objects the camera
+    /// ray may meet, if known.
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
     fn trace_path<S: PathSink, C: PathColour>(
@@ -268,6 +309,7 @@ impl<'a> Tracer<'a> {
         y: u32,
         sample: u32,
         mut ray: Ray,
+        camera_objects: Option<&[u32]>,
         scratch: &mut TraceScratch,
         sink: &mut S,
         colour: &mut C,
@@ -278,7 +320,10 @@ impl<'a> Tracer<'a> {
         for depth in 1..=s.max_depth {
             // Only the camera ray (depth 1) may cut away planes.
             let hit = if depth == 1 {
-                scene.camera_hit(&ray, s.cutaway)
+                match camera_objects {
+                    Some(objects) => scene.camera_hit_among(&ray, s.cutaway, objects),
+                    None => scene.camera_hit(&ray, s.cutaway),
+                }
             } else {
                 scene.closest_hit(&ray)
             };
@@ -623,9 +668,11 @@ mod tests {
     use crate::render::scene::Loaded;
     use crate::render::scene_file::Sampling;
 
-    /// A tile whose hits are shaded side by side has, pixel for pixel, the
-    /// bits of the pixels traced one at a time: floor, walls, both boxes and
-    /// the mirror sphere (reflected paths), several patterns and counts.
+    /// A tile (its camera rays testing the tile's objects, its hits shaded
+    /// side by side below 16 points) has, pixel for pixel, the bits of the
+    /// pixels traced one at a time: floor, walls, both boxes and the mirror
+    /// sphere (reflected paths), the image's corners, several patterns and
+    /// counts, with and without cut-away.
     #[test]
     fn a_tile_in_lanes_gives_the_bits_of_each_pixel() {
         let loaded = Loaded::seed_room();
@@ -635,29 +682,65 @@ mod tests {
             w: 400,
             h: 300,
         };
-        for (sampling, rays, skip) in [
-            (Sampling::Grid, 1, true),
-            (Sampling::Grid, 1, false),
-            (Sampling::Grid, 4, true),
-            (Sampling::Random, 3, true),
-            (Sampling::Stratified, 9, true),
+        for (sampling, rays, skip, cutaway) in [
+            (Sampling::Grid, 1, true, false),
+            (Sampling::Grid, 1, false, false),
+            (Sampling::Grid, 1, true, true),
+            (Sampling::Grid, 4, true, false),
+            (Sampling::Random, 3, true, false),
+            (Sampling::Stratified, 9, true, false),
+            (Sampling::Grid, 64, true, true),
         ] {
             let mut settings = loaded.settings.clone();
             settings.sampling = sampling;
             settings.shadow_rays = rays;
             settings.skip = skip;
+            settings.cutaway = cutaway;
             let tracer = Tracer::new(&loaded.scene, &settings, &loaded.shading, rays);
-            assert!(tracer.shades_in_lanes());
+            assert!(tracer.traces_tiles());
+            assert_eq!(tracer.shades_in_lanes(), rays < 16);
             let mut scratch = tracer.scratch();
             let mut tile = Vec::new();
             // Every fourth pixel, so that the test stays quick.
-            let small = |i: u32| TileRect {
-                x: rect.x + 4 * (i % 25),
-                y: rect.y + 4 * (i / 25) * 3,
-                w: 13,
-                h: 7,
+            let small = |i: u32| match i {
+                100 => TileRect {
+                    x: 0,
+                    y: 0,
+                    w: 32,
+                    h: 32,
+                },
+                101 => TileRect {
+                    x: 928,
+                    y: 0,
+                    w: 32,
+                    h: 32,
+                },
+                102 => TileRect {
+                    x: 0,
+                    y: 508,
+                    w: 32,
+                    h: 32,
+                },
+                103 => TileRect {
+                    x: 929,
+                    y: 509,
+                    w: 31,
+                    h: 31,
+                },
+                104 => TileRect {
+                    x: 500,
+                    y: 20,
+                    w: 1,
+                    h: 30,
+                },
+                _ => TileRect {
+                    x: rect.x + 4 * (i % 25),
+                    y: rect.y + 4 * (i / 25) * 3,
+                    w: 13,
+                    h: 7,
+                },
             };
-            for i in 0..100 {
+            for i in 0..105 {
                 let r = small(i);
                 assert!(tracer.tile(r, &CancelToken::new(), &mut scratch, &mut tile));
                 assert_eq!(tile.len(), (r.w * r.h) as usize);

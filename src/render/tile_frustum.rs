@@ -20,7 +20,11 @@ pub(crate) fn camera_objects(scene: &Scene, rect: TileRect, out: &mut Vec<u32>) 
     out.clear();
     let camera = &scene.camera;
     let origin = camera.origin;
-    let (x1, y1) = (rect.x + rect.w - 1, rect.y + rect.h - 1);
+    // (An empty rectangle, which no caller passes, counts as its corner.)
+    let (x1, y1) = (
+        rect.x + rect.w.saturating_sub(1),
+        rect.y + rect.h.saturating_sub(1),
+    );
     let dirs = [(rect.x, rect.y), (x1, rect.y), (x1, y1), (rect.x, y1)]
         .map(|(x, y)| camera.pixel_ray(x, y).dir);
     let centre = dirs.iter().sum::<DVec3>();

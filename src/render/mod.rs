@@ -47,12 +47,14 @@ pub(crate) mod live;
 pub(crate) mod pixel_filter;
 pub(crate) mod progressive;
 pub(crate) mod reference;
+pub(crate) mod sampled_lanes;
 pub(crate) mod scene;
 pub(crate) mod scene_transform;
 pub(crate) mod settings;
 pub(crate) mod shading_params;
 pub(crate) mod sobol;
 pub(crate) mod stats;
+pub(crate) mod tile_frustum;
 
 pub use display::{DisplayTransform, ToneCurve};
 pub use error::{ImageError, SceneError};

@@ -421,6 +421,9 @@ fn render_tile(
     scratch: &mut TraceScratch,
     out: &mut Vec<Vec3>,
 ) -> bool {
+    if block == 1 && tracer.traces_tiles() {
+        return tracer.tile(rect, cancel, scratch, out);
+    }
     out.clear();
     out.resize((rect.w * rect.h) as usize, Vec3::ZERO);
     let (width, height) = (tracer.scene.camera.width, tracer.scene.camera.height);

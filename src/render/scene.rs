@@ -409,6 +409,42 @@ impl Scene {
         best
     }
 
+    /// [`Scene::camera_hit`] testing, of the unbounded and bounded
+    /// objects, only `objects` (a subsequence of them that leaves out only
+    /// objects the ray misses: the same hit), the BVH as ever.
+    pub fn camera_hit_among(
+        &self,
+        ray: &Ray,
+        cutaway: bool,
+        objects: &[u32],
+    ) -> Option<(HitTarget, f64)> {
+        let mut best: Option<(HitTarget, f64)> = None;
+        let mut t_max = f64::INFINITY;
+        if let Some(t) = self.light.shape.intersect(ray, t_max) {
+            best = Some((HitTarget::Light, t));
+            t_max = t;
+        }
+        for &i in objects {
+            if cutaway
+                && let Primitive::Shape(Shape::Plane(p)) = self.primitive(i)
+                && p.normal.dot(ray.dir) > 0.0
+            {
+                continue;
+            }
+            if let Some(t) = self.intersect(i, ray, t_max) {
+                best = Some((HitTarget::Object(i), t));
+                t_max = t;
+            }
+        }
+        if let Some((i, t)) = self
+            .bvh
+            .closest(ray, t_max, |i, t_max| self.intersect(i, ray, t_max))
+        {
+            best = Some((HitTarget::Object(i), t));
+        }
+        best
+    }
+
     /// Where the shadow rays of a smooth triangle's hit start: the point
     /// lifted by its shadow offset, unless something (another surface, the
     /// light) lies between the two, in which case the point itself, so

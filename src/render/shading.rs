@@ -59,6 +59,15 @@ impl Needs {
         diffuse: true,
         specular: true,
     };
+
+    /// The factors whose colour products are not zero.
+    #[inline]
+    pub fn of(m: &Material, light: &LightColours, terms: Vec3) -> Needs {
+        Needs {
+            diffuse: m.diffuse * light.diffuse * terms.y != Vec3::ZERO,
+            specular: m.specular * light.specular * terms.z != Vec3::ZERO,
+        }
+    }
 }
 
 /// The Phong sum of one hit point: ambient plus the diffuse and specular
@@ -111,10 +120,7 @@ pub fn shade(
     stats: &mut RayStats,
 ) -> Vec3 {
     let (m, light) = (sp.material, &shading.light);
-    let needs = Needs {
-        diffuse: m.diffuse * light.diffuse * settings.terms.y != Vec3::ZERO,
-        specular: m.specular * light.specular * settings.terms.z != Vec3::ZERO,
-    };
+    let needs = Needs::of(m, light, settings.terms);
     let factors = light_terms(scene, settings, sp, needs, pattern, rng, buf, stats);
     local_colour(m, light, settings.terms, factors)
 }
@@ -132,15 +138,45 @@ pub fn light_terms(
     buf: &mut ShadowBuffers,
     stats: &mut RayStats,
 ) -> LightTerms {
+    match light_points(scene, s, sp, needs, pattern, rng, buf, stats) {
+        Lit::Known(factors) => factors,
+        Lit::Points => model_terms(scene, s, sp, needs, pattern.count(), buf),
+    }
+}
+
+/// What [`light_points`] found.
+pub(crate) enum Lit {
+    /// The factors, without light points (behind the light, not needed,
+    /// or the `exact` model).
+    Known(LightTerms),
+    /// The light points and their visibility are in the buffers, for
+    /// [`model_terms`].
+    Points,
+}
+
+/// The first part of [`light_terms`]: the light points of one hit point
+/// and their visibility, unless the factors are known without them.
+#[allow(clippy::too_many_arguments)]
+#[inline]
+pub(crate) fn light_points(
+    scene: &Scene,
+    s: &RenderSettings,
+    sp: &ShadingPoint,
+    needs: Needs,
+    pattern: &Pattern,
+    rng: &mut Rng,
+    buf: &mut ShadowBuffers,
+    stats: &mut RayStats,
+) -> Lit {
     let m = sp.material;
     if !scene.light.illuminates(sp.point) {
-        return LightTerms::default();
+        return Lit::Known(LightTerms::default());
     }
     let (need_d, need_s) = (needs.diffuse, needs.specular);
     let count = pattern.count();
     if !(need_d || need_s) && s.skip {
         stats.shadow_unneeded += count as u64;
-        return LightTerms::default();
+        return Lit::Known(LightTerms::default());
     }
 
     if s.model == AreaLightModel::Exact {
@@ -157,10 +193,10 @@ pub fn light_terms(
         match exact_factors(scene, &p, need_s, CircleFit::SameArea, &mut buf.exact) {
             Ok(f) => {
                 stats.exact_hits += 1;
-                return LightTerms {
+                return Lit::Known(LightTerms {
                     diffuse: f.diffuse as f32,
                     specular: f.specular as f32,
-                };
+                });
             }
             // Outside what the model does exactly: the `analytic` estimate.
             Err(_) => stats.exact_fallbacks += 1,
@@ -175,7 +211,21 @@ pub fn light_terms(
         inside: sp.inside,
     };
     shadow::visibility(scene, s, &query, count, buf, stats);
+    Lit::Points
+}
 
+/// The second part of [`light_terms`]: the factors of the model from the
+/// `count` light points and their visibility in `buf`.
+pub(crate) fn model_terms(
+    scene: &Scene,
+    s: &RenderSettings,
+    sp: &ShadingPoint,
+    needs: Needs,
+    count: usize,
+    buf: &mut ShadowBuffers,
+) -> LightTerms {
+    let m = sp.material;
+    let (need_d, need_s) = (needs.diffuse, needs.specular);
     let n = sp.normal.as_vec3();
     let v = sp.view.as_vec3();
     let (diffuse, specular) = match s.model {
@@ -232,6 +282,12 @@ fn fill_light_points(pattern: &Pattern, rng: &mut Rng, buf: &mut ShadowBuffers) 
     }
 }
 
+/// Whether any of the first `count` light points is visible.
+#[inline]
+pub(crate) fn any_visible(buf: &ShadowBuffers, count: usize) -> bool {
+    buf.vis[..count].iter().any(|&v| v != 0.0)
+}
+
 /// Share of the first `count` light points that are visible.
 #[inline]
 pub fn visible_fraction(buf: &ShadowBuffers, count: usize) -> f32 {
@@ -250,7 +306,7 @@ pub fn visible_fraction(buf: &ShadowBuffers, count: usize) -> f32 {
 /// points. From [`WIDE_POINTS`] points on, sixteen lanes where the CPU has
 /// them: the same operations lane by lane, so the same bits, in about half
 /// the instructions (the power's polynomials are most of the loop).
-fn sampled_terms(
+pub(crate) fn sampled_terms(
     n: Vec3,
     v: Vec3,
     shininess: f32,
@@ -262,7 +318,7 @@ fn sampled_terms(
     // contribution is visibility 0 times a finite factor, so both sums are
     // +0 — the loop's answer, without the loop. (The ratio estimator gets 0
     // from either of its branches.)
-    if !buf.vis[..count].iter().any(|&v| v != 0.0) {
+    if !any_visible(buf, count) {
         return SampledTerms {
             diffuse: 0.0,
             unshadowed_diffuse: 0.0,
@@ -381,13 +437,13 @@ pub(crate) fn blinn_cosine(n: Vec3, v: Vec3, x: f32, y: f32, z: f32, inv: f32) -
 }
 
 /// Averages over the light points of one hit point.
-struct SampledTerms {
+pub(crate) struct SampledTerms {
     /// max(0, N·L), weighted by visibility.
-    diffuse: f32,
+    pub(crate) diffuse: f32,
     /// max(0, N·L) without visibility (the ratio estimator's denominator).
-    unshadowed_diffuse: f32,
+    pub(crate) unshadowed_diffuse: f32,
     /// max(0, N·H)^shininess, weighted by visibility.
-    specular: f32,
+    pub(crate) specular: f32,
 }
 
 /// Blinn–Phong specular factor max(0, N·H)^shininess, H = normalize(L + V).

@@ -13,17 +13,21 @@ use glam::{DVec3, Vec3};
 use super::geometry::{Ray, spawn_origin};
 use super::live::record::ColourHit;
 use super::pixel_filter::PixelFilter;
+use super::progressive::{CancelToken, TileRect};
 use super::rng::Rng;
+use super::sampled_lanes::{LANE_POINTS, LaneHit, SampledLanes};
 use super::sampling::Pattern;
 use super::scene::{HitTarget, Scene};
+use super::scene_file::AreaLightModel;
 use super::settings::RenderSettings;
 use super::shading::{
-    LightTerms, Needs, PhongColours, ShadingPoint, light_terms, local_colour,
-    nearest_point_specular_direction, shade,
+    LightTerms, Lit, Needs, PhongColours, ShadingPoint, any_visible, light_points, light_terms,
+    local_colour, model_terms, nearest_point_specular_direction, shade,
 };
 use super::shading_params::ShadingParams;
 use super::shadow::ShadowBuffers;
 use super::stats::RayStats;
+use super::tile_frustum::camera_objects;
 
 /// Reflected rays whose path weight falls below this are not traced (when
 /// skipping is on): they could change the pixel by at most this fraction of
@@ -92,6 +96,13 @@ pub struct Tracer<'a> {
 pub struct TraceScratch {
     pub shadow: ShadowBuffers,
     pub stats: RayStats,
+    /// [`Tracer::tile`]'s hits waiting for their factors, its terms and
+    /// their factors.
+    lanes: SampledLanes,
+    terms: Vec<Term>,
+    factors: Vec<LightTerms>,
+    /// The objects [`Tracer::tile`]'s camera rays test.
+    camera_objects: Vec<u32>,
 }
 
 impl<'a> Tracer<'a> {
@@ -121,6 +132,10 @@ impl<'a> Tracer<'a> {
         TraceScratch {
             shadow: ShadowBuffers::with_capacity(self.pattern.count()),
             stats: RayStats::default(),
+            lanes: SampledLanes::default(),
+            terms: Vec::new(),
+            factors: Vec::new(),
+            camera_objects: Vec::new(),
         }
     }
 
@@ -143,47 +158,183 @@ impl<'a> Tracer<'a> {
     ) -> Vec3 {
         let camera = &self.scene.camera;
         let Some(filter) = &self.filter else {
-            return self.trace_path(x, y, 0, camera.pixel_ray(x, y), scratch, sink);
+            let mut colour = Sum(Vec3::ZERO);
+            let ray = camera.pixel_ray(x, y);
+            self.trace_path(x, y, 0, ray, None, scratch, sink, &mut colour);
+            return colour.0;
         };
         let spp = self.settings.samples_per_pixel;
         let pixel_seed = Rng::for_sample(self.settings.seed, x, y, 0, 0).next_u64() as u32;
         let mut sum = Vec3::ZERO;
         for sample in 0..spp {
             let (px, py) = filter.position(x, y, sample, pixel_seed);
-            sum += self.trace_path(x, y, sample, camera.ray(px, py), scratch, sink);
+            let mut colour = Sum(Vec3::ZERO);
+            let ray = camera.ray(px, py);
+            self.trace_path(x, y, sample, ray, None, scratch, sink, &mut colour);
+            sum += colour.0;
         }
         sum * (1.0 / spp as f32)
     }
 
-    /// Linear RGB of one camera sample's path.
-    fn trace_path<S: PathSink>(
+    /// Whether [`Tracer::tile`] renders this tracer's tiles: one camera
+    /// sample per pixel.
+    pub fn traces_tiles(&self) -> bool {
+        self.filter.is_none()
+    }
+
+    /// Whether [`Tracer::tile`] shades its hits side by side: under the
+    /// `sampled` model, with fewer light points per hit than
+    /// [`LANE_POINTS`].
+    pub fn shades_in_lanes(&self) -> bool {
+        self.settings.model == AreaLightModel::Sampled && self.pattern.count() < LANE_POINTS
+    }
+
+    /// Linear RGB of the pixels of `rect` (rows packed) into `out`, as
+    /// [`Tracer::pixel`] gives each (the same bits): the camera rays test
+    /// only the objects the tile's rays may meet ([`camera_objects`]), and
+    /// with [`Tracer::shades_in_lanes`] the paths' hits wait for their light
+    /// factors in [`SampledLanes`] and are shaded
+    /// [`LANES`](super::sampled_lanes::LANES) at a time, the colours then
+    /// summed path by path in their order. Needs [`Tracer::traces_tiles`];
+    /// false if cancelled part-way.
+    pub fn tile(
+        &self,
+        rect: TileRect,
+        cancel: &CancelToken,
+        scratch: &mut TraceScratch,
+        out: &mut Vec<Vec3>,
+    ) -> bool {
+        debug_assert!(self.traces_tiles());
+        let mut objects = std::mem::take(&mut scratch.camera_objects);
+        camera_objects(self.scene, rect, &mut objects);
+        let finished = if self.shades_in_lanes() {
+            self.tile_in_lanes(rect, &objects, cancel, scratch, out)
+        } else {
+            out.clear();
+            let camera = &self.scene.camera;
+            let mut finished = true;
+            'rows: for y in rect.y..rect.y + rect.h {
+                if cancel.is_cancelled() {
+                    finished = false;
+                    break 'rows;
+                }
+                for x in rect.x..rect.x + rect.w {
+                    let mut colour = Sum(Vec3::ZERO);
+                    let ray = camera.pixel_ray(x, y);
+                    self.trace_path(x, y, 0, ray, Some(&objects), scratch, &mut (), &mut colour);
+                    out.push(colour.0);
+                }
+            }
+            finished
+        };
+        scratch.camera_objects = objects;
+        finished
+    }
+
+    /// [`Tracer::tile`] with its hits shaded side by side.
+    fn tile_in_lanes(
+        &self,
+        rect: TileRect,
+        objects: &[u32],
+        cancel: &CancelToken,
+        scratch: &mut TraceScratch,
+        out: &mut Vec<Vec3>,
+    ) -> bool {
+        let mut lanes = std::mem::take(&mut scratch.lanes);
+        lanes.start(&self.pattern);
+        let mut colour = Deferred {
+            lanes,
+            terms: std::mem::take(&mut scratch.terms),
+            factors: std::mem::take(&mut scratch.factors),
+            edges: (
+                self.scene.light.shape.edge_u.as_vec3(),
+                self.scene.light.shape.edge_v.as_vec3(),
+            ),
+        };
+        colour.terms.clear();
+        colour.factors.clear();
+        let camera = &self.scene.camera;
+        let mut finished = true;
+        'rows: for y in rect.y..rect.y + rect.h {
+            if cancel.is_cancelled() {
+                finished = false;
+                break 'rows;
+            }
+            for x in rect.x..rect.x + rect.w {
+                let ray = camera.pixel_ray(x, y);
+                self.trace_path(x, y, 0, ray, Some(objects), scratch, &mut (), &mut colour);
+                colour.terms.push(Term::PixelEnd);
+            }
+        }
+        if finished {
+            colour.flush();
+            out.clear();
+            let mut sum = Vec3::ZERO;
+            for term in &colour.terms {
+                match *term {
+                    Term::Known { colour, weight } => sum += colour * weight,
+                    Term::Waiting {
+                        material,
+                        factors,
+                        weight,
+                    } => {
+                        let m = &self.shading.materials[material as usize];
+                        let f = colour.factors[factors as usize];
+                        sum +=
+                            local_colour(m, &self.shading.light, self.settings.terms, f) * weight;
+                    }
+                    Term::PixelEnd => {
+                        out.push(sum);
+                        sum = Vec3::ZERO;
+                    }
+                }
+            }
+        } else {
+            colour.lanes.discard();
+        }
+        scratch.lanes = colour.lanes;
+        scratch.terms = colour.terms;
+        scratch.factors = colour.factors;
+        finished
+    }
+
+    /// One camera sample's path, its linear RGB added to `colour`;
+    /// `camera_objects`: the only unbounded and bounded objects the camera
+    /// ray may meet, if known.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn trace_path<S: PathSink, C: PathColour>(
         &self,
         x: u32,
         y: u32,
         sample: u32,
         mut ray: Ray,
+        camera_objects: Option<&[u32]>,
         scratch: &mut TraceScratch,
         sink: &mut S,
-    ) -> Vec3 {
+        colour: &mut C,
+    ) {
         let (scene, s, shading) = (self.scene, self.settings, self.shading);
         scratch.stats.camera += 1;
-        let mut colour = Vec3::ZERO;
         let mut weight = 1.0f32;
         for depth in 1..=s.max_depth {
             // Only the camera ray (depth 1) may cut away planes.
             let hit = if depth == 1 {
-                scene.camera_hit(&ray, s.cutaway)
+                match camera_objects {
+                    Some(objects) => scene.camera_hit_among(&ray, s.cutaway, objects),
+                    None => scene.camera_hit(&ray, s.cutaway),
+                }
             } else {
                 scene.closest_hit(&ray)
             };
             let Some((target, t)) = hit else {
-                colour += s.background * weight;
+                colour.add(s.background, weight);
                 sink.end(PathEnd::Background);
                 break;
             };
             let object = match target {
                 HitTarget::Light => {
-                    colour += shading.light.diffuse * weight;
+                    colour.add(shading.light.diffuse, weight);
                     sink.end(PathEnd::Light);
                     break;
                 }
@@ -214,7 +365,7 @@ impl<'a> Tracer<'a> {
                 material,
             };
             let mut rng = Rng::for_sample(s.seed, x, y, sample, depth);
-            let local = if S::RECORD {
+            if S::RECORD {
                 let buf = &mut scratch.shadow;
                 // Every factor is computed, so that a later edit of any
                 // colour finds it; the light points are cleared first so
@@ -249,20 +400,13 @@ impl<'a> Tracer<'a> {
                     buf,
                     self.pattern.count(),
                 );
-                local_colour(material, &shading.light, s.terms, factors)
+                colour.add(
+                    local_colour(material, &shading.light, s.terms, factors),
+                    weight,
+                );
             } else {
-                shade(
-                    scene,
-                    s,
-                    shading,
-                    &sp,
-                    &self.pattern,
-                    &mut rng,
-                    &mut scratch.shadow,
-                    &mut scratch.stats,
-                )
-            };
-            colour += local * weight;
+                colour.shade(self, &sp, &mut rng, scratch, weight);
+            }
 
             if material.reflectivity == 0.0 || depth == s.max_depth {
                 sink.end(if material.reflectivity == 0.0 {
@@ -287,7 +431,153 @@ impl<'a> Tracer<'a> {
             ray = Ray::new(spawn_origin(surface.point, normal, scene.scale), mirrored);
             scratch.stats.reflected += 1;
         }
-        colour
+    }
+}
+
+/// Where a path's colour goes: each hit's local colour and the path's end,
+/// times the path weight there, added in the path's order.
+trait PathColour {
+    /// Adds `c * weight`.
+    fn add(&mut self, c: Vec3, weight: f32);
+    /// Adds the local colour of hit `sp` times `weight`.
+    fn shade(
+        &mut self,
+        tracer: &Tracer,
+        sp: &ShadingPoint,
+        rng: &mut Rng,
+        scratch: &mut TraceScratch,
+        weight: f32,
+    );
+}
+
+/// A path's colour summed as it is traced.
+struct Sum(Vec3);
+
+impl PathColour for Sum {
+    #[inline(always)]
+    fn add(&mut self, c: Vec3, weight: f32) {
+        self.0 += c * weight;
+    }
+
+    #[inline(always)]
+    fn shade(
+        &mut self,
+        tracer: &Tracer,
+        sp: &ShadingPoint,
+        rng: &mut Rng,
+        scratch: &mut TraceScratch,
+        weight: f32,
+    ) {
+        let local = shade(
+            tracer.scene,
+            tracer.settings,
+            tracer.shading,
+            sp,
+            &tracer.pattern,
+            rng,
+            &mut scratch.shadow,
+            &mut scratch.stats,
+        );
+        self.0 += local * weight;
+    }
+}
+
+/// One term of a tile's path colours, in the order of [`Tracer::trace`]'s
+/// sum.
+#[derive(Debug, Clone, Copy)]
+pub enum Term {
+    /// `colour * weight`.
+    Known { colour: Vec3, weight: f32 },
+    /// A hit's local colour, whose light factors wait in the lanes (their
+    /// index in `factors`), times `weight`.
+    Waiting {
+        material: u32,
+        factors: u32,
+        weight: f32,
+    },
+    /// The end of a pixel's path.
+    PixelEnd,
+}
+
+/// A tile's path colours as terms, the light factors of lit hits computed
+/// side by side ([`Tracer::tile`]).
+struct Deferred {
+    lanes: SampledLanes,
+    terms: Vec<Term>,
+    factors: Vec<LightTerms>,
+    /// The light's edges, as the light points' directions take them.
+    edges: (Vec3, Vec3),
+}
+
+impl Deferred {
+    /// Computes the waiting hits' factors.
+    fn flush(&mut self) {
+        let factors = &mut self.factors;
+        self.lanes
+            .flush(self.edges.0, self.edges.1, |i, f| factors[i] = f);
+    }
+}
+
+impl PathColour for Deferred {
+    #[inline(always)]
+    fn add(&mut self, colour: Vec3, weight: f32) {
+        self.terms.push(Term::Known { colour, weight });
+    }
+
+    #[inline(always)]
+    fn shade(
+        &mut self,
+        tracer: &Tracer,
+        sp: &ShadingPoint,
+        rng: &mut Rng,
+        scratch: &mut TraceScratch,
+        weight: f32,
+    ) {
+        // As `shade`, with the `sampled` model's sums left to the lanes.
+        let (scene, s, shading) = (tracer.scene, tracer.settings, tracer.shading);
+        let (m, light) = (sp.material, &shading.light);
+        let needs = Needs::of(m, light, s.terms);
+        let buf = &mut scratch.shadow;
+        let count = tracer.pattern.count();
+        let lit = light_points(
+            scene,
+            s,
+            sp,
+            needs,
+            &tracer.pattern,
+            rng,
+            buf,
+            &mut scratch.stats,
+        );
+        let factors = match lit {
+            Lit::Known(f) => f,
+            Lit::Points if !any_visible(buf, count) => model_terms(scene, s, sp, needs, count, buf),
+            Lit::Points => {
+                let index = self.factors.len();
+                self.factors.push(LightTerms::default());
+                self.terms.push(Term::Waiting {
+                    material: scene.material_of(sp.object),
+                    factors: index as u32,
+                    weight,
+                });
+                let hit = LaneHit {
+                    to_corner: (scene.light.shape.corner - sp.shadow_point).as_vec3(),
+                    normal: sp.normal.as_vec3(),
+                    view: sp.view.as_vec3(),
+                    shininess: m.shininess,
+                    specular: needs.specular,
+                };
+                if self.lanes.push(index, hit, buf) {
+                    self.flush();
+                }
+                return;
+            }
+        };
+        let local = local_colour(m, light, s.terms, factors);
+        self.terms.push(Term::Known {
+            colour: local,
+            weight,
+        });
     }
 }
 
@@ -370,4 +660,115 @@ pub fn replay(
 #[inline]
 pub fn reflect(d: DVec3, n: DVec3) -> DVec3 {
     (d - n * (2.0 * d.dot(n))).normalize()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::render::scene::Loaded;
+    use crate::render::scene_file::Sampling;
+
+    /// A tile (its camera rays testing the tile's objects, its hits shaded
+    /// side by side below 16 points) has, pixel for pixel, the bits of the
+    /// pixels traced one at a time: floor, walls, both boxes and the mirror
+    /// sphere (reflected paths), the image's corners, several patterns and
+    /// counts, with and without cut-away.
+    #[test]
+    fn a_tile_in_lanes_gives_the_bits_of_each_pixel() {
+        let loaded = Loaded::seed_room();
+        let rect = TileRect {
+            x: 280,
+            y: 150,
+            w: 400,
+            h: 300,
+        };
+        for (sampling, rays, skip, cutaway) in [
+            (Sampling::Grid, 1, true, false),
+            (Sampling::Grid, 1, false, false),
+            (Sampling::Grid, 1, true, true),
+            (Sampling::Grid, 4, true, false),
+            (Sampling::Random, 3, true, false),
+            (Sampling::Stratified, 9, true, false),
+            (Sampling::Grid, 64, true, true),
+        ] {
+            let mut settings = loaded.settings.clone();
+            settings.sampling = sampling;
+            settings.shadow_rays = rays;
+            settings.skip = skip;
+            settings.cutaway = cutaway;
+            let tracer = Tracer::new(&loaded.scene, &settings, &loaded.shading, rays);
+            assert!(tracer.traces_tiles());
+            assert_eq!(tracer.shades_in_lanes(), rays < 16);
+            let mut scratch = tracer.scratch();
+            let mut tile = Vec::new();
+            // Every fourth pixel, so that the test stays quick.
+            let small = |i: u32| match i {
+                100 => TileRect {
+                    x: 0,
+                    y: 0,
+                    w: 32,
+                    h: 32,
+                },
+                101 => TileRect {
+                    x: 928,
+                    y: 0,
+                    w: 32,
+                    h: 32,
+                },
+                102 => TileRect {
+                    x: 0,
+                    y: 508,
+                    w: 32,
+                    h: 32,
+                },
+                103 => TileRect {
+                    x: 929,
+                    y: 509,
+                    w: 31,
+                    h: 31,
+                },
+                104 => TileRect {
+                    x: 500,
+                    y: 20,
+                    w: 1,
+                    h: 30,
+                },
+                _ => TileRect {
+                    x: rect.x + 4 * (i % 25),
+                    y: rect.y + 4 * (i / 25) * 3,
+                    w: 13,
+                    h: 7,
+                },
+            };
+            for i in 0..105 {
+                let r = small(i);
+                assert!(tracer.tile(r, &CancelToken::new(), &mut scratch, &mut tile));
+                assert_eq!(tile.len(), (r.w * r.h) as usize);
+                for (k, c) in tile.iter().enumerate() {
+                    let (x, y) = (r.x + k as u32 % r.w, r.y + k as u32 / r.w);
+                    let want = tracer.pixel(x, y, &mut scratch);
+                    assert_eq!(
+                        c.to_array().map(f32::to_bits),
+                        want.to_array().map(f32::to_bits),
+                        "{sampling:?} {rays} skip {skip}: pixel ({x}, {y})"
+                    );
+                }
+            }
+        }
+        // Cancelled: no pixels, and the next tile is still right.
+        let tracer = Tracer::new(&loaded.scene, &loaded.settings, &loaded.shading, 1);
+        let mut scratch = tracer.scratch();
+        let cancel = CancelToken::new();
+        cancel.cancel();
+        let mut tile = Vec::new();
+        assert!(!tracer.tile(rect, &cancel, &mut scratch, &mut tile));
+        let r = TileRect {
+            x: 500,
+            y: 300,
+            w: 4,
+            h: 2,
+        };
+        assert!(tracer.tile(r, &CancelToken::new(), &mut scratch, &mut tile));
+        assert_eq!(tile[5], tracer.pixel(501, 301, &mut scratch));
+    }
 }

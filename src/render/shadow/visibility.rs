@@ -72,7 +72,15 @@ fn visibility_generic(
     let light = &scene.light.shape;
     let to_corner = (light.corner - q.point).as_vec3();
     let (eu, ev) = (light.edge_u.as_vec3(), light.edge_v.as_vec3());
-    let facing = light_directions(to_corner, eu, ev, q.normal.as_vec3(), count, buf);
+    let n = q.normal.as_vec3();
+    // Below sixteen points, inlined: this kernel is compiled for the same
+    // CPU features as the eight-lane one it would call (the same bits,
+    // without two calls and a dispatch per hit point).
+    let facing = if count < WIDE_POINTS {
+        light_directions_generic(to_corner, eu, ev, n, count, buf)
+    } else {
+        light_directions(to_corner, eu, ev, n, count, buf)
+    };
     stats.shadow_backfacing += count as u64 - facing;
     if facing == 0 {
         return;

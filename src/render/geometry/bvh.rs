@@ -120,23 +120,30 @@ impl BuildRef {
         Vec4::new(c(0), c(1), c(2), c(3))
     }
 
-    /// `hi − lo` per axis (0 for the empty box), exact.
+    /// [`BuildRef::centre2`] along `axis` minus 65535, in integers.
+    #[inline(always)]
+    fn centre2_less(&self, axis: usize) -> i32 {
+        self.lanes[axis] as i32 - self.lanes[axis + 4] as i32
+    }
+
+    /// `hi − lo` per axis (0 for the empty box), exact, in the first three
+    /// lanes of a vector (the fourth is some other number).
     #[cfg(target_arch = "x86_64")]
     #[inline(always)]
-    fn extent(&self) -> Vec3 {
+    fn extent4(&self) -> Vec4 {
         use std::arch::x86_64::*;
         // SAFETY: SSE2 is part of x86_64, and the lanes are 16 aligned
         // bytes.
-        let e = unsafe {
+        unsafe {
             let x = _mm_load_si128(self.lanes.as_ptr() as *const __m128i);
             let lo = _mm_srai_epi32(_mm_unpacklo_epi16(x, x), 16);
             let neg_hi = _mm_srai_epi32(_mm_unpackhi_epi16(x, x), 16);
             let e = _mm_sub_epi32(_mm_set1_epi32(-1), _mm_add_epi32(lo, neg_hi));
-            Vec4::from(_mm_cvtepi32_ps(e))
-        };
-        e.truncate().max(Vec3::ZERO)
+            Vec4::from(_mm_cvtepi32_ps(e)).max(Vec4::ZERO)
+        }
     }
 
+    /// `hi − lo` per axis (0 for the empty box), exact.
     #[cfg(not(target_arch = "x86_64"))]
     #[inline(always)]
     fn extent(&self) -> Vec3 {
@@ -186,8 +193,8 @@ impl Grid {
     /// further out than its rounding could need.
     #[inline]
     fn record(&self, id: u32, b: &Aabb) -> BuildRef {
-        let lo = ((b.min - self.origin) * self.inv_step).floor() - 1.0;
-        let hi = ((b.max - self.origin) * self.inv_step).ceil() + 1.0;
+        let lo = ((b.min - self.origin) * self.inv_step).map(floor) - 1.0;
+        let hi = ((b.max - self.origin) * self.inv_step).map(ceil) + 1.0;
         let q = |x: f64| x.clamp(0.0, u16::MAX as f64) as u16;
         BuildRef::new([q(lo.x), q(lo.y), q(lo.z)], [q(hi.x), q(hi.y), q(hi.z)], id)
     }
@@ -204,16 +211,56 @@ impl Grid {
     }
 }
 
-/// The largest f32 ≤ x (x itself if it is ±∞).
-pub fn round_down(x: f64) -> f32 {
-    let y = x as f32;
-    if (y as f64) > x { y.next_down() } else { y }
+/// `x.floor()` for |x| < 2⁶³ and NaN without the library call (x86_64
+/// has no rounding instruction before SSE4.1); beyond that some number
+/// that the grid's clamp turns into what it turns `x.floor()` into.
+#[inline(always)]
+fn floor(x: f64) -> f64 {
+    let t = x as i64 as f64;
+    let t = if t > x { t - 1.0 } else { t };
+    if x.is_nan() { x } else { t }
 }
 
-/// The smallest f32 ≥ x.
+/// `x.ceil()` as [`floor`] is `x.floor()`.
+#[inline(always)]
+fn ceil(x: f64) -> f64 {
+    let t = x as i64 as f64;
+    let t = if t < x { t + 1.0 } else { t };
+    if x.is_nan() { x } else { t }
+}
+
+/// The largest f32 ≤ x (x itself if it is ±∞): `next_down` of the nearest
+/// f32 where that lies above x, chosen without branches (which way the
+/// rounding went is a coin toss).
+#[inline]
+pub fn round_down(x: f64) -> f32 {
+    let y = x as f32;
+    let b = y.to_bits();
+    // next_down(y) for y not NaN and not −∞ (never above x).
+    let below = if y == 0.0 {
+        0x8000_0001
+    } else if y > 0.0 {
+        b.wrapping_sub(1)
+    } else {
+        b.wrapping_add(1)
+    };
+    f32::from_bits(if (y as f64) > x { below } else { b })
+}
+
+/// The smallest f32 ≥ x, as [`round_down`].
+#[inline]
 pub fn round_up(x: f64) -> f32 {
     let y = x as f32;
-    if (y as f64) < x { y.next_up() } else { y }
+    let b = y.to_bits();
+    // next_up(y) for y not NaN and not +∞ (never below x).
+    let above = if y == 0.0 {
+        1
+    } else if y > 0.0 {
+        b.wrapping_add(1)
+    } else {
+        b.wrapping_sub(1)
+    };
+    f32::from_bits(if (y as f64) < x { above } else { b })
 }
 
 /// An f32 box while building (the w lanes are ignored).
@@ -261,6 +308,10 @@ const PARALLEL: usize = 16_384;
 #[derive(Clone, Copy)]
 struct Metric {
     weights: Vec3,
+    /// The weights of the faces across z, x and y (the products
+    /// `e.x·e.y`, `e.y·e.z` and `e.z·e.x` are their areas).
+    #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
+    weights_zxy: Vec4,
     grid: Grid,
 }
 
@@ -270,7 +321,17 @@ impl Metric {
         self.area_of_extent(b.extent())
     }
 
-    /// [`Metric::area`] of a box in lanes (the same numbers).
+    /// [`Metric::area`] of a box in lanes (the same numbers: the same
+    /// products in the same order, three lanes at once).
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    fn area_of(&self, b: &BuildRef) -> f32 {
+        let e = b.extent4();
+        let p = self.weights_zxy * e * glam::Vec4Swizzles::yzxw(e);
+        2.0 * (p.x + p.y + p.z)
+    }
+
+    #[cfg(not(target_arch = "x86_64"))]
     #[inline]
     fn area_of(&self, b: &BuildRef) -> f32 {
         self.area_of_extent(b.extent())
@@ -428,6 +489,40 @@ struct Binning {
 }
 
 impl Binning {
+    /// The bin along `axis` of a centroid with `centre2` lane `c` (the
+    /// same operations as [`Binning::bin`], one lane).
+    #[inline]
+    fn bin_of(&self, axis: usize, c: f32) -> u32 {
+        ((c - self.origin[axis]) * self.scale[axis])
+            .max(0.0)
+            .min(BINS as f32 - 1.0) as u32
+    }
+
+    /// The largest `t` such that every ref whose doubled centre along
+    /// `axis` is an integer ≤ t falls into a bin ≤ `bin` (and every one
+    /// above t into a later bin): `bin_of` is monotone in the centre, and
+    /// doubled centres are integers in 0..=131070, so the partition's test
+    /// becomes one integer comparison.
+    fn last_centre_in(&self, axis: usize, bin: u32) -> i32 {
+        const TOP: i32 = 2 * u16::MAX as i32;
+        let inside = |c: i32| self.bin_of(axis, c as f32) <= bin;
+        // An estimate from the bin's far edge, then exact steps.
+        let (o, s) = (self.origin[axis], self.scale[axis]);
+        let guess = if s > 0.0 {
+            (o + (bin + 1) as f32 / s).floor()
+        } else {
+            TOP as f32
+        };
+        let mut t = (guess as i32).clamp(-1, TOP);
+        while t >= 0 && !inside(t) {
+            t -= 1;
+        }
+        while t < TOP && inside(t + 1) {
+            t += 1;
+        }
+        t
+    }
+
     #[inline(always)]
     fn bin(&self, r: &BuildRef) -> UVec4 {
         truncate(
@@ -520,39 +615,7 @@ fn plan(
             &made
         }
     };
-    // The cheapest split plane over the bins of every axis, from sweeps
-    // from both ends. Only the planes after non-empty bins are tried: a
-    // plane after an empty bin splits as the one before it, which is
-    // tried first and kept on a tie.
-    let mut best = (f32::INFINITY, 0, node.axis);
-    for axis in (0..3).filter(|&a| ext[a] > 0.0) {
-        let (boxes, counts) = (&bin_bounds[axis], &bin_count[axis]);
-        let mut full = [0usize; BINS];
-        let mut m = 0;
-        for (k, &c) in counts.iter().enumerate() {
-            full[m] = k;
-            m += (c > 0) as usize;
-        }
-        // right_cost[j]: the cost of the bins full[j..m].
-        let mut right_cost = [0.0f32; BINS];
-        let mut acc = BuildRef::EMPTY;
-        let mut count = 0u32;
-        for j in (1..m).rev() {
-            acc = acc.union(boxes[full[j]]);
-            count += counts[full[j]];
-            right_cost[j] = metric.area_of(&acc) * count as f32;
-        }
-        let mut acc = BuildRef::EMPTY;
-        let mut count = 0u32;
-        for j in 0..m.saturating_sub(1) {
-            acc = acc.union(boxes[full[j]]);
-            count += counts[full[j]];
-            let cost = metric.area_of(&acc) * count as f32 + right_cost[j + 1];
-            if cost < best.0 {
-                best = (cost, full[j], axis);
-            }
-        }
-    }
+    let best = cheapest_plane(bin_bounds, bin_count, ext, node.axis, &metric);
     let area = metric.area(&whole);
     let leaf_cost = area * refs.len() as f32;
     let split_cost = TRAVERSAL_COST * area + best.0;
@@ -579,7 +642,8 @@ fn plan(
     }
     // Hoare partition by the same bin computation; every ref is added to
     // its child's bins once, where it is passed over or swapped.
-    let left = |r: &BuildRef| node.binning.bin(r)[axis] as usize <= split_bin;
+    let last = node.binning.last_centre_in(axis, split_bin as u32) - 65535;
+    let left = |r: &BuildRef| r.centre2_less(axis) <= last;
     let mut to_left = |r: &BuildRef| {
         if bin_left {
             left_bins.add(left_node.binning.bin(r), r);
@@ -624,6 +688,52 @@ fn plan(
             },
         ],
     )
+}
+
+/// The cheapest split plane over the bins of every axis with an extent:
+/// (cost, the last bin on its left, axis), the first of equal costs; an
+/// infinite cost if no plane has refs on both sides. Sweeps from both
+/// ends; only the planes after non-empty bins are tried: a plane after an
+/// empty bin splits as the one before it, which is tried first and kept on
+/// a tie.
+#[inline]
+fn cheapest_plane(
+    boxes: &[[BuildRef; BINS]; 3],
+    counts: &[[u32; BINS]; 3],
+    ext: Vec3,
+    first_axis: usize,
+    metric: &Metric,
+) -> (f32, usize, usize) {
+    let mut best = (f32::INFINITY, 0, first_axis);
+    for axis in (0..3).filter(|&a| ext[a] > 0.0) {
+        let (boxes, counts) = (&boxes[axis], &counts[axis]);
+        let mut full = [0usize; BINS];
+        let mut m = 0;
+        for (k, &c) in counts.iter().enumerate() {
+            full[m] = k;
+            m += (c > 0) as usize;
+        }
+        // right_cost[j]: the cost of the bins full[j..m].
+        let mut right_cost = [0.0f32; BINS];
+        let mut acc = BuildRef::EMPTY;
+        let mut count = 0u32;
+        for j in (1..m).rev() {
+            acc = acc.union(boxes[full[j]]);
+            count += counts[full[j]];
+            right_cost[j] = metric.area_of(&acc) * count as f32;
+        }
+        let mut acc = BuildRef::EMPTY;
+        let mut count = 0u32;
+        for j in 0..m.saturating_sub(1) {
+            acc = acc.union(boxes[full[j]]);
+            count += counts[full[j]];
+            let cost = metric.area_of(&acc) * count as f32 + right_cost[j + 1];
+            if cost < best.0 {
+                best = (cost, full[j], axis);
+            }
+        }
+    }
+    best
 }
 
 /// What every node of one build shares.
@@ -784,9 +894,40 @@ fn subtree(
     };
     left[lead + 1] = left[lead + 2];
     left[lead + 2] = moved(right[0]);
-    left.reserve_exact(right.len() - 1);
-    left.extend(right[1..].iter().map(|&n| moved(n)));
+    append_releasing(&mut left, right, moved, 1 << 15);
     left
+}
+
+/// Appends `right[1..]`, each node mapped by `moved`, to `left`, copying
+/// from the end in pieces and giving each piece's pages of `right` back as
+/// it goes: both lists at once would hold the right half's nodes twice at
+/// the top merge (about 10 bytes per primitive at the peak of the build).
+/// `piece`: nodes per piece (the build's 2¹⁵ are 1 MiB).
+fn append_releasing(
+    left: &mut Vec<Node>,
+    mut right: Vec<Node>,
+    moved: impl Fn(Node) -> Node,
+    piece: usize,
+) {
+    let (base, extra) = (left.len(), right.len() - 1);
+    left.reserve_exact(extra);
+    let spare = &mut left.spare_capacity_mut()[..extra];
+    let mut end = right.len();
+    while end > 1 {
+        let start = end.saturating_sub(piece).max(1);
+        for (slot, &n) in spare[start - 1..end - 1].iter_mut().zip(&right[start..end]) {
+            slot.write(moved(n));
+        }
+        end = start;
+        right.truncate(end);
+        if right.capacity() >= 4 * piece {
+            // A large list is mapped pages of its own: shrinking it
+            // unmaps the tail.
+            right.shrink_to_fit();
+        }
+    }
+    // SAFETY: the loop wrote every one of the `extra` slots after `base`.
+    unsafe { left.set_len(base + extra) };
 }
 
 impl Bvh {
@@ -840,6 +981,7 @@ impl Bvh {
         let build = Build {
             metric: Metric {
                 weights: weights.as_vec3(),
+                weights_zxy: Vec4::new(weights.z as f32, weights.x as f32, weights.y as f32, 0.0),
                 grid,
             },
             strategy,
@@ -1064,6 +1206,118 @@ mod tests {
             hits += found.is_some() as u32;
         }
         assert!(hits > 100, "{hits}");
+    }
+
+    /// The partition's integer test puts every doubled centre on the side
+    /// its bin puts it, for every centre the grid can give.
+    #[test]
+    fn the_integer_partition_test_agrees_with_the_bins() {
+        for (lo, hi) in [
+            (0.0, 131_070.0),
+            (17.0, 23.0),
+            (1000.0, 1001.0),
+            (5.0, 98_765.0),
+        ] {
+            let whole = Box3 {
+                min: Vec4::splat(lo / 2.0),
+                max: Vec4::splat(hi / 2.0),
+            };
+            let ext = whole.extent() * 2.0;
+            let binning = Binning {
+                origin: whole.min * 2.0,
+                scale: (Vec3::splat(BINS as f32 * 0.999_99) / ext).extend(0.0),
+            };
+            for bin in 0..BINS as u32 {
+                let last = binning.last_centre_in(0, bin);
+                for c in 0..=131_070 {
+                    let inside = binning.bin_of(0, c as f32) <= bin;
+                    assert_eq!(inside, c <= last, "{lo}..{hi}: centre {c}, bin {bin}");
+                }
+            }
+        }
+    }
+
+    /// The branch-free roundings and floor/ceil give the library's answers
+    /// (the latter as far as the grid's clamp can tell).
+    #[test]
+    fn roundings_match_the_library() {
+        let mut state = 99u64;
+        let mut values = vec![
+            0.0,
+            -0.0,
+            1e-50,
+            -1e-50,
+            1.0,
+            -1.0,
+            0.1,
+            -0.1,
+            1e39,
+            -1e39,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::NAN,
+            f32::MAX as f64,
+            65_535.5,
+            -0.5,
+            1e19,
+            -1e19,
+        ];
+        for _ in 0..100_000 {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            let x = f64::from_bits(state);
+            if x.is_finite() {
+                values.push(x);
+            }
+            values.push((state >> 11) as f64 / (1u64 << 53) as f64 * 140_000.0 - 5_000.0);
+        }
+        let bits = |y: f32| y.to_bits();
+        let q = |x: f64| x.clamp(0.0, u16::MAX as f64) as u16;
+        for x in values {
+            let y = x as f32;
+            let down = if (y as f64) > x { y.next_down() } else { y };
+            let up = if (y as f64) < x { y.next_up() } else { y };
+            assert_eq!(bits(round_down(x)), bits(down), "{x:e}");
+            assert_eq!(bits(round_up(x)), bits(up), "{x:e}");
+            assert_eq!(q(floor(x) - 1.0), q(x.floor() - 1.0), "{x:e}");
+            assert_eq!(q(ceil(x) + 1.0), q(x.ceil() + 1.0), "{x:e}");
+        }
+    }
+
+    /// Appending in pieces from the end gives what one `extend` gives.
+    #[test]
+    fn appending_in_pieces_equals_one_extend() {
+        let node = |i: u32| Node {
+            min: Vec3::splat(i as f32),
+            first: i,
+            max: Vec3::splat(i as f32 + 1.0),
+            count: i % 3,
+        };
+        let moved = |mut n: Node| {
+            n.first += 1000;
+            n
+        };
+        for (l, r, piece) in [
+            (3, 1, 2),
+            (5, 2, 1),
+            (4, 100, 7),
+            (1, 1000, 3),
+            (10, 300, 1000),
+        ] {
+            let left: Vec<Node> = (0..l).map(node).collect();
+            let right: Vec<Node> = (0..r).map(|i| node(i + 50)).collect();
+            let mut expected = left.clone();
+            expected.extend(right[1..].iter().map(|&n| moved(n)));
+            let mut got = left.clone();
+            append_releasing(&mut got, right, moved, piece);
+            let key = |n: &Node| (n.min.x.to_bits(), n.max.x.to_bits(), n.first, n.count);
+            let (e, g): (Vec<_>, Vec<_>) = (
+                expected.iter().map(key).collect(),
+                got.iter().map(key).collect(),
+            );
+            assert_eq!(g, e, "{l} {r} {piece}");
+        }
     }
 
     /// Node arrays and item orders equal bit for bit.

@@ -460,15 +460,5 @@ pub(crate) fn render_tile_recorded(
     out: &mut Vec<Vec3>,
     record: &mut TileRecord,
 ) -> bool {
-    out.clear();
-    let mut sink = TileRecorder { record };
-    for y in rect.y..rect.y + rect.h {
-        if cancel.is_cancelled() {
-            return false;
-        }
-        for x in rect.x..rect.x + rect.w {
-            out.push(tracer.trace(x, y, scratch, &mut sink));
-        }
-    }
-    true
+    tracer.trace_rect(rect, cancel, scratch, &mut TileRecorder { record }, out)
 }

@@ -231,6 +231,50 @@ impl<'a> Tracer<'a> {
         finished
     }
 
+    /// The pixels of `rect` (rows packed) into `out`, each path given to
+    /// `sink`, as [`Tracer::trace`] gives them (the same bits); with one
+    /// camera sample per pixel the camera rays test only the tile's
+    /// [`camera_objects`], as [`Tracer::tile`]'s do. False if cancelled
+    /// part-way.
+    pub fn trace_rect<S: PathSink>(
+        &self,
+        rect: TileRect,
+        cancel: &CancelToken,
+        scratch: &mut TraceScratch,
+        sink: &mut S,
+        out: &mut Vec<Vec3>,
+    ) -> bool {
+        out.clear();
+        let objects = self.traces_tiles().then(|| {
+            let mut objects = std::mem::take(&mut scratch.camera_objects);
+            camera_objects(self.scene, rect, &mut objects);
+            objects
+        });
+        let camera = &self.scene.camera;
+        let mut finished = true;
+        'rows: for y in rect.y..rect.y + rect.h {
+            if cancel.is_cancelled() {
+                finished = false;
+                break 'rows;
+            }
+            for x in rect.x..rect.x + rect.w {
+                out.push(match &objects {
+                    Some(objects) => {
+                        let mut colour = Sum(Vec3::ZERO);
+                        let ray = camera.pixel_ray(x, y);
+                        self.trace_path(x, y, 0, ray, Some(objects), scratch, sink, &mut colour);
+                        colour.0
+                    }
+                    None => self.trace(x, y, scratch, sink),
+                });
+            }
+        }
+        if let Some(objects) = objects {
+            scratch.camera_objects = objects;
+        }
+        finished
+    }
+
     /// [`Tracer::tile`] with its hits shaded side by side.
     fn tile_in_lanes(
         &self,

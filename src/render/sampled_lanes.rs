@@ -42,13 +42,44 @@ pub struct LaneHit {
     pub specular: bool,
 }
 
-/// The lanes' inputs, one array entry per lane.
+/// The lanes' inputs, one array entry per lane (shared with the live
+/// re-shade's kernels, which must give the same bits).
 #[derive(Debug, Clone, Copy, Default)]
-struct LaneInputs {
-    c: [[f32; LANES]; 3],
-    n: [[f32; LANES]; 3],
-    v: [[f32; LANES]; 3],
-    shininess: [f32; LANES],
+pub(crate) struct LaneInputs {
+    /// From the hit point to the light's corner.
+    pub(crate) c: [[f32; LANES]; 3],
+    pub(crate) n: [[f32; LANES]; 3],
+    pub(crate) v: [[f32; LANES]; 3],
+    pub(crate) shininess: [f32; LANES],
+}
+
+impl LaneInputs {
+    /// Lane h's vector to the light point at offsets (a, b) along the
+    /// light's edges and its reciprocal length, as `light_directions` has
+    /// them, and the lane's normal and view direction.
+    #[inline(always)]
+    pub(crate) fn towards(
+        &self,
+        points: &Points<'_>,
+        h: usize,
+        (a, b): (f32, f32),
+    ) -> ((f32, f32, f32, f32), Vec3, Vec3) {
+        let (eu, ev) = (points.edge_u, points.edge_v);
+        let [cx, cy, cz] = &self.c;
+        let (x, y, z) = (
+            cx[h] + eu.x * a + ev.x * b,
+            cy[h] + eu.y * a + ev.y * b,
+            cz[h] + eu.z * a + ev.z * b,
+        );
+        let inv = 1.0 / (x * x + y * y + z * z).sqrt();
+        let [nx, ny, nz] = &self.n;
+        let [vx, vy, vz] = &self.v;
+        (
+            (x, y, z, inv),
+            Vec3::new(nx[h], ny[h], nz[h]),
+            Vec3::new(vx[h], vy[h], vz[h]),
+        )
+    }
 }
 
 /// Hits waiting for their factors (per thread, reused from batch to batch).
@@ -187,16 +218,17 @@ impl SampledLanes {
 
 type Kernel = fn(&LaneInputs, &[[u64; LANES]], &Points<'_>) -> ([f32; LANES], [f32; LANES]);
 
-/// The light points of a batch.
-struct Points<'a> {
-    a: &'a [f32],
-    b: &'a [f32],
-    lane_a: &'a [[f32; LANES]],
-    lane_b: &'a [[f32; LANES]],
-    fixed: bool,
-    count: usize,
-    edge_u: Vec3,
-    edge_v: Vec3,
+/// The light points of a batch: a fixed pattern's offsets along the
+/// light's edges (`a`, `b`), or each point's lane by lane (`lane_a[j][h]`).
+pub(crate) struct Points<'a> {
+    pub(crate) a: &'a [f32],
+    pub(crate) b: &'a [f32],
+    pub(crate) lane_a: &'a [[f32; LANES]],
+    pub(crate) lane_b: &'a [[f32; LANES]],
+    pub(crate) fixed: bool,
+    pub(crate) count: usize,
+    pub(crate) edge_u: Vec3,
+    pub(crate) edge_v: Vec3,
 }
 
 avx512_dispatch!(
@@ -246,10 +278,6 @@ fn lane_sums(
     point: impl Fn(usize, usize) -> (f32, f32),
 ) -> ([f32; LANES], [f32; LANES]) {
     let count = points.count;
-    let (eu, ev) = (points.edge_u, points.edge_v);
-    let [cx, cy, cz] = &hits.c;
-    let [nx, ny, nz] = &hits.n;
-    let [vx, vy, vz] = &hits.v;
     // Each sum left to right from −0 (as `Iterator::sum`).
     let mut diffuse = [-0.0f32; LANES];
     let mut specular = [-0.0f32; LANES];
@@ -257,18 +285,8 @@ fn lane_sums(
         for l in 0..(count - 64 * k).min(64) {
             let j = 64 * k + l;
             for h in 0..LANES {
-                let (a, b) = point(j, h);
                 // As `light_directions`, then the terms of `sampled_terms`.
-                let (x, y, z) = (
-                    cx[h] + eu.x * a + ev.x * b,
-                    cy[h] + eu.y * a + ev.y * b,
-                    cz[h] + eu.z * a + ev.z * b,
-                );
-                let inv = 1.0 / (x * x + y * y + z * z).sqrt();
-                let (n, v) = (
-                    Vec3::new(nx[h], ny[h], nz[h]),
-                    Vec3::new(vx[h], vy[h], vz[h]),
-                );
+                let ((x, y, z, inv), n, v) = hits.towards(points, h, point(j, h));
                 let f = ((n.x * x + n.y * y + n.z * z) * inv).max(0.0);
                 let s = pow_approx(blinn_cosine(n, v, x, y, z, inv), hits.shininess[h]);
                 // The tracer multiplies by the visibility (1 or 0): the

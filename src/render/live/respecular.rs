@@ -15,6 +15,7 @@ use glam::Vec3;
 use super::cosine_logs::{CosineLogs, NO_HIT};
 use crate::render::math::{avx2_dispatch, avx512_dispatch, pow_from_log2, pow_log2};
 use crate::render::rng::Rng;
+use crate::render::sampled_lanes::{LaneInputs, Points};
 use crate::render::sampling::Pattern;
 use crate::render::shading::blinn_cosine;
 
@@ -32,22 +33,13 @@ pub struct RecordedHit {
     pub shininess: f32,
 }
 
-/// The lanes' inputs, one array entry per lane.
-#[derive(Debug, Clone, Copy, Default)]
-struct LaneHits {
-    c: [[f32; LANES]; 3],
-    n: [[f32; LANES]; 3],
-    v: [[f32; LANES]; 3],
-    shininess: [f32; LANES],
-}
-
 /// Recorded hits waiting for their specular factors (per tile, reused from
 /// batch to batch).
 #[derive(Default)]
 pub struct ReshadeBatch {
     /// Index of each waiting hit in its tile's records.
     index: Vec<usize>,
-    hits: LaneHits,
+    hits: LaneInputs,
     /// Visibility, 32 points per entry: bit l of `bits[k][h]` is point
     /// 32·k + l of lane h.
     bits: Vec<[u32; LANES]>,
@@ -198,23 +190,11 @@ impl ReshadeBatch {
 
 /// The two halves of the computation: the logarithms, then the sums.
 type Kernels = (
-    fn(&LaneHits, &[[u32; LANES]], &Points<'_>, &mut [[f32; LANES]]),
+    fn(&LaneInputs, &[[u32; LANES]], &Points<'_>, &mut [[f32; LANES]]),
     fn(&[[f32; LANES]], &[f32; LANES]) -> [f32; LANES],
 );
 
 const WIDEST: Kernels = (cosine_logs_lanes, specular_from_logs);
-
-/// The light points of a batch.
-struct Points<'a> {
-    a: &'a [f32],
-    b: &'a [f32],
-    lane_a: &'a [[f32; LANES]],
-    lane_b: &'a [[f32; LANES]],
-    fixed: bool,
-    count: usize,
-    edge_u: Vec3,
-    edge_v: Vec3,
-}
 
 avx512_dispatch!(
     /// Into `logs[j][h]`, log2 of Blinn's cosine at light point j of lane
@@ -222,7 +202,7 @@ avx512_dispatch!(
     /// widest vectors the CPU has (the same operations lane by lane
     /// whatever the width, so the same bits).
     fn cosine_logs_lanes(
-        hits: &LaneHits,
+        hits: &LaneInputs,
         bits: &[[u32; LANES]],
         points: &Points<'_>,
         logs: &mut [[f32; LANES]],
@@ -232,7 +212,7 @@ avx512_dispatch!(
 avx2_dispatch!(
     /// [`cosine_logs_lanes`] on eight-lane vectors.
     fn cosine_logs_avx2(
-        hits: &LaneHits,
+        hits: &LaneInputs,
         bits: &[[u32; LANES]],
         points: &Points<'_>,
         logs: &mut [[f32; LANES]],
@@ -241,7 +221,7 @@ avx2_dispatch!(
 
 #[inline(always)]
 fn cosine_logs_generic(
-    hits: &LaneHits,
+    hits: &LaneInputs,
     bits: &[[u32; LANES]],
     points: &Points<'_>,
     logs: &mut [[f32; LANES]],
@@ -278,30 +258,16 @@ fn cosine_logs_generic(
 /// `out[j][h]`.
 #[inline(always)]
 fn lane_cosines(
-    hits: &LaneHits,
+    hits: &LaneInputs,
     points: &Points<'_>,
     out: &mut [[f32; LANES]],
     point: impl Fn(usize, usize) -> (f32, f32),
 ) {
-    let (eu, ev) = (points.edge_u, points.edge_v);
-    let [cx, cy, cz] = &hits.c;
-    let [nx, ny, nz] = &hits.n;
-    let [vx, vy, vz] = &hits.v;
     for (j, row) in out.iter_mut().enumerate() {
-        for h in 0..LANES {
-            let (a, b) = point(j, h);
+        for (h, cosine) in row.iter_mut().enumerate() {
             // As `light_directions`, then the specular term.
-            let (x, y, z) = (
-                cx[h] + eu.x * a + ev.x * b,
-                cy[h] + eu.y * a + ev.y * b,
-                cz[h] + eu.z * a + ev.z * b,
-            );
-            let inv = 1.0 / (x * x + y * y + z * z).sqrt();
-            let (n, v) = (
-                Vec3::new(nx[h], ny[h], nz[h]),
-                Vec3::new(vx[h], vy[h], vz[h]),
-            );
-            row[h] = blinn_cosine(n, v, x, y, z, inv);
+            let ((x, y, z, inv), n, v) = hits.towards(points, h, point(j, h));
+            *cosine = blinn_cosine(n, v, x, y, z, inv);
         }
     }
 }

@@ -54,6 +54,24 @@ pub(crate) struct LaneInputs {
 }
 
 impl LaneInputs {
+    /// Puts a hit into lane h.
+    #[inline]
+    pub(crate) fn set(
+        &mut self,
+        h: usize,
+        to_corner: Vec3,
+        normal: Vec3,
+        view: Vec3,
+        shininess: f32,
+    ) {
+        for k in 0..3 {
+            self.c[k][h] = to_corner[k];
+            self.n[k][h] = normal[k];
+            self.v[k][h] = view[k];
+        }
+        self.shininess[h] = shininess;
+    }
+
     /// Lane h's vector to the light point at offsets (a, b) along the
     /// light's edges and its reciprocal length, as `light_directions` has
     /// them, and the lane's normal and view direction.
@@ -141,20 +159,8 @@ impl SampledLanes {
     pub fn push(&mut self, index: usize, hit: LaneHit, buf: &ShadowBuffers) -> bool {
         let h = self.index.len();
         self.index.push((index, hit.specular));
-        let lanes = &mut self.hits;
-        for (k, (c, (n, v))) in [
-            (hit.to_corner.x, (hit.normal.x, hit.view.x)),
-            (hit.to_corner.y, (hit.normal.y, hit.view.y)),
-            (hit.to_corner.z, (hit.normal.z, hit.view.z)),
-        ]
-        .into_iter()
-        .enumerate()
-        {
-            lanes.c[k][h] = c;
-            lanes.n[k][h] = n;
-            lanes.v[k][h] = v;
-        }
-        lanes.shininess[h] = hit.shininess;
+        self.hits
+            .set(h, hit.to_corner, hit.normal, hit.view, hit.shininess);
         let padded = self.count.next_multiple_of(8);
         // Bits past the last point may hold anything: the kernel reads
         // only the first `count`.

@@ -383,30 +383,8 @@ impl Scene {
         if !cutaway {
             return self.closest_hit(ray);
         }
-        let mut best: Option<(HitTarget, f64)> = None;
-        let mut t_max = f64::INFINITY;
-        if let Some(t) = self.light.shape.intersect(ray, t_max) {
-            best = Some((HitTarget::Light, t));
-            t_max = t;
-        }
-        for &i in self.unbounded.iter().chain(self.bounded.iter()) {
-            if let Primitive::Shape(Shape::Plane(p)) = self.primitive(i)
-                && p.normal.dot(ray.dir) > 0.0
-            {
-                continue;
-            }
-            if let Some(t) = self.intersect(i, ray, t_max) {
-                best = Some((HitTarget::Object(i), t));
-                t_max = t;
-            }
-        }
-        if let Some((i, t)) = self
-            .bvh
-            .closest(ray, t_max, |i, t_max| self.intersect(i, ray, t_max))
-        {
-            best = Some((HitTarget::Object(i), t));
-        }
-        best
+        let all = self.unbounded.iter().chain(self.bounded.iter());
+        self.camera_hit_among(ray, true, all.copied())
     }
 
     /// [`Scene::camera_hit`] testing, of the unbounded and bounded
@@ -416,7 +394,7 @@ impl Scene {
         &self,
         ray: &Ray,
         cutaway: bool,
-        objects: &[u32],
+        objects: impl IntoIterator<Item = u32>,
     ) -> Option<(HitTarget, f64)> {
         let mut best: Option<(HitTarget, f64)> = None;
         let mut t_max = f64::INFINITY;
@@ -424,7 +402,7 @@ impl Scene {
             best = Some((HitTarget::Light, t));
             t_max = t;
         }
-        for &i in objects {
+        for i in objects {
             if cutaway
                 && let Primitive::Shape(Shape::Plane(p)) = self.primitive(i)
                 && p.normal.dot(ray.dir) > 0.0

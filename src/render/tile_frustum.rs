@@ -99,7 +99,7 @@ mod tests {
                             "tile {rect:?}: pixel ({x}, {y}) meets {i}"
                         );
                     }
-                    let among = scene.camera_hit_among(&ray, false, &listed);
+                    let among = scene.camera_hit_among(&ray, false, listed.iter().copied());
                     assert_eq!(among, scene.camera_hit(&ray, false));
                 }
             }

@@ -365,7 +365,9 @@ impl<'a> Tracer<'a> {
             // Only the camera ray (depth 1) may cut away planes.
             let hit = if depth == 1 {
                 match camera_objects {
-                    Some(objects) => scene.camera_hit_among(&ray, s.cutaway, objects),
+                    Some(objects) => {
+                        scene.camera_hit_among(&ray, s.cutaway, objects.iter().copied())
+                    }
                     None => scene.camera_hit(&ray, s.cutaway),
                 }
             } else {

@@ -95,20 +95,8 @@ impl ReshadeBatch {
     ) -> bool {
         let h = self.index.len();
         self.index.push(index);
-        let lanes = &mut self.hits;
-        for (k, (c, (n, v))) in [
-            (hit.to_corner.x, (hit.normal.x, hit.view.x)),
-            (hit.to_corner.y, (hit.normal.y, hit.view.y)),
-            (hit.to_corner.z, (hit.normal.z, hit.view.z)),
-        ]
-        .into_iter()
-        .enumerate()
-        {
-            lanes.c[k][h] = c;
-            lanes.n[k][h] = n;
-            lanes.v[k][h] = v;
-        }
-        lanes.shininess[h] = hit.shininess;
+        self.hits
+            .set(h, hit.to_corner, hit.normal, hit.view, hit.shininess);
         for (k, bits) in self.bits.iter_mut().enumerate() {
             bits[h] = (visible[k / 2] >> (k % 2 * 32)) as u32;
         }

@@ -110,14 +110,7 @@ pub struct SampledLanes {
     /// Visibility, 64 points per entry: bit l of `bits[k][h]` is point
     /// 64·k + l of lane h.
     bits: Vec<[u64; LANES]>,
-    /// A fixed pattern's points, or, for patterns drawn per hit, each
-    /// point's offsets lane by lane (`lane_a[j][h]`).
-    a: Vec<f32>,
-    b: Vec<f32>,
-    lane_a: Vec<[f32; LANES]>,
-    lane_b: Vec<[f32; LANES]>,
-    fixed: bool,
-    count: usize,
+    points: LanePoints,
     /// The pattern the batch is set up for.
     pattern: Option<(Sampling, u32)>,
 }
@@ -126,32 +119,15 @@ impl SampledLanes {
     /// Prepares for hits traced with `pattern` (a no-op if it already is;
     /// no hit may be waiting).
     pub fn start(&mut self, pattern: &Pattern) {
-        let count = pattern.count();
-        let fixed = pattern.is_fixed();
         debug_assert!(self.index.is_empty());
         let key = (pattern.sampling, pattern.shadow_rays);
         if self.pattern == Some(key) {
             return;
         }
         self.pattern = Some(key);
-        self.count = count;
-        self.fixed = fixed;
         self.bits.clear();
-        self.bits.resize(count.div_ceil(64), [0; LANES]);
-        if fixed {
-            // The same points at every hit (the generator is not used).
-            let padded = count.next_multiple_of(8);
-            self.a.resize(padded, 0.0);
-            self.b.resize(padded, 0.0);
-            pattern.fill(&mut Rng::new(0), &mut self.a, &mut self.b);
-            self.a.truncate(count);
-            self.b.truncate(count);
-        } else {
-            self.lane_a.clear();
-            self.lane_b.clear();
-            self.lane_a.resize(count, [0.0; LANES]);
-            self.lane_b.resize(count, [0.0; LANES]);
-        }
+        self.bits.resize(pattern.count().div_ceil(64), [0; LANES]);
+        self.points.start(pattern);
     }
 
     /// Adds hit `index`, whose light points and their visibility `buf`
@@ -161,17 +137,14 @@ impl SampledLanes {
         self.index.push((index, hit.specular));
         self.hits
             .set(h, hit.to_corner, hit.normal, hit.view, hit.shininess);
-        let padded = self.count.next_multiple_of(8);
+        let padded = self.points.count().next_multiple_of(8);
         // Bits past the last point may hold anything: the kernel reads
         // only the first `count`.
         for (bits, points) in self.bits.iter_mut().zip(buf.vis[..padded].chunks(64)) {
             bits[h] = live_rays(points);
         }
-        if !self.fixed {
-            for j in 0..self.count {
-                self.lane_a[j][h] = buf.a[j];
-                self.lane_b[j][h] = buf.b[j];
-            }
+        if !self.points.is_fixed() {
+            self.points.set_lane(h, &buf.a, &buf.b);
         }
         self.index.len() == LANES
     }
@@ -196,16 +169,7 @@ impl SampledLanes {
         if self.index.is_empty() {
             return;
         }
-        let points = Points {
-            a: &self.a,
-            b: &self.b,
-            lane_a: &self.lane_a,
-            lane_b: &self.lane_b,
-            fixed: self.fixed,
-            count: self.count,
-            edge_u,
-            edge_v,
-        };
+        let points = self.points.with_edges(edge_u, edge_v);
         // Lanes past the waiting hits hold finite leftovers of earlier
         // batches (or zeros) and are not read out.
         let (diffuse, specular) = kernel(&self.hits, &self.bits, &points);
@@ -235,6 +199,73 @@ pub(crate) struct Points<'a> {
     pub(crate) count: usize,
     pub(crate) edge_u: Vec3,
     pub(crate) edge_v: Vec3,
+}
+
+/// The light points of a batch of lanes, kept from batch to batch: a fixed
+/// pattern's (the same at every hit), or each lane's own.
+#[derive(Debug, Default)]
+pub(crate) struct LanePoints {
+    a: Vec<f32>,
+    b: Vec<f32>,
+    lane_a: Vec<[f32; LANES]>,
+    lane_b: Vec<[f32; LANES]>,
+    fixed: bool,
+    count: usize,
+}
+
+impl LanePoints {
+    /// Prepares for hits traced with `pattern`.
+    pub(crate) fn start(&mut self, pattern: &Pattern) {
+        let count = pattern.count();
+        self.count = count;
+        self.fixed = pattern.is_fixed();
+        if self.fixed {
+            // The same points at every hit (the generator is not used).
+            let padded = count.next_multiple_of(8);
+            self.a.resize(padded, 0.0);
+            self.b.resize(padded, 0.0);
+            pattern.fill(&mut Rng::new(0), &mut self.a, &mut self.b);
+            self.a.truncate(count);
+            self.b.truncate(count);
+        } else {
+            self.lane_a.clear();
+            self.lane_b.clear();
+            self.lane_a.resize(count, [0.0; LANES]);
+            self.lane_b.resize(count, [0.0; LANES]);
+        }
+    }
+
+    pub(crate) fn count(&self) -> usize {
+        self.count
+    }
+
+    pub(crate) fn is_fixed(&self) -> bool {
+        self.fixed
+    }
+
+    /// Lane h's points, offsets along the light's edges (a pattern drawn
+    /// per hit only).
+    #[inline]
+    pub(crate) fn set_lane(&mut self, h: usize, a: &[f32], b: &[f32]) {
+        for j in 0..self.count {
+            self.lane_a[j][h] = a[j];
+            self.lane_b[j][h] = b[j];
+        }
+    }
+
+    /// The points as the kernels read them, for a light of these edges.
+    pub(crate) fn with_edges(&self, edge_u: Vec3, edge_v: Vec3) -> Points<'_> {
+        Points {
+            a: &self.a,
+            b: &self.b,
+            lane_a: &self.lane_a,
+            lane_b: &self.lane_b,
+            fixed: self.fixed,
+            count: self.count,
+            edge_u,
+            edge_v,
+        }
+    }
 }
 
 avx512_dispatch!(

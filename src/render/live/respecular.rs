@@ -15,7 +15,7 @@ use glam::Vec3;
 use super::cosine_logs::{CosineLogs, NO_HIT};
 use crate::render::math::{avx2_dispatch, avx512_dispatch, pow_from_log2, pow_log2};
 use crate::render::rng::Rng;
-use crate::render::sampled_lanes::{LaneInputs, Points};
+use crate::render::sampled_lanes::{LaneInputs, LanePoints, Points};
 use crate::render::sampling::Pattern;
 use crate::render::shading::blinn_cosine;
 
@@ -43,14 +43,7 @@ pub struct ReshadeBatch {
     /// Visibility, 32 points per entry: bit l of `bits[k][h]` is point
     /// 32·k + l of lane h.
     bits: Vec<[u32; LANES]>,
-    /// A fixed pattern's points (`count` long), or, for patterns drawn per
-    /// hit, each point's offsets lane by lane (`lane_a[j][h]`).
-    a: Vec<f32>,
-    b: Vec<f32>,
-    lane_a: Vec<[f32; LANES]>,
-    lane_b: Vec<[f32; LANES]>,
-    fixed: bool,
-    count: usize,
+    points: LanePoints,
     /// Scratch for one hit's points drawn from its generator.
     one_a: Vec<f32>,
     one_b: Vec<f32>,
@@ -62,23 +55,14 @@ impl ReshadeBatch {
     /// Prepares for the hits of a frame traced with `pattern`.
     pub fn start(&mut self, pattern: &Pattern) {
         let count = pattern.count();
-        let padded = count.next_multiple_of(8);
-        self.count = count;
-        self.fixed = pattern.is_fixed();
         self.index.clear();
         self.bits.clear();
         self.bits.resize(count.div_ceil(32), [0; LANES]);
-        if self.fixed {
-            self.a.resize(padded, 0.0);
-            self.b.resize(padded, 0.0);
-            pattern.fill(&mut Rng::new(0), &mut self.a, &mut self.b);
-            self.a.truncate(count);
-            self.b.truncate(count);
-        } else {
+        self.points.start(pattern);
+        if !pattern.is_fixed() {
+            let padded = count.next_multiple_of(8);
             self.one_a.resize(padded, 0.0);
             self.one_b.resize(padded, 0.0);
-            self.lane_a.resize(count, [0.0; LANES]);
-            self.lane_b.resize(count, [0.0; LANES]);
         }
     }
 
@@ -100,12 +84,9 @@ impl ReshadeBatch {
         for (k, bits) in self.bits.iter_mut().enumerate() {
             bits[h] = (visible[k / 2] >> (k % 2 * 32)) as u32;
         }
-        if !self.fixed {
+        if !self.points.is_fixed() {
             pattern.fill(&mut rng(), &mut self.one_a, &mut self.one_b);
-            for j in 0..self.count {
-                self.lane_a[j][h] = self.one_a[j];
-                self.lane_b[j][h] = self.one_b[j];
-            }
+            self.points.set_lane(h, &self.one_a, &self.one_b);
         }
         self.index.len() == LANES
     }
@@ -139,16 +120,7 @@ impl ReshadeBatch {
         if self.index.is_empty() {
             return;
         }
-        let points = Points {
-            a: &self.a,
-            b: &self.b,
-            lane_a: &self.lane_a,
-            lane_b: &self.lane_b,
-            fixed: self.fixed,
-            count: self.count,
-            edge_u,
-            edge_v,
-        };
+        let points = self.points.with_edges(edge_u, edge_v);
         let logs = match keep {
             Some(kept) => {
                 let mut lanes = [NO_HIT; LANES];
@@ -157,11 +129,11 @@ impl ReshadeBatch {
                 }
                 kept.batches.push(lanes);
                 let from = kept.logs.len();
-                kept.logs.resize(from + self.count, [0.0; LANES]);
+                kept.logs.resize(from + points.count, [0.0; LANES]);
                 &mut kept.logs[from..]
             }
             None => {
-                self.logs.resize(self.count, [0.0; LANES]);
+                self.logs.resize(points.count, [0.0; LANES]);
                 &mut self.logs[..]
             }
         };

@@ -205,28 +205,12 @@ impl<'a> Tracer<'a> {
         out: &mut Vec<Vec3>,
     ) -> bool {
         debug_assert!(self.traces_tiles());
+        if !self.shades_in_lanes() {
+            return self.trace_rect(rect, cancel, scratch, &mut (), out);
+        }
         let mut objects = std::mem::take(&mut scratch.camera_objects);
         camera_objects(self.scene, rect, &mut objects);
-        let finished = if self.shades_in_lanes() {
-            self.tile_in_lanes(rect, &objects, cancel, scratch, out)
-        } else {
-            out.clear();
-            let camera = &self.scene.camera;
-            let mut finished = true;
-            'rows: for y in rect.y..rect.y + rect.h {
-                if cancel.is_cancelled() {
-                    finished = false;
-                    break 'rows;
-                }
-                for x in rect.x..rect.x + rect.w {
-                    let mut colour = Sum(Vec3::ZERO);
-                    let ray = camera.pixel_ray(x, y);
-                    self.trace_path(x, y, 0, ray, Some(&objects), scratch, &mut (), &mut colour);
-                    out.push(colour.0);
-                }
-            }
-            finished
-        };
+        let finished = self.tile_in_lanes(rect, &objects, cancel, scratch, out);
         scratch.camera_objects = objects;
         finished
     }

@@ -17,12 +17,12 @@
 //! [`TOLERANCE`] (|P_k P_l| ≤ 1 bounds what each dropped one moves), so a
 //! (D + 1)-point edge rule is exact. So the work follows the integrand's
 //! shape, not the number of shadow pieces. A cell wholly visible needs no
-//! fit at all, only its integral: it first tries the nested 4² and 5²
-//! Gauss–Legendre product rules (41 lobe values), whose difference is its
-//! estimate, and takes the 5² value where that is within the tolerance
-//! (almost every unshadowed hit point of the seed room); else it is fitted
-//! as above. A lobe whose upper bound over the whole light is below
-//! `SKIP` is taken as 0 without a cell.
+//! fit at all, only its integral: it first tries the nested 3², 4² and 5²
+//! Gauss–Legendre product rules (25 lobe values, then 25 more), whose
+//! differences are its estimate, and takes the 4² (or 5²) value where that
+//! is within the tolerance; else it is fitted as above. A lobe whose upper
+//! bound over the whole light, times the visible share of the light, is
+//! below `SKIP` is taken as 0 without a cell.
 //!
 //! Error: each accepted cell's estimate (the tail, plus the dropped
 //! coefficients, or the nested rules' difference) is ≤ [`TOLERANCE`] of
@@ -164,79 +164,83 @@ fn pow_one_minus(e: f32, y: f32) -> f32 {
     if x > 0.0 && z > -126.0 { scaled } else { 0.0 }
 }
 
-/// The nested rules of a whole cell: the `NESTED_LO`² and `NESTED_HI`²
-/// Gauss–Legendre product rules. Over a cell wholly visible only the
-/// integral is wanted, not the fit, and a Gauss rule integrates far better
-/// than its fit interpolates: the fit's top coefficients (the partial
-/// cells' estimate) overstate a whole cell's error by orders of magnitude.
-/// So a whole cell takes the larger rule's value where the two rules
-/// agree within the tolerance (their difference is the estimate: it
-/// bounds the larger rule's error wherever the smaller one's error is
-/// the larger, as for every smooth lobe), 41 lobe values instead of 64
-/// and no fit.
-const NESTED_LO: usize = 4;
-const NESTED_HI: usize = 5;
-/// Both rules' nodes, padded to whole lanes.
-const NESTED_NODES: usize = 48;
+/// The nested rules of a whole cell: the 3², 4² and 5² Gauss–Legendre
+/// product rules. Over a cell wholly visible only the integral is wanted,
+/// not the fit, and a Gauss rule integrates far better than its fit
+/// interpolates: the fit's top coefficients (the partial cells' estimate)
+/// overstate a whole cell's error by orders of magnitude. So a whole cell
+/// takes the 4² value where it agrees with the 3² one within the
+/// tolerance, else the 5² value where that agrees with the 4² one (each
+/// difference is the estimate: it bounds the larger rule's error wherever
+/// the smaller one's error is the larger, as for every smooth lobe): 25
+/// lobe values where the lobe is wide against the cell, 50 where it is
+/// narrower, and no fit.
+const NESTED_ORDERS: [usize; 3] = [3, 4, 5];
+/// The nodes of one batch (3² and 4², or 5²), padded to whole lanes.
+const NESTED_NODES: usize = 32;
 
-struct NestedRule {
-    /// Node i of the product rules at (x\[i\], y\[i\]) in [0, 1]² of the
-    /// cell, with its weight in the small rule (`w_lo`, zero past its
-    /// nodes) and the large one (`w_hi`); the weights sum to 1 in each.
+/// One batch of nodes of the nested rules, at (x\[i\], y\[i\]) in [0, 1]²
+/// of the cell, with their weights in up to two rules (zero past each
+/// rule's nodes; the weights of a rule sum to 1).
+struct NestedBatch {
     x: [f64; NESTED_NODES],
     y: [f64; NESTED_NODES],
-    w_lo: [f64; NESTED_NODES],
-    w_hi: [f64; NESTED_NODES],
+    w: [[f64; NESTED_NODES]; 2],
 }
 
-fn nested_rule() -> &'static NestedRule {
-    static RULE: OnceLock<NestedRule> = OnceLock::new();
+/// The batches: the 3² and 4² rules, then the 5² rule.
+fn nested_rule() -> &'static [NestedBatch; 2] {
+    static RULE: OnceLock<[NestedBatch; 2]> = OnceLock::new();
     RULE.get_or_init(|| {
-        let mut r = NestedRule {
-            x: [0.5; NESTED_NODES],
-            y: [0.5; NESTED_NODES],
-            w_lo: [0.0; NESTED_NODES],
-            w_hi: [0.0; NESTED_NODES],
-        };
-        let mut at = 0;
-        for (n, lo) in [(NESTED_LO, true), (NESTED_HI, false)] {
-            let g = crate::render::math::gauss_legendre(n);
-            for &(ti, wi) in &g {
-                for &(tj, wj) in &g {
-                    r.x[at] = (ti + 1.0) * 0.5;
-                    r.y[at] = (tj + 1.0) * 0.5;
-                    let w = wi * wj * 0.25;
-                    if lo {
-                        r.w_lo[at] = w;
-                    } else {
-                        r.w_hi[at] = w;
+        let batch = |orders: &[usize]| {
+            let mut r = NestedBatch {
+                x: [0.5; NESTED_NODES],
+                y: [0.5; NESTED_NODES],
+                w: [[0.0; NESTED_NODES]; 2],
+            };
+            let mut at = 0;
+            for (k, &n) in orders.iter().enumerate() {
+                let g = crate::render::math::gauss_legendre(n);
+                for &(ti, wi) in &g {
+                    for &(tj, wj) in &g {
+                        r.x[at] = (ti + 1.0) * 0.5;
+                        r.y[at] = (tj + 1.0) * 0.5;
+                        r.w[k][at] = wi * wj * 0.25;
+                        at += 1;
                     }
-                    at += 1;
                 }
             }
-        }
-        r
+            r
+        };
+        [batch(&NESTED_ORDERS[..2]), batch(&NESTED_ORDERS[2..])]
     })
 }
 
-/// The integral over the whole cell [lo, lo + size]² by the nested rules,
-/// and its estimated error (both in the light's (a, b) area), or `None`
-/// where the rules disagree by more than the cell's share of the
-/// tolerance.
-fn nested_cell(lobe: &Lobe, lo: DVec2, size: f64) -> Option<(f64, f64)> {
-    let r = nested_rule();
+/// The lobe at one batch's nodes in the cell [lo, lo + size]², summed
+/// with each of its two weight rows.
+fn nested_sums(lobe: &Lobe, r: &NestedBatch, lo: DVec2, size: f64) -> [f64; 2] {
     let a = r.x.map(|x| lo.x + x * size);
     let b = r.y.map(|y| lo.y + y * size);
     let mut f = [0.0; NESTED_NODES];
     lobe_at_nested_nodes(lobe, &a, &b, &mut f);
-    let (mut q_lo, mut q_hi) = (0.0, 0.0);
-    for ((fi, wl), wh) in f.iter().zip(&r.w_lo).zip(&r.w_hi) {
-        q_lo += wl * fi;
-        q_hi += wh * fi;
-    }
+    r.w.map(|w| f.iter().zip(&w).map(|(fi, wi)| fi * wi).sum())
+}
+
+/// The integral over the whole cell [lo, lo + size]² by the nested rules,
+/// and its estimated error (both in the light's (a, b) area), or `None`
+/// where neither pair of rules agrees within the cell's share of the
+/// tolerance.
+fn nested_cell(lobe: &Lobe, lo: DVec2, size: f64) -> Option<(f64, f64)> {
+    let [first, second] = nested_rule();
     let area = size * size;
-    let estimate = (q_hi - q_lo).abs() * area;
-    (estimate <= TOLERANCE * area).then_some((q_hi * area, estimate))
+    let [q3, q4] = nested_sums(lobe, first, lo, size);
+    let estimate = (q4 - q3).abs() * area;
+    if estimate <= TOLERANCE * area {
+        return Some((q4 * area, estimate));
+    }
+    let [q5, _] = nested_sums(lobe, second, lo, size);
+    let estimate = (q5 - q4).abs() * area;
+    (estimate <= TOLERANCE * area).then_some((q5 * area, estimate))
 }
 
 /// Gauss–Legendre nodes and weights on [−1, 1], and the Legendre values
@@ -389,7 +393,7 @@ avx2_dispatch!(
     /// coordinates) for k, l ≤ `degree`: Green's theorem's moments of one
     /// straight edge, by the (degree + 1)-point rule (exact: the integrand
     /// is a polynomial of degree 2·degree + 1 along the edge). Entries with
-    /// l > degree get inexact values, for a fit that is zero there.
+    /// k or l > degree are left alone: the fit is zero there.
     fn edge_moments(r: &Rule, degree: usize, p0: DVec2, p1: DVec2, m: &mut [[f64; ORDER]; ORDER]) => edge_moments_generic
 );
 
@@ -415,7 +419,7 @@ fn edge_moments_generic(
         let pl = legendre(p.y);
         for k in 0..=degree {
             let s = wg * rk[k];
-            for l in 0..ORDER {
+            for l in 0..=degree {
                 m[k][l] += s * pl[l];
             }
         }
@@ -499,11 +503,12 @@ pub fn specular_factor(
     if pieces.is_empty() {
         return (0.0, report);
     }
-    // A lobe below the skip level over the whole light: the factor is 0
-    // within that bound.
-    let peak_ln = lobe_bound_ln(lobe);
-    if peak_ln <= SKIP.ln() {
-        report.error = peak_ln.exp();
+    // A lobe whose bound over the light, times the visible share of the
+    // light, is below the skip level: the factor is 0 within that bound.
+    let visible: f64 = pieces.iter().map(twice_area).sum::<f64>() * 0.5;
+    let bound_ln = lobe_bound_ln(lobe) + visible.min(1.0).ln();
+    if bound_ln <= SKIP.ln() {
+        report.error = bound_ln.exp();
         return (0.0, report);
     }
     if s.levels.len() < MAX_DEPTH as usize + 1 {
@@ -603,7 +608,7 @@ fn cell(
     }
     let full = covered >= size * size * (1.0 - 1e-12);
     if full
-        && (depth == MAX_DEPTH || !lobe_unresolved(ctx, lo, size, NESTED_HI))
+        && (depth == MAX_DEPTH || !lobe_unresolved(ctx, lo, size, NESTED_ORDERS[1]))
         && let Some((value, estimate)) = nested_cell(ctx.lobe, lo, size)
     {
         report.cells += 1;

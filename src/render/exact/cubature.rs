@@ -17,10 +17,10 @@
 //! [`TOLERANCE`] (|P_k P_l| ≤ 1 bounds what each dropped one moves), so a
 //! (D + 1)-point edge rule is exact. So the work follows the integrand's
 //! shape, not the number of shadow pieces. A cell wholly visible needs no
-//! fit at all, only its integral: it first tries the nested 3², 4² and 5²
-//! Gauss–Legendre product rules (25 lobe values, then 25 more), whose
-//! differences are its estimate, and takes the 4² (or 5²) value where that
-//! is within the tolerance; else it is fitted as above. A lobe whose upper
+//! fit at all, only its integral: it first tries the nested 2², 3², 4²
+//! and 5² Gauss–Legendre product rules (16 lobe values, then 16 and 32
+//! more), whose differences are its estimate, and takes the first value
+//! within the tolerance; else it is fitted as above. A lobe whose upper
 //! bound over the whole light, times the visible share of the light, is
 //! below `SKIP` is taken as 0 without a cell.
 //!
@@ -85,7 +85,7 @@ avx2_dispatch!(
 
 avx2_dispatch!(
     /// [`lobe_at_nodes`] at the nodes of the nested rules of a whole cell.
-    fn lobe_at_nested_nodes(l: &Lobe, a: &[f64; NESTED_NODES], b: &[f64; NESTED_NODES], out: &mut [f64; NESTED_NODES])
+    fn lobe_at_nested_nodes(l: &Lobe, a: &[f64; CHUNK], b: &[f64; CHUNK], out: &mut [f64; CHUNK])
         => lobe_at_nodes_generic
 );
 
@@ -164,83 +164,88 @@ fn pow_one_minus(e: f32, y: f32) -> f32 {
     if x > 0.0 && z > -126.0 { scaled } else { 0.0 }
 }
 
-/// The nested rules of a whole cell: the 3², 4² and 5² Gauss–Legendre
+/// The nested rules of a whole cell: the 2², 3², 4² and 5² Gauss–Legendre
 /// product rules. Over a cell wholly visible only the integral is wanted,
 /// not the fit, and a Gauss rule integrates far better than its fit
 /// interpolates: the fit's top coefficients (the partial cells' estimate)
 /// overstate a whole cell's error by orders of magnitude. So a whole cell
-/// takes the 4² value where it agrees with the 3² one within the
-/// tolerance, else the 5² value where that agrees with the 4² one (each
-/// difference is the estimate: it bounds the larger rule's error wherever
-/// the smaller one's error is the larger, as for every smooth lobe): 25
-/// lobe values where the lobe is wide against the cell, 50 where it is
-/// narrower, and no fit.
-const NESTED_ORDERS: [usize; 3] = [3, 4, 5];
-/// The nodes of one batch (3² and 4², or 5²), padded to whole lanes.
-const NESTED_NODES: usize = 32;
+/// takes the first rule that agrees with the one before within the
+/// tolerance (the difference is the estimate: it bounds the larger rule's
+/// error wherever the smaller one's error is the larger, as for every
+/// smooth lobe): 16 lobe values where the lobe is wide against the cell,
+/// 32 or 64 where it is narrower, and no fit.
+const NESTED_ORDERS: [usize; 4] = [2, 3, 4, 5];
+/// The rules' nodes back to back (4 + 9 + 16 + 25), padded to whole chunks.
+const NESTED_NODES: usize = 64;
+/// Nodes evaluated at once (whole f32 lanes).
+const CHUNK: usize = 16;
 
-/// One batch of nodes of the nested rules, at (x\[i\], y\[i\]) in [0, 1]²
-/// of the cell, with their weights in up to two rules (zero past each
-/// rule's nodes; the weights of a rule sum to 1).
-struct NestedBatch {
+/// The nested rules' nodes, at (x\[i\], y\[i\]) in [0, 1]² of the cell,
+/// each with its weight in its own rule (the weights of a rule sum to 1);
+/// rule k's nodes end at `ends[k]`.
+struct NestedRule {
     x: [f64; NESTED_NODES],
     y: [f64; NESTED_NODES],
-    w: [[f64; NESTED_NODES]; 2],
+    w: [f64; NESTED_NODES],
+    ends: [usize; NESTED_ORDERS.len()],
 }
 
-/// The batches: the 3² and 4² rules, then the 5² rule.
-fn nested_rule() -> &'static [NestedBatch; 2] {
-    static RULE: OnceLock<[NestedBatch; 2]> = OnceLock::new();
+fn nested_rule() -> &'static NestedRule {
+    static RULE: OnceLock<NestedRule> = OnceLock::new();
     RULE.get_or_init(|| {
-        let batch = |orders: &[usize]| {
-            let mut r = NestedBatch {
-                x: [0.5; NESTED_NODES],
-                y: [0.5; NESTED_NODES],
-                w: [[0.0; NESTED_NODES]; 2],
-            };
-            let mut at = 0;
-            for (k, &n) in orders.iter().enumerate() {
-                let g = crate::render::math::gauss_legendre(n);
-                for &(ti, wi) in &g {
-                    for &(tj, wj) in &g {
-                        r.x[at] = (ti + 1.0) * 0.5;
-                        r.y[at] = (tj + 1.0) * 0.5;
-                        r.w[k][at] = wi * wj * 0.25;
-                        at += 1;
-                    }
+        let mut r = NestedRule {
+            x: [0.5; NESTED_NODES],
+            y: [0.5; NESTED_NODES],
+            w: [0.0; NESTED_NODES],
+            ends: [0; NESTED_ORDERS.len()],
+        };
+        let mut at = 0;
+        for (k, &n) in NESTED_ORDERS.iter().enumerate() {
+            let g = crate::render::math::gauss_legendre(n);
+            for &(ti, wi) in &g {
+                for &(tj, wj) in &g {
+                    r.x[at] = (ti + 1.0) * 0.5;
+                    r.y[at] = (tj + 1.0) * 0.5;
+                    r.w[at] = wi * wj * 0.25;
+                    at += 1;
                 }
             }
-            r
-        };
-        [batch(&NESTED_ORDERS[..2]), batch(&NESTED_ORDERS[2..])]
+            r.ends[k] = at;
+        }
+        r
     })
-}
-
-/// The lobe at one batch's nodes in the cell [lo, lo + size]², summed
-/// with each of its two weight rows.
-fn nested_sums(lobe: &Lobe, r: &NestedBatch, lo: DVec2, size: f64) -> [f64; 2] {
-    let a = r.x.map(|x| lo.x + x * size);
-    let b = r.y.map(|y| lo.y + y * size);
-    let mut f = [0.0; NESTED_NODES];
-    lobe_at_nested_nodes(lobe, &a, &b, &mut f);
-    r.w.map(|w| f.iter().zip(&w).map(|(fi, wi)| fi * wi).sum())
 }
 
 /// The integral over the whole cell [lo, lo + size]² by the nested rules,
 /// and its estimated error (both in the light's (a, b) area), or `None`
-/// where neither pair of rules agrees within the cell's share of the
-/// tolerance.
-fn nested_cell(lobe: &Lobe, lo: DVec2, size: f64) -> Option<(f64, f64)> {
-    let [first, second] = nested_rule();
+/// where no pair of rules agrees within the cell's share of the
+/// tolerance. `coarse`: whether the 3² rule resolves the lobe on the cell
+/// (else the first value taken is the 4² one).
+fn nested_cell(lobe: &Lobe, lo: DVec2, size: f64, coarse: bool) -> Option<(f64, f64)> {
+    let r = nested_rule();
     let area = size * size;
-    let [q3, q4] = nested_sums(lobe, first, lo, size);
-    let estimate = (q4 - q3).abs() * area;
-    if estimate <= TOLERANCE * area {
-        return Some((q4 * area, estimate));
+    let mut f = [0.0; NESTED_NODES];
+    let mut evaluated = 0;
+    let mut previous = 0.0;
+    let mut start = 0;
+    for (k, &end) in r.ends.iter().enumerate() {
+        while evaluated < end {
+            let chunk = evaluated..evaluated + CHUNK;
+            let a: [f64; CHUNK] = std::array::from_fn(|i| lo.x + r.x[chunk.start + i] * size);
+            let b: [f64; CHUNK] = std::array::from_fn(|i| lo.y + r.y[chunk.start + i] * size);
+            let out: &mut [f64; CHUNK] = (&mut f[chunk]).try_into().expect("a chunk");
+            lobe_at_nested_nodes(lobe, &a, &b, out);
+            evaluated += CHUNK;
+        }
+        let q: f64 = (start..end).map(|i| r.w[i] * f[i]).sum();
+        start = end;
+        let estimate = (q - previous).abs() * area;
+        if k > 0 && (coarse || k > 1) && estimate <= TOLERANCE * area {
+            return Some((q * area, estimate));
+        }
+        previous = q;
     }
-    let [q5, _] = nested_sums(lobe, second, lo, size);
-    let estimate = (q5 - q4).abs() * area;
-    (estimate <= TOLERANCE * area).then_some((q5 * area, estimate))
+    None
 }
 
 /// Gauss–Legendre nodes and weights on [−1, 1], and the Legendre values
@@ -607,9 +612,15 @@ fn cell(
         return 0.0;
     }
     let full = covered >= size * size * (1.0 - 1e-12);
+    let deepest = depth == MAX_DEPTH;
     if full
-        && (depth == MAX_DEPTH || !lobe_unresolved(ctx, lo, size, NESTED_ORDERS[1]))
-        && let Some((value, estimate)) = nested_cell(ctx.lobe, lo, size)
+        && (deepest || !lobe_unresolved(ctx, lo, size, NESTED_ORDERS[2]))
+        && let Some((value, estimate)) = nested_cell(
+            ctx.lobe,
+            lo,
+            size,
+            deepest || !lobe_unresolved(ctx, lo, size, NESTED_ORDERS[1]),
+        )
     {
         report.cells += 1;
         report.error += estimate;
@@ -926,7 +937,7 @@ mod tests {
             } else {
                 (DVec2::ZERO, 1.0)
             };
-            let Some((value, estimate)) = nested_cell(&lobe, lo, size) else {
+            let Some((value, estimate)) = nested_cell(&lobe, lo, size, true) else {
                 continue;
             };
             accepted += 1;

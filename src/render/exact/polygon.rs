@@ -149,8 +149,13 @@ impl Pieces {
         }
     }
 
-    /// Replaces every piece by its part where `h ≥ 0`.
+    /// Replaces every piece by its part where `h ≥ 0`. Pieces wholly
+    /// there are kept as they are (what clipping them would give, and every
+    /// piece held passed `min_area` when it was added).
     pub fn clip(&mut self, h: HalfPlane, min_area: f64, work: &mut Work) {
+        if self.verts.iter().all(|&p| h.eval(p) >= 0.0) {
+            return;
+        }
         let tmp = &mut work.tmp;
         tmp.clear();
         for p in self.iter() {

@@ -68,6 +68,28 @@ impl Node4 {
         }
     }
 
+    /// This node in a tree whose nodes and items start `nodes` and `items`
+    /// later.
+    fn shifted(mut self, nodes: u32, items: u32) -> Node4 {
+        for v in &mut self.slots {
+            if *v == EMPTY {
+                continue;
+            }
+            if *v & OBJECT == 0 {
+                *v += nodes;
+                assert!(*v < OBJECT, "node index {v} out of range");
+            } else if *v & LEAF != 0 {
+                let first = (*v & ((1 << LEAF_FIRST_BITS) - 1)) + items;
+                assert!(
+                    first < (1 << LEAF_FIRST_BITS) - 1,
+                    "leaf {first} out of range"
+                );
+                *v = (*v & !((1 << LEAF_FIRST_BITS) - 1)) | first;
+            }
+        }
+        self
+    }
+
     /// Sets child `s` and its box (rounded outwards to f32).
     pub fn set(&mut self, s: usize, slot: Slot, b: &Aabb) {
         self.slots[s] = match slot {
@@ -114,18 +136,106 @@ enum Pending {
 
 impl Bvh4 {
     /// Collapses `bvh`; `object_bounds(id)` is the box it was built from.
-    pub fn from_binary(bvh: &Bvh, object_bounds: impl Fn(u32) -> Aabb) -> Bvh4 {
-        // Every node stands for at least one inner binary node: reserved
-        // at once, since a node's 128-byte alignment makes every regrowth
-        // a copy (the pages never written are not taken from the system).
-        let mut tree = Bvh4 {
-            nodes: Vec::with_capacity(bvh.node_count() / 2 + 1),
-            items: Vec::new(),
-        };
+    /// The root's subtrees are collapsed on all threads; the tree is the
+    /// one-thread collapse's, node for node (tested).
+    pub fn from_binary(bvh: &Bvh, object_bounds: impl Fn(u32) -> Aabb + Sync) -> Bvh4 {
+        let mut tree = Self::with_room(bvh);
         if !bvh.is_empty() {
-            tree.collapse(bvh, &object_bounds, Self::expand(bvh, &object_bounds, 0));
+            tree.collapse_root(bvh, &object_bounds);
         }
         tree
+    }
+
+    /// An empty tree with room for the collapse of `bvh`: every node stands
+    /// for at least one inner binary node. Reserved at once, since a node's
+    /// 128-byte alignment makes every regrowth a copy (the pages never
+    /// written are not taken from the system, so a subtree's tree may
+    /// reserve as much).
+    fn with_room(bvh: &Bvh) -> Bvh4 {
+        Bvh4 {
+            nodes: Vec::with_capacity(bvh.node_count() / 2 + 1),
+            items: Vec::new(),
+        }
+    }
+
+    /// [`Bvh4::collapse`] of the root, its subtrees each on a thread: the
+    /// first into this tree, the others into trees of their own, appended
+    /// in slot order (so every node and item lands where the one-thread
+    /// collapse puts it).
+    fn collapse_root(&mut self, bvh: &Bvh, object_bounds: &(impl Fn(u32) -> Aabb + Sync)) {
+        use rayon::prelude::*;
+        let children = Self::open(bvh, object_bounds, Self::expand(bvh, object_bounds, 0));
+        self.nodes.push(Node4::empty());
+        let mut children = children.into_iter().enumerate();
+        // Slots up to the first subtree in turn, as the one-thread collapse.
+        let mut head = None;
+        for (s, (b, p)) in children.by_ref() {
+            match self.slot_or_subtree(bvh, object_bounds, p) {
+                Ok(slot) => self.nodes[0].set(s, slot, &b),
+                Err(content) => {
+                    head = Some((s, b, content));
+                    break;
+                }
+            }
+        }
+        let Some((head_slot, head_box, head)) = head else {
+            return;
+        };
+        // The later slots: subtrees (`None`, collapsed on their own) and
+        // the others, whose items must follow the subtrees before them.
+        let mut later: Vec<(usize, Aabb, Option<Pending>)> = Vec::new();
+        let mut subtrees = Vec::new();
+        for (s, (b, p)) in children {
+            let content = match p {
+                Pending::Group(g) => Ok(g),
+                Pending::Node(n) if Self::becomes_node(bvh, n) => {
+                    Ok(Self::expand(bvh, object_bounds, n))
+                }
+                p => Err(p),
+            };
+            match content {
+                Ok(c) => {
+                    subtrees.push(c);
+                    later.push((s, b, None));
+                }
+                Err(p) => later.push((s, b, Some(p))),
+            }
+        }
+        let (head_root, trees) = rayon::join(
+            || self.collapse(bvh, object_bounds, head),
+            || {
+                subtrees
+                    .into_par_iter()
+                    .map(|c| {
+                        let mut t = Self::with_room(bvh);
+                        t.collapse(bvh, object_bounds, c);
+                        t
+                    })
+                    .collect::<Vec<Bvh4>>()
+            },
+        );
+        self.nodes[0].set(head_slot, Slot::Node(head_root), &head_box);
+        let mut trees = trees.into_iter();
+        for (s, b, p) in later {
+            let slot = match p {
+                Some(p) => match self.slot_or_subtree(bvh, object_bounds, p) {
+                    Ok(slot) => slot,
+                    Err(_) => unreachable!("an object or a small leaf"),
+                },
+                None => Slot::Node(self.append(trees.next().expect("a later subtree"))),
+            };
+            self.nodes[0].set(s, slot, &b);
+        }
+    }
+
+    /// Appends `tree` (its node and item indices shifted past this tree's);
+    /// returns the index of its root.
+    fn append(&mut self, tree: Bvh4) -> u32 {
+        let (nodes, items) = (self.nodes.len() as u32, self.items.len() as u32);
+        self.nodes
+            .extend(tree.nodes.into_iter().map(|n| n.shifted(nodes, items)));
+        self.items.extend(tree.items);
+        nodes
     }
 
     /// Nodes and items, for memory figures.
@@ -152,8 +262,27 @@ impl Bvh4 {
         &mut self,
         bvh: &Bvh,
         object_bounds: &impl Fn(u32) -> Aabb,
-        mut children: Vec<(Aabb, Pending)>,
+        children: Vec<(Aabb, Pending)>,
     ) -> u32 {
+        let children = Self::open(bvh, object_bounds, children);
+        let index = self.nodes.len() as u32;
+        self.nodes.push(Node4::empty());
+        for (s, (b, p)) in children.into_iter().enumerate() {
+            let slot = match self.slot_or_subtree(bvh, object_bounds, p) {
+                Ok(slot) => slot,
+                Err(content) => Slot::Node(self.collapse(bvh, object_bounds, content)),
+            };
+            self.nodes[index as usize].set(s, slot, &b);
+        }
+        index
+    }
+
+    /// The (at most four) children of a node over `children`.
+    fn open(
+        bvh: &Bvh,
+        object_bounds: &impl Fn(u32) -> Aabb,
+        mut children: Vec<(Aabb, Pending)>,
+    ) -> Vec<(Aabb, Pending)> {
         if children.len() > 4 {
             // A large leaf (SAH keeps up to 8 objects, and any number whose
             // centres coincide): four groups, each a node of its own.
@@ -193,31 +322,39 @@ impl Bvh4 {
                 Pending::Object(_) => unreachable!("objects do not open"),
             }
         }
-        let index = self.nodes.len() as u32;
-        self.nodes.push(Node4::empty());
-        for (s, (b, p)) in children.into_iter().enumerate() {
-            let slot = match p {
-                Pending::Object(o) => Slot::Object(o),
-                Pending::Node(n) => match bvh.node(n).1 {
-                    // A small binary leaf that did not fit: a leaf slot.
-                    NodeContent::Leaf(objects) if objects.len() <= LEAF_MAX => {
-                        let first = self.items.len() as u32;
-                        self.items.extend_from_slice(objects);
-                        Slot::Leaf {
-                            first,
-                            count: objects.len() as u32,
-                        }
-                    }
-                    _ => {
-                        let content = Self::expand(bvh, object_bounds, n);
-                        Slot::Node(self.collapse(bvh, object_bounds, content))
-                    }
-                },
-                Pending::Group(g) => Slot::Node(self.collapse(bvh, object_bounds, g)),
-            };
-            self.nodes[index as usize].set(s, slot, &b);
+        children
+    }
+
+    /// The slot of child `p` (a small binary leaf's objects appended to the
+    /// items), or the children of the node it becomes.
+    fn slot_or_subtree(
+        &mut self,
+        bvh: &Bvh,
+        object_bounds: &impl Fn(u32) -> Aabb,
+        p: Pending,
+    ) -> Result<Slot, Vec<(Aabb, Pending)>> {
+        match p {
+            Pending::Object(o) => Ok(Slot::Object(o)),
+            Pending::Node(n) => match bvh.node(n).1 {
+                _ if Self::becomes_node(bvh, n) => Err(Self::expand(bvh, object_bounds, n)),
+                NodeContent::Leaf(objects) => {
+                    let first = self.items.len() as u32;
+                    self.items.extend_from_slice(objects);
+                    Ok(Slot::Leaf {
+                        first,
+                        count: objects.len() as u32,
+                    })
+                }
+                NodeContent::Inner(_) => unreachable!("an inner node becomes a node"),
+            },
+            Pending::Group(g) => Err(g),
         }
-        index
+    }
+
+    /// Whether binary node `n`, a child that stays closed, becomes a node
+    /// (else a small leaf that did not fit: a leaf slot).
+    fn becomes_node(bvh: &Bvh, n: u32) -> bool {
+        !matches!(bvh.node(n).1, NodeContent::Leaf(objects) if objects.len() <= LEAF_MAX)
     }
 }
 
@@ -262,6 +399,55 @@ mod tests {
         sorted.sort_unstable();
         sorted.dedup();
         assert_eq!(sorted.len(), 300);
+    }
+
+    /// Boxes scattered by a hash, of sizes spread over two decades.
+    fn scattered(n: u32) -> Vec<Aabb> {
+        (0..n)
+            .map(|i| {
+                let h =
+                    |k: u32| ((i.wrapping_mul(2654435761).rotate_left(k) % 1000) as f64) / 100.0;
+                let c = DVec3::new(h(0), h(7), h(13));
+                Aabb::new(c - 0.01 * (1.0 + h(21)), c + 0.01 * (1.0 + h(27)))
+            })
+            .collect()
+    }
+
+    #[test]
+    fn the_parallel_collapse_is_the_one_thread_collapse() {
+        let mut layouts = vec![scattered(5000), scattered(37)];
+        // One binary leaf of 300: the root's children are groups.
+        layouts.push(
+            (1..=300)
+                .map(|i| Aabb::new(DVec3::splat(-(i as f64)), DVec3::splat(i as f64)))
+                .collect(),
+        );
+        for bounds in &layouts {
+            let items: Vec<(u32, Aabb)> = bounds
+                .iter()
+                .enumerate()
+                .map(|(i, b)| (i as u32, *b))
+                .collect();
+            let bvh = Bvh::build(&items);
+            let of = |i: u32| bounds[i as usize];
+            let parallel = Bvh4::from_binary(&bvh, of);
+            let mut serial = Bvh4::with_room(&bvh);
+            serial.collapse(&bvh, &of, Bvh4::expand(&bvh, &of, 0));
+            assert!(serial.nodes.len() > 1, "a root with subtrees");
+            assert_eq!(parallel.items, serial.items);
+            assert_eq!(parallel.nodes.len(), serial.nodes.len());
+            for (p, s) in parallel.nodes.iter().zip(&serial.nodes) {
+                assert_eq!(p.slots, s.slots);
+                assert_eq!(
+                    p.min.map(|a| a.map(f32::to_bits)),
+                    s.min.map(|a| a.map(f32::to_bits))
+                );
+                assert_eq!(
+                    p.max.map(|a| a.map(f32::to_bits)),
+                    s.max.map(|a| a.map(f32::to_bits))
+                );
+            }
+        }
     }
 
     #[test]

@@ -62,7 +62,9 @@ impl LightFrame {
     }
 
     /// Bounds of a primitive in this frame (conservative: padded for
-    /// rounding).
+    /// rounding). Inlined: the tree builds call it for every face, from
+    /// their own code units.
+    #[inline]
     pub fn bounds(&self, prim: Primitive) -> Option<Aabb> {
         let shape = match prim {
             Primitive::Shape(s) => s,
@@ -96,6 +98,7 @@ impl LightFrame {
     }
 
     /// Rounding of the frame change is ~1e-16 relative; pad by far more.
+    #[inline]
     fn pad(b: Aabb) -> Aabb {
         let pad = (b.max.abs().max(b.min.abs()).max_element() + b.extent().max_element()) * 1e-9;
         Aabb::new(b.min - pad, b.max + pad)

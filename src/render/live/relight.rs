@@ -56,12 +56,11 @@ impl<'a> Relighter<'a> {
         }
     }
 
-    /// Whether the new light is hit on `ray` no farther than `t`.
+    /// Whether the new light is hit on `ray` no farther than `t` (which
+    /// the light would win: objects must be strictly nearer).
     #[inline]
     fn light_within(&self, ray: &Ray, t: f64) -> bool {
-        self.light
-            .intersect(ray, f64::INFINITY)
-            .is_some_and(|light| light <= t)
+        self.light.intersect(ray, t.next_up()).is_some()
     }
 }
 

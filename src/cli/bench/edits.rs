@@ -11,7 +11,7 @@
 
 use std::time::Duration;
 
-use super::{BenchArgs, CliError, scenes};
+use super::{BenchArgs, CliError, cpu_time, scenes};
 use crate::app::render_job::{JobState, RenderJob};
 use crate::render::scene_file::SceneDesc;
 use crate::render::{
@@ -67,6 +67,15 @@ fn median(mut ratios: Vec<f64>) -> f64 {
     ratios[ratios.len() / 2]
 }
 
+/// One re-trace edit against the one-shot render of its description.
+struct Retrace {
+    class: EditClass,
+    full: Duration,
+    one_shot: Duration,
+    /// The process's CPU time during each (steadier on a shared machine).
+    cpu: Option<(Duration, Duration)>,
+}
+
 /// The `q`-quantile of sorted durations, in ms.
 fn quantile_ms(sorted: &[Duration], q: f64) -> f64 {
     let i = ((sorted.len() - 1) as f64 * q).round() as usize;
@@ -106,14 +115,15 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
             }
         };
         render(&desc)?;
-        // Per re-trace edit: its class, its time and the one-shot render's.
-        let mut retraces: Vec<(EditClass, Duration, Duration)> = Vec::new();
+        let mut retraces: Vec<Retrace> = Vec::new();
         for class in [EditClass::Recombine, EditClass::Reshade, EditClass::Retrace] {
             let mut full = Vec::new();
             let mut first = Vec::new();
             for k in 0..=EDITS {
                 let want = apply(class, k, &mut desc);
+                let cpu_before = cpu_time();
                 let (got, f, t) = render(&desc)?;
+                let cpu = cpu_time().zip(cpu_before).map(|(b, a)| b.saturating_sub(a));
                 if got != want {
                     return Err(CliError::other(format!(
                         "a {} edit ran as {}",
@@ -125,7 +135,16 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
                     full.push(t);
                     first.push(f);
                     if class == EditClass::Retrace {
-                        retraces.push((got, t, one_shot_render(&job, &desc)?));
+                        let cpu_before = cpu_time();
+                        let one_shot = one_shot_render(&job, &desc)?;
+                        let one_shot_cpu =
+                            cpu_time().zip(cpu_before).map(|(b, a)| b.saturating_sub(a));
+                        retraces.push(Retrace {
+                            class: got,
+                            full: t,
+                            one_shot,
+                            cpu: cpu.zip(one_shot_cpu),
+                        });
                     }
                 }
             }
@@ -148,27 +167,29 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
             (".light", Some(EditClass::Relight)),
             (".camera", Some(EditClass::Retrace)),
         ] {
-            let runs: Vec<_> = retraces
+            let runs: Vec<&Retrace> = retraces
                 .iter()
-                .filter(|(class, ..)| of_kind.is_none_or(|k| k == *class))
+                .filter(|r| of_kind.is_none_or(|k| k == r.class))
                 .collect();
-            let full: Vec<Duration> = runs.iter().map(|r| r.1).collect();
-            let one_shot: Vec<Duration> = runs.iter().map(|r| r.2).collect();
-            let pairs = median(
-                runs.iter()
-                    .map(|(_, r, o)| r.as_secs_f64() / o.as_secs_f64())
-                    .collect(),
-            );
+            let full: Vec<Duration> = runs.iter().map(|r| r.full).collect();
+            let one_shot: Vec<Duration> = runs.iter().map(|r| r.one_shot).collect();
+            let ratio = |(r, o): (Duration, Duration)| r.as_secs_f64() / o.as_secs_f64();
+            let pairs = median(runs.iter().map(|r| ratio((r.full, r.one_shot))).collect());
             let (median_ms, p90_ms) = median_p90(&full);
             let (cli, _) = median_p90(&one_shot);
             if of_kind.is_some() {
                 print!("edit retrace{kind} median_ms {median_ms:.1} p90_ms {p90_ms:.1}; ");
             }
-            println!(
-                "re-trace{kind} full quality / one-shot {:.2}× (one-shot median_ms {cli:.1}; median of the {} pairs {pairs:.2}×)",
+            print!(
+                "re-trace{kind} full quality / one-shot {:.2}× (one-shot median_ms {cli:.1}; median of the {} pairs {pairs:.2}×",
                 median_ms / cli,
                 runs.len()
             );
+            let cpu: Option<Vec<f64>> = runs.iter().map(|r| r.cpu.map(ratio)).collect();
+            if let Some(cpu) = cpu {
+                print!(", of their CPU times {:.2}×", median(cpu));
+            }
+            println!(")");
         }
         println!("record peak_bytes {peak} ({:.1} MB)", peak as f64 / 1e6);
     }

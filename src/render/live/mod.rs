@@ -50,7 +50,7 @@ use super::stats::RayStats;
 use super::tracer::{ReplayMaterial, Tracer, replay_materials, replay_pixel};
 
 /// Default memory cap of the records (see `record.rs` for the bytes per
-/// hit): the seed room at 960×540, 64 shadow rays, depth 4 needs ~35 MB,
+/// hit): the seed room at 960×540, 64 shadow rays, depth 4 needs ~42 MB,
 /// and a re-shade keeps logarithms for the next one in the rest
 /// (`cosine_logs.rs`). 64 MB in decimal units, as the bench prints them.
 pub const DEFAULT_RECORD_CAP: usize = 64_000_000;

@@ -74,7 +74,7 @@ fn a_scripted_session_of_edits_stays_exact_and_costs_what_its_class_says() {
 
     // Each edit with the class it must have and whether it may trace rays.
     type Edit = (&'static str, EditClass, fn(&mut SceneDesc));
-    let edits: [Edit; 21] = [
+    let edits: [Edit; 22] = [
         ("specular strength", EditClass::Recombine, |d| {
             d.render.terms.specular = 0.3
         }),
@@ -128,8 +128,12 @@ fn a_scripted_session_of_edits_stays_exact_and_costs_what_its_class_says() {
             EditClass::Reshade,
             |d| material(d, "white").shininess = 80.0,
         ),
-        ("light moved", EditClass::Retrace, |d| {
+        ("light moved", EditClass::Relight, |d| {
             d.light.corner[0] += 0.25
+        }),
+        ("light grown, and a shininess", EditClass::Relight, |d| {
+            d.light.edge_u[0] *= 1.5;
+            material(d, "steel").shininess = 60.0;
         }),
         ("camera moved", EditClass::Retrace, |d| {
             d.camera.position[1] += 0.3
@@ -375,6 +379,7 @@ enum RandomEdit {
     Model(usize),
     Depth(u32),
     LightCorner(f64),
+    LightSize(f64, f64),
     Camera(f64),
     Samples(u32),
 }
@@ -412,6 +417,10 @@ fn apply(d: &mut SceneDesc, e: &RandomEdit) {
         }
         RandomEdit::Depth(n) => d.render.max_depth = *n,
         RandomEdit::LightCorner(x) => d.light.corner[2] += x,
+        RandomEdit::LightSize(u, v) => {
+            d.light.edge_u[0] *= u;
+            d.light.edge_v[2] *= v;
+        }
         RandomEdit::Camera(x) => d.camera.position[0] += x,
         RandomEdit::Samples(n) => d.render.samples_per_pixel = *n,
     }
@@ -434,7 +443,8 @@ fn random_edit() -> impl Strategy<Value = RandomEdit> {
         1 => (0..6usize).prop_map(RandomEdit::Sampling),
         1 => (0..3usize).prop_map(RandomEdit::Model),
         1 => (1..6u32).prop_map(RandomEdit::Depth),
-        1 => (-0.5..0.5f64).prop_map(RandomEdit::LightCorner),
+        2 => (-0.5..0.5f64).prop_map(RandomEdit::LightCorner),
+        1 => (0.5..2.0f64, 0.5..2.0f64).prop_map(|(u, v)| RandomEdit::LightSize(u, v)),
         1 => (-0.5..0.5f64).prop_map(RandomEdit::Camera),
         1 => (1..6u32).prop_map(RandomEdit::Samples),
     ]
@@ -474,4 +484,110 @@ fn a_smooth_mesh_recombines_and_reshades_exactly() {
         m.reflectivity = 0.2;
     }
     step(&mut live, &d, "bunny, colours and reflectivity");
+}
+
+/// The light moved and resized over recorded paths: where it now cuts
+/// camera or reflected rays, where rays met it before, where it changes
+/// which pixels lie in its penumbra, and where it grows past the objects
+/// (so reflected rays start elsewhere), together with edits of the other
+/// classes — each image equal to a fresh render.
+#[test]
+fn light_edits_follow_the_recorded_paths_exactly() {
+    let mut live = LiveRender::default();
+    let mut d = room(80, 45);
+    step(&mut live, &d, "first");
+    material(&mut d, "steel").shininess = 7.0;
+    d.render.terms.specular = 0.6;
+    step(&mut live, &d, "re-shade and recombine before");
+    type Edit = (&'static str, fn(&mut SceneDesc));
+    let edits: [Edit; 9] = [
+        ("light along x", |d| d.light.corner[0] += 0.7),
+        ("light down into the view", |d| d.light.corner[1] = 4.0),
+        ("light back up", |d| d.light.corner[1] = 7.99),
+        ("light smaller", |d| {
+            d.light.edge_u = [0.5, 0.0, 0.0];
+            d.light.edge_v = [0.0, 0.0, 0.25];
+        }),
+        ("light larger than the room", |d| {
+            d.light.corner = [-30.0, 7.99, -30.0];
+            d.light.edge_u = [60.0, 0.0, 0.0];
+            d.light.edge_v = [0.0, 0.0, 60.0];
+        }),
+        ("light back, white walls reflect", |d| {
+            d.light.corner = [-1.0, 7.99, -1.0];
+            d.light.edge_u = [2.0, 0.0, 0.0];
+            d.light.edge_v = [0.0, 0.0, 2.0];
+            material(d, "white").reflectivity = 0.5;
+        }),
+        ("light tilted, mirror stops reflecting", |d| {
+            d.light.edge_v = [0.0, -0.5, 2.0];
+            material(d, "mirror").reflectivity = 0.0;
+        }),
+        ("light moved, shininess override", |d| {
+            d.light.corner[2] -= 0.4;
+            d.render.shininess_override = Some(33.0);
+        }),
+        ("light moved, colours", |d| {
+            d.light.corner[0] -= 1.1;
+            d.light.diffuse = [0.4, 0.9, 0.2];
+            material(d, "red").diffuse = [0.1, 0.2, 0.9];
+        }),
+    ];
+    for (what, edit) in edits {
+        edit(&mut d);
+        let r = step(&mut live, &d, what);
+        assert_eq!(r.class, EditClass::Relight, "{what}");
+        assert!(r.record_bytes > 0, "{what}: the paths are recorded again");
+    }
+    // The records a relight leaves serve the next edits.
+    d.render.terms.diffuse = 0.3;
+    let r = step(&mut live, &d, "strength after the relights");
+    assert_eq!((r.class, r.stats.traced()), (EditClass::Recombine, 0));
+    material(&mut d, "green").shininess = 2.0;
+    let r = step(&mut live, &d, "shininess after the relights");
+    assert_eq!((r.class, r.stats.traced()), (EditClass::Reshade, 0));
+}
+
+#[test]
+fn light_edits_of_anti_aliased_frames_and_smooth_meshes_stay_exact() {
+    let mut live = LiveRender::default();
+    let mut d = room(48, 27);
+    d.render.samples_per_pixel = 3;
+    d.render.sampling = Sampling::Stratified;
+    step(&mut live, &d, "3 samples per pixel");
+    d.light.corner[0] += 0.5;
+    let r = step(&mut live, &d, "3 spp, light moved");
+    assert_eq!(r.class, EditClass::Relight);
+
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/bunny.json");
+    let mut d = SceneDesc::load(&path).expect("the bunny scene loads");
+    d.camera.width = 64;
+    d.camera.height = 36;
+    d.render.shadow_rays = 16;
+    let mut live = LiveRender::default();
+    step(&mut live, &d, "bunny");
+    // Smooth triangles' shadow points are lifted unless the light is in
+    // the way: they follow the light.
+    d.light.corner[1] -= 0.5;
+    d.light.edge_u[0] *= 0.5;
+    let r = step(&mut live, &d, "bunny, light moved and smaller");
+    assert_eq!(r.class, EditClass::Relight);
+}
+
+#[test]
+fn a_cancelled_relight_leaves_the_next_edit_exact() {
+    let mut live = LiveRender::default();
+    let mut d = room(64, 36);
+    step(&mut live, &d, "first");
+    d.light.corner[0] += 0.3;
+    let cancel = CancelToken::new();
+    let stop = cancel.clone();
+    let r = live.render(&d, &options(true), &cancel, &move |_| stop.cancel());
+    assert!(matches!(r, Err(LiveError::Cancelled(_))));
+    d.light.corner[0] += 0.3;
+    let r = step(&mut live, &d, "light moved after a cancelled relight");
+    assert_eq!(r.class, EditClass::Retrace, "no records to follow");
+    d.light.corner[2] += 0.3;
+    let r = step(&mut live, &d, "and again");
+    assert_eq!(r.class, EditClass::Relight);
 }

@@ -21,6 +21,7 @@ use glam::Vec3;
 
 use super::film::Film;
 use super::live::record::{Budget, TileRecord, TileRecorder, shininess_of};
+use super::live::relight::{Previous, relight_tile};
 use super::scene::Scene;
 use super::settings::RenderSettings;
 use super::shading_params::ShadingParams;
@@ -214,7 +215,7 @@ pub fn render(
     };
     in_pool(options.threads, || {
         render_passes(
-            scene, settings, shading, &plan, whole, options, cancel, on_tile, None,
+            scene, settings, shading, &plan, whole, options, cancel, on_tile, None, None,
         )
         .map(|(report, _)| report)
     })
@@ -239,7 +240,7 @@ pub fn render_region(
     }];
     in_pool(options.threads, || {
         render_passes(
-            scene, settings, shading, &plan, region, options, cancel, on_tile, None,
+            scene, settings, shading, &plan, region, options, cancel, on_tile, None, None,
         )
         .map(|(report, _)| report)
     })
@@ -265,7 +266,8 @@ pub(crate) fn in_pool<T: Send>(
 
 /// The passes of `plan` over `area` of the image (the film is `area`'s
 /// size); with `budget`, the final pass also records every pixel's path
-/// (one record per tile, in the order of [`tiles_of`]).
+/// (one record per tile, in the order of [`tiles_of`]), following the
+/// `previous` frame's paths where it has the tile (a light edit).
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn render_passes(
     scene: &Scene,
@@ -277,6 +279,7 @@ pub(crate) fn render_passes(
     cancel: &CancelToken,
     on_tile: &(dyn Fn(&TileUpdate) + Sync),
     budget: Option<&Budget>,
+    previous: Option<&Previous>,
 ) -> Result<(RenderReport, Vec<TileRecord>), Cancelled> {
     let start = Instant::now();
     let tiles = tiles_of(area, tile_side(options));
@@ -308,7 +311,23 @@ pub(crate) fn render_passes(
                 budget.shapes_allowed(),
                 shininess.clone(),
             );
-            if !render_tile_recorded(&tracer, rect, cancel, scratch, pixels, &mut rec) {
+            let old = previous
+                .and_then(|p| Some((lock(p.tiles.get(i)?).take()?, p.reflections)))
+                .filter(|(old, _)| old.rect == rect);
+            let finished = match &old {
+                Some((old, reflections)) => relight_tile(
+                    &tracer,
+                    rect,
+                    cancel,
+                    scratch,
+                    pixels,
+                    &mut rec,
+                    old,
+                    *reflections,
+                ),
+                None => render_tile_recorded(&tracer, rect, cancel, scratch, pixels, &mut rec),
+            };
+            if !finished {
                 return false;
             }
             rec.shrink();

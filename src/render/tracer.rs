@@ -54,6 +54,9 @@ pub enum PathEnd {
 #[derive(Debug, Clone, Copy)]
 pub struct HitRecord {
     pub material: u32,
+    /// The object the path's ray met, and at what distance along it.
+    pub object: u32,
+    pub t: f64,
     pub factors: LightTerms,
     /// `sampled`/`analytic`: light corner − hit point; `nearest_point`: the
     /// specular light direction (zero: no specular).
@@ -67,6 +70,18 @@ pub trait PathSink {
     /// Whether to compute every light factor (a recorded path must serve
     /// any later colour) instead of only those the colours need.
     const RECORD: bool;
+    /// The nearest hit of the path's ray at `depth` (1: the camera ray):
+    /// what `find` finds, unless the sink knows it without intersecting
+    /// (`live/relight.rs`).
+    #[inline(always)]
+    fn nearest(
+        &mut self,
+        _depth: u32,
+        _ray: &Ray,
+        find: impl FnOnce() -> Option<(HitTarget, f64)>,
+    ) -> Option<(HitTarget, f64)> {
+        find()
+    }
     /// A hit with its factors; `visible` holds its light points'
     /// visibility as it was traced.
     fn hit(&mut self, hit: HitRecord, buf: &ShadowBuffers, count: usize);
@@ -347,16 +362,18 @@ impl<'a> Tracer<'a> {
         let mut weight = 1.0f32;
         for depth in 1..=s.max_depth {
             // Only the camera ray (depth 1) may cut away planes.
-            let hit = if depth == 1 {
-                match camera_objects {
-                    Some(objects) => {
-                        scene.camera_hit_among(&ray, s.cutaway, objects.iter().copied())
+            let hit = sink.nearest(depth, &ray, || {
+                if depth == 1 {
+                    match camera_objects {
+                        Some(objects) => {
+                            scene.camera_hit_among(&ray, s.cutaway, objects.iter().copied())
+                        }
+                        None => scene.camera_hit(&ray, s.cutaway),
                     }
-                    None => scene.camera_hit(&ray, s.cutaway),
+                } else {
+                    scene.closest_hit(&ray)
                 }
-            } else {
-                scene.closest_hit(&ray)
-            };
+            });
             let Some((target, t)) = hit else {
                 colour.add(s.background, weight);
                 sink.end(PathEnd::Background);
@@ -422,6 +439,8 @@ impl<'a> Tracer<'a> {
                 sink.hit(
                     HitRecord {
                         material: material_index,
+                        object,
+                        t,
                         factors,
                         to_light,
                         normal: shading_normal.as_vec3(),

@@ -5,11 +5,13 @@
 //! (converted for the texture), and for re-traces to its first tile. After
 //! each re-trace a one-shot render of the same description is timed, over
 //! the same scene (interleaved, so that both meet the same load on a
-//! shared machine).
+//! shared machine). The re-traces are two light moves (which the core
+//! runs as relights over the recorded paths) to one camera move; they are
+//! reported together and by kind.
 
 use std::time::Duration;
 
-use super::{BenchArgs, CliError, scenes};
+use super::{BenchArgs, CliError, cpu_time, scenes};
 use crate::app::render_job::{JobState, RenderJob};
 use crate::render::scene_file::SceneDesc;
 use crate::render::{
@@ -20,10 +22,12 @@ use crate::render::{
 const EDITS: usize = 9;
 
 /// The `k`-th edit of a class, applied to `desc` (each differs from the
-/// previous one, so none is a no-op).
-fn apply(class: EditClass, k: usize, desc: &mut SceneDesc) {
+/// previous one, so none is a no-op); returns the class the core must give
+/// it (a re-trace edit that moves the light relights).
+fn apply(class: EditClass, k: usize, desc: &mut SceneDesc) -> EditClass {
     let f = 0.5 + 0.05 * (k % 8) as f64;
     let first = desc.materials.keys().next().cloned().unwrap_or_default();
+    let mut got = class;
     match (class, k % 3) {
         (EditClass::Recombine, 0) => desc.render.terms.specular = f,
         (EditClass::Recombine, 1) => desc.light.diffuse = [f, f, f],
@@ -41,9 +45,35 @@ fn apply(class: EditClass, k: usize, desc: &mut SceneDesc) {
                 }
             }
         }
-        (_, 0 | 1) => desc.light.corner[0] += if k.is_multiple_of(2) { 0.05 } else { -0.04 },
+        (_, 0 | 1) => {
+            desc.light.corner[0] += if k.is_multiple_of(2) { 0.05 } else { -0.04 };
+            got = EditClass::Relight;
+        }
         _ => desc.camera.position[1] += 0.01,
     }
+    got
+}
+
+/// Median and 90th percentile of `times`, in ms.
+fn median_p90(times: &[Duration]) -> (f64, f64) {
+    let mut sorted = times.to_vec();
+    sorted.sort();
+    (quantile_ms(&sorted, 0.5), quantile_ms(&sorted, 0.9))
+}
+
+/// The median of `ratios`.
+fn median(mut ratios: Vec<f64>) -> f64 {
+    ratios.sort_by(f64::total_cmp);
+    ratios[ratios.len() / 2]
+}
+
+/// One re-trace edit against the one-shot render of its description.
+struct Retrace {
+    class: EditClass,
+    full: Duration,
+    one_shot: Duration,
+    /// The process's CPU time during each (steadier on a shared machine).
+    cpu: Option<(Duration, Duration)>,
 }
 
 /// The `q`-quantile of sorted durations, in ms.
@@ -85,18 +115,19 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
             }
         };
         render(&desc)?;
-        let mut retrace_full = Vec::new();
-        let mut one_shot = Vec::new();
+        let mut retraces: Vec<Retrace> = Vec::new();
         for class in [EditClass::Recombine, EditClass::Reshade, EditClass::Retrace] {
             let mut full = Vec::new();
             let mut first = Vec::new();
             for k in 0..=EDITS {
-                apply(class, k, &mut desc);
+                let want = apply(class, k, &mut desc);
+                let cpu_before = cpu_time();
                 let (got, f, t) = render(&desc)?;
-                if got != class {
+                let cpu = cpu_time().zip(cpu_before).map(|(b, a)| b.saturating_sub(a));
+                if got != want {
                     return Err(CliError::other(format!(
                         "a {} edit ran as {}",
-                        class.name(),
+                        want.name(),
                         got.name()
                     )));
                 }
@@ -104,46 +135,62 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
                     full.push(t);
                     first.push(f);
                     if class == EditClass::Retrace {
-                        one_shot.push(one_shot_render(&job, &desc)?);
+                        let cpu_before = cpu_time();
+                        let one_shot = one_shot_render(&job, &desc)?;
+                        let one_shot_cpu =
+                            cpu_time().zip(cpu_before).map(|(b, a)| b.saturating_sub(a));
+                        retraces.push(Retrace {
+                            class: got,
+                            full: t,
+                            one_shot,
+                            cpu: cpu.zip(one_shot_cpu),
+                        });
                     }
                 }
             }
-            if class == EditClass::Retrace {
-                retrace_full = full.clone();
-            }
-            full.sort();
-            first.sort();
+            let (median_ms, p90_ms) = median_p90(&full);
             print!(
-                "edit {} median_ms {:.1} p90_ms {:.1}",
-                class.name(),
-                quantile_ms(&full, 0.5),
-                quantile_ms(&full, 0.9)
+                "edit {} median_ms {median_ms:.1} p90_ms {p90_ms:.1}",
+                class.name()
             );
             if class == EditClass::Retrace {
-                print!(
-                    " first_pixels_median_ms {:.1} first_pixels_p90_ms {:.1}",
-                    quantile_ms(&first, 0.5),
-                    quantile_ms(&first, 0.9)
-                );
+                let (median_ms, p90_ms) = median_p90(&first);
+                print!(" first_pixels_median_ms {median_ms:.1} first_pixels_p90_ms {p90_ms:.1}");
             }
             println!();
         }
         drop(job);
-        // Each re-trace against the one-shot render right after it.
-        let mut paired: Vec<f64> = retrace_full
-            .iter()
-            .zip(&one_shot)
-            .map(|(r, o)| r.as_secs_f64() / o.as_secs_f64())
-            .collect();
-        paired.sort_by(f64::total_cmp);
-        retrace_full.sort();
-        one_shot.sort();
-        let cli = quantile_ms(&one_shot, 0.5);
-        println!(
-            "one-shot render median_ms {cli:.1}; re-trace full quality / one-shot {:.2}× (median of the pairs {:.2}×)",
-            quantile_ms(&retrace_full, 0.5) / cli,
-            paired[paired.len() / 2]
-        );
+        // Each re-trace against the one-shot render right after it: all of
+        // them, then the light moves and the camera moves apart.
+        for (kind, of_kind) in [
+            ("", None),
+            (".light", Some(EditClass::Relight)),
+            (".camera", Some(EditClass::Retrace)),
+        ] {
+            let runs: Vec<&Retrace> = retraces
+                .iter()
+                .filter(|r| of_kind.is_none_or(|k| k == r.class))
+                .collect();
+            let full: Vec<Duration> = runs.iter().map(|r| r.full).collect();
+            let one_shot: Vec<Duration> = runs.iter().map(|r| r.one_shot).collect();
+            let ratio = |(r, o): (Duration, Duration)| r.as_secs_f64() / o.as_secs_f64();
+            let pairs = median(runs.iter().map(|r| ratio((r.full, r.one_shot))).collect());
+            let (median_ms, p90_ms) = median_p90(&full);
+            let (cli, _) = median_p90(&one_shot);
+            if of_kind.is_some() {
+                print!("edit retrace{kind} median_ms {median_ms:.1} p90_ms {p90_ms:.1}; ");
+            }
+            print!(
+                "re-trace{kind} full quality / one-shot {:.2}× (one-shot median_ms {cli:.1}; median of the {} pairs {pairs:.2}×",
+                median_ms / cli,
+                runs.len()
+            );
+            let cpu: Option<Vec<f64>> = runs.iter().map(|r| r.cpu.map(ratio)).collect();
+            if let Some(cpu) = cpu {
+                print!(", of their CPU times {:.2}×", median(cpu));
+            }
+            println!(")");
+        }
         println!("record peak_bytes {peak} ({:.1} MB)", peak as f64 / 1e6);
     }
     Ok(())

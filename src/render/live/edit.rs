@@ -20,10 +20,13 @@ pub enum EditClass {
     /// recorded visibility gives the specular factors again, and only the
     /// paths a reflectivity edit lengthens are traced.
     Reshade,
-    /// The camera, the light's position or size, shadow rays, sampling,
-    /// The camera, the light's position or size, shadow rays, sampling,
-    /// model, depth, seed, shadows, adaptive, cut-away, samples per pixel:
-    /// the objects and their BVH
+    /// The light's position or size (with any of the edits above): the
+    /// camera paths stand, so each hit's light is traced again over the
+    /// recorded paths, intersecting only the rays the new light may cut
+    /// (`relight.rs`).
+    Relight,
+    /// The camera, shadow rays, sampling, model, depth, seed, shadows,
+    /// adaptive, cut-away, samples per pixel: the objects and their BVH
     /// stand, every pixel is traced.
     Retrace,
     /// Objects, the set of materials: the scene is built again and every
@@ -32,10 +35,11 @@ pub enum EditClass {
 }
 
 impl EditClass {
-    pub const ALL: [EditClass; 5] = [
+    pub const ALL: [EditClass; 6] = [
         EditClass::Nothing,
         EditClass::Recombine,
         EditClass::Reshade,
+        EditClass::Relight,
         EditClass::Retrace,
         EditClass::Rebuild,
     ];
@@ -45,6 +49,7 @@ impl EditClass {
             EditClass::Nothing => "nothing",
             EditClass::Recombine => "recombine",
             EditClass::Reshade => "reshade",
+            EditClass::Relight => "relight",
             EditClass::Retrace => "retrace",
             EditClass::Rebuild => "rebuild",
         }
@@ -98,9 +103,10 @@ pub fn classify(old: &SceneDesc, new: &SceneDesc) -> EditClass {
     if !objects_same {
         return EditClass::Rebuild;
     }
-    if !camera_same || (corner, edge_u, edge_v) != (&l.corner, &l.edge_u, &l.edge_v) {
+    if !camera_same {
         return EditClass::Retrace;
     }
+    let light_moved = (corner, edge_u, edge_v) != (&l.corner, &l.edge_u, &l.edge_v);
 
     let RenderDesc {
         shadow_rays,
@@ -140,9 +146,13 @@ pub fn classify(old: &SceneDesc, new: &SceneDesc) -> EditClass {
         return EditClass::Retrace;
     }
 
-    let mut class = EditClass::Nothing;
+    let mut class = if light_moved {
+        EditClass::Relight
+    } else {
+        EditClass::Nothing
+    };
     if *shininess_override != r.shininess_override {
-        class = EditClass::Reshade;
+        class = class.max(EditClass::Reshade);
     }
     for (m, o) in materials.values().zip(old.materials.values()) {
         let MaterialDesc {

@@ -7,6 +7,8 @@
 //! - re-shade: the specular factors of the hits whose shininess changed are
 //!   computed again from their recorded visibility, and only the pixels
 //!   whose paths a reflectivity edit lengthens are traced;
+//! - relight: a progressive render whose final pass follows the recorded
+//!   paths under the new light, intersecting only the rays it may cut;
 //! - re-trace and rebuild: a progressive render (the scene is built again
 //!   only for a rebuild) whose final pass records the paths again.
 //!
@@ -17,6 +19,7 @@
 pub mod cosine_logs;
 pub mod edit;
 pub mod record;
+pub mod relight;
 pub mod respecular;
 
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -28,6 +31,7 @@ use glam::Vec3;
 use cosine_logs::{CosineLogs, LogBudget, NO_HIT};
 pub use edit::{EditClass, classify};
 use record::{Budget, TileRecord, TileRecorder, shininess_of};
+use relight::Previous;
 use respecular::{RecordedHit, ReshadeBatch, specular_from_logs};
 
 use super::error::SceneError;
@@ -46,7 +50,7 @@ use super::stats::RayStats;
 use super::tracer::{ReplayMaterial, Tracer, replay_materials, replay_pixel};
 
 /// Default memory cap of the records (see `record.rs` for the bytes per
-/// hit): the seed room at 960×540, 64 shadow rays, depth 4 needs ~35 MB,
+/// hit): the seed room at 960×540, 64 shadow rays, depth 4 needs ~42 MB,
 /// and a re-shade keeps logarithms for the next one in the rest
 /// (`cosine_logs.rs`). 64 MB in decimal units, as the bench prints them.
 pub const DEFAULT_RECORD_CAP: usize = 64_000_000;
@@ -215,12 +219,29 @@ impl LiveRender {
                     options,
                     cancel,
                     on_tile,
+                    None,
                 )?
             }
-            EditClass::Retrace => {
+            EditClass::Relight | EditClass::Retrace => {
                 desc.validate()?;
-                let scene = self.current.take().expect("a scene to re-trace").scene;
-                let scene = Arc::new(scene.with_view(desc));
+                let last = self.current.take().expect("a scene to re-trace");
+                let scene = Arc::new(last.scene.with_view(desc));
+                let previous = last
+                    .frame
+                    .filter(|f| {
+                        class == EditClass::Relight
+                            && f.tile_size == super::progressive::tile_side(options)
+                    })
+                    .map(|f| Previous {
+                        tiles: f
+                            .tiles
+                            .into_iter()
+                            .map(|t| {
+                                Mutex::new(Some(t.into_inner().unwrap_or_else(|e| e.into_inner())))
+                            })
+                            .collect(),
+                        reflections: scene.scale == last.scene.scale,
+                    });
                 self.retrace(
                     desc,
                     scene,
@@ -229,6 +250,7 @@ impl LiveRender {
                     options,
                     cancel,
                     on_tile,
+                    previous,
                 )?
             }
             EditClass::Nothing | EditClass::Recombine | EditClass::Reshade => {
@@ -252,6 +274,7 @@ impl LiveRender {
         options: &RenderOptions,
         cancel: &CancelToken,
         on_tile: &(dyn Fn(&TileUpdate) + Sync),
+        previous: Option<Previous>,
     ) -> Result<LiveReport, LiveError> {
         // Until the final pass is done there are no records of this scene.
         self.current = Some(Current {
@@ -287,6 +310,7 @@ impl LiveRender {
                 cancel,
                 on_tile,
                 Some(&budget),
+                previous.as_ref(),
             )
         })?;
         // The `exact` model records no visibility bits to recompute its
@@ -331,11 +355,15 @@ impl LiveRender {
         if !frame.shapes && frame.tiles.iter().any(|t| lock(t).shininess != shininess) {
             // Above the memory cap the visibility was not kept.
             let scene = self.current.take().expect("a scene").scene;
-            return self.retrace(desc, scene, settings, shading, options, cancel, on_tile);
+            return self.retrace(
+                desc, scene, settings, shading, options, cancel, on_tile, None,
+            );
         }
         if frame.tile_size != super::progressive::tile_side(options) {
             let scene = self.current.take().expect("a scene").scene;
-            return self.retrace(desc, scene, settings, shading, options, cancel, on_tile);
+            return self.retrace(
+                desc, scene, settings, shading, options, cancel, on_tile, None,
+            );
         }
         let scene = current.scene.clone();
         let (width, height) = (scene.camera.width, scene.camera.height);
@@ -577,6 +605,12 @@ fn replay_tile(
         for p in i * spp as usize..(i + 1) * spp as usize {
             let range = record.path_hits(p);
             fresh.hits.extend_from_slice(&record.hits[range.clone()]);
+            fresh
+                .objects
+                .extend_from_slice(&record.objects[range.clone()]);
+            fresh
+                .distances
+                .extend_from_slice(&record.distances[range.clone()]);
             if let (Some(to), Some(from)) = (&mut fresh.shapes, &record.shapes) {
                 to.hits.extend_from_slice(&from.hits[range.clone()]);
                 to.visible.extend_from_slice(

@@ -4,10 +4,13 @@
 //!
 //! Bytes per hit: 12 for the colour tier (material, diffuse and specular
 //! factors) — enough for every recombine edit and for reflectivity — plus
-//! 36 + 8 per 64 light points for the shininess tier (the hit's light
-//! direction, normal and view in f32, and one visibility bit per light
-//! point). Per pixel: 5 (its first hit and how its path ended). At 960×540,
-//! 64 shadow rays, depth 4 on the seed room (670 k hits): about 40 MB.
+//! 12 for the ray tier (the object met and its distance along the ray:
+//! what a light edit needs to follow the path without intersecting, see
+//! `relight.rs`), plus 36 + 8 per 64 light points for the shininess tier
+//! (the hit's light direction, normal and view in f32, and one visibility
+//! bit per light point). Per pixel: 5 (its first hit and how its path
+//! ended). At 960×540, 64 shadow rays, depth 4 on the seed room (575 k
+//! hits): about 42 MB.
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
@@ -45,6 +48,10 @@ pub struct TileRecord {
     pub starts: Vec<u32>,
     pub ends: Vec<PathEnd>,
     pub hits: Vec<ColourHit>,
+    /// The ray tier, parallel to `hits`: the object each hit's ray met and
+    /// at what distance along it.
+    pub objects: Vec<u32>,
+    pub distances: Vec<f64>,
     /// The shininess tier, parallel to `hits` (absent above the memory cap).
     pub shapes: Option<Shapes>,
     /// Per material, the shininess the specular factors were computed
@@ -82,6 +89,8 @@ impl TileRecord {
             starts,
             ends: Vec::with_capacity(pixels),
             hits: Vec::with_capacity(hits),
+            objects: Vec::with_capacity(hits),
+            distances: Vec::with_capacity(hits),
             shapes: with_shapes.then(|| Shapes {
                 hits: Vec::with_capacity(hits),
                 visible: Vec::with_capacity(hits * light_points.div_ceil(64)),
@@ -105,6 +114,8 @@ impl TileRecord {
         self.starts.capacity() * 4
             + self.ends.capacity() * size_of::<PathEnd>()
             + self.hits.capacity() * size_of::<ColourHit>()
+            + self.objects.capacity() * 4
+            + self.distances.capacity() * 8
             + shapes
     }
 
@@ -119,6 +130,8 @@ impl TileRecord {
         self.starts.shrink_to_fit();
         self.ends.shrink_to_fit();
         self.hits.shrink_to_fit();
+        self.objects.shrink_to_fit();
+        self.distances.shrink_to_fit();
         if let Some(s) = &mut self.shapes {
             s.hits.shrink_to_fit();
             s.visible.shrink_to_fit();
@@ -129,9 +142,7 @@ impl TileRecord {
     pub fn drop_shapes(&mut self) {
         self.shapes = None;
         self.logs = None;
-        self.starts.shrink_to_fit();
-        self.ends.shrink_to_fit();
-        self.hits.shrink_to_fit();
+        self.shrink();
     }
 }
 
@@ -155,6 +166,8 @@ impl PathSink for TileRecorder<'_> {
             material: hit.material,
             factors: hit.factors,
         });
+        r.objects.push(hit.object);
+        r.distances.push(hit.t);
         if let Some(s) = &mut r.shapes {
             s.hits.push(ShapeHit {
                 to_light: hit.to_light,

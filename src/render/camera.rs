@@ -1,3 +1,5 @@
+use std::array::from_fn;
+
 use glam::DVec3;
 
 use super::geometry::Ray;
@@ -63,21 +65,15 @@ impl Camera {
         let sy = 1.0 - 2.0 * (y as f64 + 0.5) / h;
         let (f, r, u) = (self.forward, self.right, self.up);
         for start in (x0..x0 + n).step_by(CHUNK) {
-            let mut d = [[0.0f64; CHUNK]; 3];
-            for k in 0..CHUNK {
-                let sx = 2.0 * ((start + k as u32) as f64 + 0.5) / w - 1.0;
-                d[0][k] = f.x + r.x * sx + u.x * sy;
-                d[1][k] = f.y + r.y * sx + u.y * sy;
-                d[2][k] = f.z + r.z * sx + u.z * sy;
-            }
-            let mut inv = [0.0f64; CHUNK];
-            for k in 0..CHUNK {
-                let (x, y, z) = (d[0][k], d[1][k], d[2][k]);
-                inv[k] = 1.0 / (x * x + y * y + z * z).sqrt();
-            }
+            let sx: [f64; CHUNK] = from_fn(|k| 2.0 * ((start + k as u32) as f64 + 0.5) / w - 1.0);
+            let dx: [f64; CHUNK] = from_fn(|k| f.x + r.x * sx[k] + u.x * sy);
+            let dy: [f64; CHUNK] = from_fn(|k| f.y + r.y * sx[k] + u.y * sy);
+            let dz: [f64; CHUNK] = from_fn(|k| f.z + r.z * sx[k] + u.z * sy);
+            let inv: [f64; CHUNK] =
+                from_fn(|k| 1.0 / (dx[k] * dx[k] + dy[k] * dy[k] + dz[k] * dz[k]).sqrt());
             let len = CHUNK.min((x0 + n - start) as usize);
             out.extend(
-                (0..len).map(|k| DVec3::new(d[0][k] * inv[k], d[1][k] * inv[k], d[2][k] * inv[k])),
+                (0..len).map(|k| DVec3::new(dx[k] * inv[k], dy[k] * inv[k], dz[k] * inv[k])),
             );
         }
     }

@@ -9,6 +9,7 @@ use crate::render::output::{FileKind, write_film, writes_interrupted};
 use crate::render::region::{Part, check_region, fingerprint, write_part};
 use crate::render::{
     CancelToken, Loaded, RenderOptions, RenderReport, Scene, SceneDesc, TileRect, TileUpdate,
+    on_threads,
 };
 
 /// Loads and builds a scene (the built-in seed room for `None`) with
@@ -146,8 +147,10 @@ pub fn render(args: &RenderArgs) -> Result<(), CliError> {
     let cancel = CancelToken::new();
     super::safety::handle_signals(&cancel);
 
+    // One pool of worker threads renders and then encodes the image.
+    let threads = args.threads.map(|n| n as usize);
     let options = RenderOptions {
-        threads: args.threads.map(|n| n as usize),
+        threads: None,
         progressive: args.progressive,
         ..RenderOptions::default()
     };
@@ -177,38 +180,42 @@ pub fn render(args: &RenderArgs) -> Result<(), CliError> {
             bar.inc(1);
         }
     };
-    let report = match args.region {
-        Some(region) => loaded.render_region(region, &options, &cancel, &on_tile),
-        None => loaded.render(&options, &cancel, &on_tile),
-    };
-    if let Some(bar) = &bar {
-        bar.finish_and_clear();
-    }
-    let report = report.map_err(|_| CliError::other("interrupted: no image written"))?;
-    if cancel.is_cancelled() {
-        return Err(CliError::other("interrupted: no image written"));
-    }
-    let written = match args.region {
-        Some(region) => {
-            let part = Part {
-                region,
-                full: (whole.w, whole.h),
-                scene: fingerprint(&desc, &loaded.settings),
-                version: env!("CARGO_PKG_VERSION").to_string(),
-                film: report.film.clone(),
-            };
-            write_part(&part, &args.output)
+    let (report, threads) = on_threads(threads, || {
+        let report = match args.region {
+            Some(region) => loaded.render_region(region, &options, &cancel, &on_tile),
+            None => loaded.render(&options, &cancel, &on_tile),
+        };
+        if let Some(bar) = &bar {
+            bar.finish_and_clear();
         }
-        None => write_film(&report.film, &args.output),
-    };
-    written.map_err(|e| {
-        if writes_interrupted() {
-            CliError::other("interrupted: no image written")
-        } else {
-            CliError::other(e)
+        let report = report.map_err(|_| CliError::other("interrupted: no image written"))?;
+        if cancel.is_cancelled() {
+            return Err(CliError::other("interrupted: no image written"));
         }
-    })?;
-    let line = summary(&scene, &report, options.threads, loading, start.elapsed());
+        let written = match args.region {
+            Some(region) => {
+                let part = Part {
+                    region,
+                    full: (whole.w, whole.h),
+                    scene: fingerprint(&desc, &loaded.settings),
+                    version: env!("CARGO_PKG_VERSION").to_string(),
+                    film: report.film.clone(),
+                };
+                write_part(&part, &args.output)
+            }
+            None => write_film(&report.film, &args.output),
+        };
+        written.map_err(|e| {
+            if writes_interrupted() {
+                CliError::other("interrupted: no image written")
+            } else {
+                CliError::other(e)
+            }
+        })?;
+        Ok((report, rayon::current_num_threads()))
+    })
+    .ok_or_else(|| CliError::other("cannot start the worker threads"))??;
+    let line = summary(&scene, &report, Some(threads), loading, start.elapsed());
     match args.region {
         Some(r) => eprintln!("region {},{},{},{} of {line}", r.x, r.y, r.w, r.h),
         None => eprintln!("{line}"),

@@ -74,10 +74,24 @@ impl DisplayTransform {
         encode_srgb8(self.map(p))
     }
 
-    /// A whole image, row-major RGB bytes.
+    /// A whole image, row-major RGB bytes, encoded block by block on the
+    /// current rayon pool's threads.
     pub fn encode_all(&self, pixels: &[Vec3]) -> Vec<u8> {
-        let mut out = Vec::with_capacity(pixels.len() * 3);
-        self.encode_each(pixels, |rgb| out.extend_from_slice(&rgb));
+        use rayon::prelude::*;
+        const BLOCK: usize = 16384;
+        // Zeroed lazily by the system: each block's pages are first touched
+        // by the thread that encodes it.
+        let mut out = vec![0u8; pixels.len() * 3];
+        out.par_chunks_mut(3 * BLOCK)
+            .zip(pixels.par_chunks(BLOCK))
+            .for_each(|(bytes, block)| {
+                let mut next = bytes.chunks_exact_mut(3);
+                self.encode_each(block, |rgb| {
+                    if let Some(b) = next.next() {
+                        b.copy_from_slice(&rgb);
+                    }
+                });
+            });
         out
     }
 
@@ -126,7 +140,8 @@ mod tests {
             f32::INFINITY,
             f32::NEG_INFINITY,
         ];
-        let pixels: Vec<Vec3> = (0..values.len() * 5)
+        // Several of `encode_all`'s blocks, the last one partial.
+        let pixels: Vec<Vec3> = (0..40_000)
             .map(|i| Vec3::new(values[i % 14], values[(i / 3) % 14], values[(i * 7) % 14]))
             .collect();
         for t in [

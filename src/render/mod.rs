@@ -62,8 +62,8 @@ pub use film::Film;
 pub use live::{EditClass, LiveError, LiveRender, LiveReport, classify};
 pub use pixel_filter::FilterKind;
 pub use progressive::{
-    CancelToken, Cancelled, Pass, RenderOptions, RenderReport, TileRect, TileUpdate, pass_plan,
-    render, render_image, render_region,
+    CancelToken, Cancelled, Pass, RenderOptions, RenderReport, TileRect, TileUpdate, on_threads,
+    pass_plan, render, render_image, render_region,
 };
 pub use reference::{REFERENCE_RAYS, REFERENCE_SAMPLING, REFERENCE_SEED, reference_desc};
 pub use scene::{HitTarget, Loaded, PACKET_THRESHOLD, SEED_ROOM_JSON, Scene};

@@ -8,7 +8,8 @@ use std::path::Path;
 use std::sync::atomic::{AtomicBool, AtomicPtr, Ordering};
 
 use glam::Vec3;
-use image::{ImageFormat, ImageReader};
+use image::codecs::png::PngEncoder;
+use image::{ExtendedColorType, ImageEncoder, ImageFormat, ImageReader};
 
 use super::display::DisplayTransform;
 use super::error::ImageError;
@@ -324,9 +325,15 @@ pub fn write_rgb8(path: &Path, width: u32, height: u32, rgb: &[u8]) -> Result<()
             path: path.to_owned(),
         });
     }
-    let img = image::RgbImage::from_raw(width, height, rgb.to_vec()).expect("buffer matches size");
+    assert_eq!(
+        rgb.len(),
+        width as usize * height as usize * 3,
+        "buffer matches size"
+    );
     write_atomic(path, |w| {
-        img.write_to(w, ImageFormat::Png).map_err(|e| e.to_string())
+        PngEncoder::new(w)
+            .write_image(rgb, width, height, ExtendedColorType::Rgb8)
+            .map_err(|e| e.to_string())
     })
 }
 

@@ -251,16 +251,22 @@ pub(crate) fn in_pool<T: Send>(
     threads: Option<usize>,
     f: impl FnOnce() -> Result<T, Cancelled> + Send,
 ) -> Result<T, Cancelled> {
+    on_threads(threads, f).unwrap_or(Err(Cancelled))
+}
+
+/// Runs `f` on a pool of `threads` workers, or on rayon's current pool
+/// (`None`: the pool could not be started).
+pub fn on_threads<T: Send>(threads: Option<usize>, f: impl FnOnce() -> T + Send) -> Option<T> {
     match threads {
         Some(n) => {
             let pool = rayon::ThreadPoolBuilder::new()
                 .num_threads(n.max(1))
                 .thread_name(|i| format!("penumbra-render-{i}"))
                 .build()
-                .map_err(|_| Cancelled)?;
-            pool.install(f)
+                .ok()?;
+            Some(pool.install(f))
         }
-        None => f(),
+        None => Some(f()),
     }
 }
 

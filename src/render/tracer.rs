@@ -118,6 +118,8 @@ pub struct TraceScratch {
     factors: Vec<LightTerms>,
     /// The objects [`Tracer::tile`]'s camera rays test.
     camera_objects: Vec<u32>,
+    /// The directions of one row of a tile's camera rays.
+    camera_dirs: Vec<DVec3>,
 }
 
 impl<'a> Tracer<'a> {
@@ -151,6 +153,7 @@ impl<'a> Tracer<'a> {
             terms: Vec::new(),
             factors: Vec::new(),
             camera_objects: Vec::new(),
+            camera_dirs: Vec::new(),
         }
     }
 
@@ -256,17 +259,21 @@ impl<'a> Tracer<'a> {
                 finished = false;
                 break 'rows;
             }
-            for x in rect.x..rect.x + rect.w {
-                out.push(match &objects {
-                    Some(objects) => {
-                        let mut colour = Sum(Vec3::ZERO);
-                        let ray = camera.pixel_ray(x, y);
-                        self.trace_path(x, y, 0, ray, Some(objects), scratch, sink, &mut colour);
-                        colour.0
-                    }
-                    None => self.trace(x, y, scratch, sink),
-                });
+            let Some(objects) = &objects else {
+                for x in rect.x..rect.x + rect.w {
+                    out.push(self.trace(x, y, scratch, sink));
+                }
+                continue;
+            };
+            let mut dirs = std::mem::take(&mut scratch.camera_dirs);
+            camera.row_directions(rect.x, y, rect.w, &mut dirs);
+            for (x, &dir) in (rect.x..).zip(&dirs) {
+                let mut colour = Sum(Vec3::ZERO);
+                let ray = Ray::new(camera.origin, dir);
+                self.trace_path(x, y, 0, ray, Some(objects), scratch, sink, &mut colour);
+                out.push(colour.0);
             }
+            scratch.camera_dirs = dirs;
         }
         if let Some(objects) = objects {
             scratch.camera_objects = objects;
@@ -303,11 +310,14 @@ impl<'a> Tracer<'a> {
                 finished = false;
                 break 'rows;
             }
-            for x in rect.x..rect.x + rect.w {
-                let ray = camera.pixel_ray(x, y);
+            let mut dirs = std::mem::take(&mut scratch.camera_dirs);
+            camera.row_directions(rect.x, y, rect.w, &mut dirs);
+            for (x, &dir) in (rect.x..).zip(&dirs) {
+                let ray = Ray::new(camera.origin, dir);
                 self.trace_path(x, y, 0, ray, Some(objects), scratch, &mut (), &mut colour);
                 colour.terms.push(Term::PixelEnd);
             }
+            scratch.camera_dirs = dirs;
         }
         if finished {
             colour.flush();

@@ -247,37 +247,54 @@ impl<'a> Tracer<'a> {
         out: &mut Vec<Vec3>,
     ) -> bool {
         out.clear();
-        let objects = self.traces_tiles().then(|| {
-            let mut objects = std::mem::take(&mut scratch.camera_objects);
-            camera_objects(self.scene, rect, &mut objects);
-            objects
-        });
-        let camera = &self.scene.camera;
-        let mut finished = true;
-        'rows: for y in rect.y..rect.y + rect.h {
-            if cancel.is_cancelled() {
-                finished = false;
-                break 'rows;
-            }
-            let Some(objects) = &objects else {
+        if !self.traces_tiles() {
+            for y in rect.y..rect.y + rect.h {
+                if cancel.is_cancelled() {
+                    return false;
+                }
                 for x in rect.x..rect.x + rect.w {
                     out.push(self.trace(x, y, scratch, sink));
                 }
-                continue;
-            };
-            let mut dirs = std::mem::take(&mut scratch.camera_dirs);
+            }
+            return true;
+        }
+        let mut objects = std::mem::take(&mut scratch.camera_objects);
+        camera_objects(self.scene, rect, &mut objects);
+        let finished = self.each_camera_ray(rect, cancel, scratch, |x, y, ray, scratch| {
+            let mut colour = Sum(Vec3::ZERO);
+            self.trace_path(x, y, 0, ray, Some(&objects), scratch, sink, &mut colour);
+            out.push(colour.0);
+        });
+        scratch.camera_objects = objects;
+        finished
+    }
+
+    /// Calls `each` with the camera ray of every pixel of `rect` (one
+    /// sample a pixel), row by row, a row's directions computed at once
+    /// ([`Camera::row_directions`](super::camera::Camera::row_directions));
+    /// false if cancelled part-way.
+    #[inline]
+    fn each_camera_ray(
+        &self,
+        rect: TileRect,
+        cancel: &CancelToken,
+        scratch: &mut TraceScratch,
+        mut each: impl FnMut(u32, u32, Ray, &mut TraceScratch),
+    ) -> bool {
+        let camera = &self.scene.camera;
+        let mut dirs = std::mem::take(&mut scratch.camera_dirs);
+        let mut finished = true;
+        for y in rect.y..rect.y + rect.h {
+            if cancel.is_cancelled() {
+                finished = false;
+                break;
+            }
             camera.row_directions(rect.x, y, rect.w, &mut dirs);
             for (x, &dir) in (rect.x..).zip(&dirs) {
-                let mut colour = Sum(Vec3::ZERO);
-                let ray = Ray::new(camera.origin, dir);
-                self.trace_path(x, y, 0, ray, Some(objects), scratch, sink, &mut colour);
-                out.push(colour.0);
+                each(x, y, Ray::new(camera.origin, dir), scratch);
             }
-            scratch.camera_dirs = dirs;
         }
-        if let Some(objects) = objects {
-            scratch.camera_objects = objects;
-        }
+        scratch.camera_dirs = dirs;
         finished
     }
 
@@ -303,22 +320,10 @@ impl<'a> Tracer<'a> {
         };
         colour.terms.clear();
         colour.factors.clear();
-        let camera = &self.scene.camera;
-        let mut finished = true;
-        'rows: for y in rect.y..rect.y + rect.h {
-            if cancel.is_cancelled() {
-                finished = false;
-                break 'rows;
-            }
-            let mut dirs = std::mem::take(&mut scratch.camera_dirs);
-            camera.row_directions(rect.x, y, rect.w, &mut dirs);
-            for (x, &dir) in (rect.x..).zip(&dirs) {
-                let ray = Ray::new(camera.origin, dir);
-                self.trace_path(x, y, 0, ray, Some(objects), scratch, &mut (), &mut colour);
-                colour.terms.push(Term::PixelEnd);
-            }
-            scratch.camera_dirs = dirs;
-        }
+        let finished = self.each_camera_ray(rect, cancel, scratch, |x, y, ray, scratch| {
+            self.trace_path(x, y, 0, ray, Some(objects), scratch, &mut (), &mut colour);
+            colour.terms.push(Term::PixelEnd);
+        });
         if finished {
             colour.flush();
             out.clear();

@@ -271,7 +271,7 @@ mod tests {
 
     /// The definition, hit by hit: the tracer's specular term with its
     /// visibility weights and sum.
-    fn one_hit(
+    pub(super) fn one_hit(
         hit: &RecordedHit,
         visible: &[u64],
         a: &[f32],
@@ -378,28 +378,9 @@ mod tests {
 
 #[cfg(test)]
 mod kept_logs_tests {
+    use super::tests::one_hit;
     use super::*;
-    use crate::render::math::pow_approx;
     use crate::render::scene_file::Sampling;
-
-    /// The tracer's average for a fully lit hit, point by point.
-    fn fully_lit_hit(hit: &RecordedHit, a: &[f32], b: &[f32], eu: Vec3, ev: Vec3) -> f32 {
-        let terms: Vec<f32> = (0..a.len())
-            .map(|j| {
-                let (x, y, z) = (
-                    hit.to_corner.x + eu.x * a[j] + ev.x * b[j],
-                    hit.to_corner.y + eu.y * a[j] + ev.y * b[j],
-                    hit.to_corner.z + eu.z * a[j] + ev.z * b[j],
-                );
-                let inv = 1.0 / (x * x + y * y + z * z).sqrt();
-                1.0 * pow_approx(
-                    blinn_cosine(hit.normal, hit.view, x, y, z, inv),
-                    hit.shininess,
-                )
-            })
-            .collect();
-        terms.iter().sum::<f32>() * (1.0 / a.len() as f32)
-    }
 
     #[test]
     fn kept_logs_give_the_bits_of_the_full_term_for_any_shininess() {
@@ -456,7 +437,7 @@ mod kept_logs_tests {
                             shininess: shininess(i),
                             ..hits[i]
                         };
-                        fully_lit_hit(&hit, &a, &b, eu, ev).to_bits()
+                        one_hit(&hit, &visible, &a, &b, eu, ev).to_bits()
                     })
                     .collect()
             };

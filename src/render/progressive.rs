@@ -21,7 +21,7 @@ use glam::Vec3;
 
 use super::film::Film;
 use super::live::record::{Budget, TileRecord, TileRecorder, shininess_of};
-use super::live::relight::{Previous, relight_tile};
+use super::live::relight::{Previous, Relighter};
 use super::scene::Scene;
 use super::settings::RenderSettings;
 use super::shading_params::ShadingParams;
@@ -320,18 +320,16 @@ pub(crate) fn render_passes(
             let old = previous
                 .and_then(|p| Some((lock(p.tiles.get(i)?).take()?, p.reflections)))
                 .filter(|(old, _)| old.rect == rect);
+            // Every path is recorded; under a light edit it follows the
+            // tile's old records as far as they hold.
+            let mut recorder = TileRecorder { record: &mut rec };
             let finished = match &old {
-                Some((old, reflections)) => relight_tile(
-                    &tracer,
-                    rect,
-                    cancel,
-                    scratch,
-                    pixels,
-                    &mut rec,
-                    old,
-                    *reflections,
-                ),
-                None => render_tile_recorded(&tracer, rect, cancel, scratch, pixels, &mut rec),
+                Some((old, reflections)) => {
+                    let light = &tracer.scene.light.shape;
+                    let mut relighter = Relighter::new(recorder, old, light, *reflections);
+                    tracer.trace_rect(rect, cancel, scratch, &mut relighter, pixels)
+                }
+                None => tracer.trace_rect(rect, cancel, scratch, &mut recorder, pixels),
             };
             if !finished {
                 return false;
@@ -473,17 +471,4 @@ fn render_tile(
         }
     }
     true
-}
-
-/// Renders one tile at full resolution into `out`, recording every path
-/// into `record`; false if cancelled part-way.
-pub(crate) fn render_tile_recorded(
-    tracer: &Tracer,
-    rect: TileRect,
-    cancel: &CancelToken,
-    scratch: &mut TraceScratch,
-    out: &mut Vec<Vec3>,
-    record: &mut TileRecord,
-) -> bool {
-    tracer.trace_rect(rect, cancel, scratch, &mut TileRecorder { record }, out)
 }

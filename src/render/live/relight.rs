@@ -16,14 +16,11 @@
 
 use std::sync::Mutex;
 
-use glam::Vec3;
-
 use super::record::{TileRecord, TileRecorder};
 use crate::render::geometry::{Parallelogram, Ray};
-use crate::render::progressive::{CancelToken, TileRect};
 use crate::render::scene::HitTarget;
 use crate::render::shadow::ShadowBuffers;
-use crate::render::tracer::{HitRecord, PathEnd, PathSink, TraceScratch, Tracer};
+use crate::render::tracer::{HitRecord, PathEnd, PathSink};
 
 /// Follows the recorded paths of one tile (`old`) under a new light while
 /// recording them again into `recorder`.
@@ -118,23 +115,4 @@ pub struct Previous {
     pub tiles: Vec<Mutex<Option<TileRecord>>>,
     /// See [`Relighter`].
     pub reflections: bool,
-}
-
-/// Renders one tile at full resolution into `out` following `old`'s paths
-/// under the tracer's light, recording them into `record`; false if
-/// cancelled part-way.
-#[allow(clippy::too_many_arguments)]
-pub fn relight_tile(
-    tracer: &Tracer,
-    rect: TileRect,
-    cancel: &CancelToken,
-    scratch: &mut TraceScratch,
-    out: &mut Vec<Vec3>,
-    record: &mut TileRecord,
-    old: &TileRecord,
-    reflections: bool,
-) -> bool {
-    let light = &tracer.scene.light.shape;
-    let mut sink = Relighter::new(TileRecorder { record }, old, light, reflections);
-    tracer.trace_rect(rect, cancel, scratch, &mut sink, out)
 }

@@ -628,22 +628,61 @@ impl Ctx<'_> {
 /// 2.6e-4 of the cell.
 const NEAR_FIELD: f64 = 0.5;
 
-/// Whether the cell [lo, lo + size]² is too near the point for the nested
-/// rules (its side above [`NEAR_FIELD`] of a lower bound on its distance).
-fn near_field(ctx: &Ctx, lo: DVec2, size: f64) -> bool {
-    let centre = ctx.lobe.direction(lo.x + 0.5 * size, lo.y + 0.5 * size);
-    let distance = (centre.length() - size * ctx.reach).max(ctx.height);
-    size * ctx.side > NEAR_FIELD * distance
+/// A cell as its gates see it: its centre's distance from the point, its
+/// angular size, and whether the mirror direction passes within that plus
+/// six lobe widths (beyond which the lobe is below e⁻¹⁸ of its peak),
+/// taken once for all of a cell's gates.
+struct CellView {
+    distance: f64,
+    angular: f64,
+    near_mirror: bool,
+}
+
+impl CellView {
+    fn new(ctx: &Ctx, lo: DVec2, size: f64) -> CellView {
+        let centre = ctx.lobe.direction(lo.x + 0.5 * size, lo.y + 0.5 * size);
+        let distance = centre.length();
+        let angular = size * ctx.side * std::f64::consts::SQRT_2 / distance;
+        // Only asked with 3 nodes a side or more.
+        let near_mirror = angular / NESTED_ORDERS[1] as f64 > 0.5 * ctx.width && {
+            let cos = (centre / distance).dot(ctx.mirror).clamp(-1.0, 1.0);
+            cos.acos() < angular + 6.0 * ctx.width
+        };
+        CellView {
+            distance,
+            angular,
+            near_mirror,
+        }
+    }
+
+    /// Too coarse for a narrow lobe that may lie on it: `nodes` (≥ 3) per
+    /// side farther apart than half the lobe's width, and the mirror
+    /// direction near.
+    fn lobe_unresolved(&self, ctx: &Ctx, nodes: usize) -> bool {
+        self.angular / nodes as f64 > 0.5 * ctx.width && self.near_mirror
+    }
+
+    /// Too near the point for the nested rules: the side above
+    /// [`NEAR_FIELD`] of a lower bound on the cell's distance.
+    fn near_field(&self, ctx: &Ctx, size: f64) -> bool {
+        let distance = (self.distance - size * ctx.reach).max(ctx.height);
+        size * ctx.side > NEAR_FIELD * distance
+    }
 }
 
 /// The nested rules over a wholly visible cell where they resolve the
-/// lobe and the cell is not in the near field (at the deepest level
-/// always), as [`nested_cell`].
-fn whole_cell(ctx: &Ctx, lo: DVec2, size: f64, deepest: bool) -> Option<(f64, f64)> {
-    if !deepest && (near_field(ctx, lo, size) || lobe_unresolved(ctx, lo, size, NESTED_ORDERS[2])) {
-        return None;
-    }
-    let coarse = deepest || !lobe_unresolved(ctx, lo, size, NESTED_ORDERS[1]);
+/// lobe and the cell is not in the near field (`view`: `None` at the
+/// deepest level, where they are always tried), as [`nested_cell`].
+fn whole_cell(ctx: &Ctx, lo: DVec2, size: f64, view: Option<&CellView>) -> Option<(f64, f64)> {
+    let coarse = match view {
+        Some(v) => {
+            if v.near_field(ctx, size) || v.lobe_unresolved(ctx, NESTED_ORDERS[2]) {
+                return None;
+            }
+            !v.lobe_unresolved(ctx, NESTED_ORDERS[1])
+        }
+        None => true,
+    };
     nested_cell(ctx.lobe, lo, size, coarse)
 }
 
@@ -664,7 +703,8 @@ fn cell(
     }
     let full = covered >= size * size * (1.0 - 1e-12);
     let deepest = depth == MAX_DEPTH;
-    if full && let Some((value, estimate)) = whole_cell(ctx, lo, size, deepest) {
+    let view = (!deepest).then(|| CellView::new(ctx, lo, size));
+    if full && let Some((value, estimate)) = whole_cell(ctx, lo, size, view.as_ref()) {
         report.cells += 1;
         report.error += estimate;
         return value;
@@ -686,7 +726,7 @@ fn cell(
     fit_rows(r, &nf, &mut t);
     let tail = tail_estimate(r, &t);
 
-    let split = depth < MAX_DEPTH && (tail > TOLERANCE || lobe_unresolved(ctx, lo, size, ORDER));
+    let split = view.is_some_and(|v| tail > TOLERANCE || v.lobe_unresolved(ctx, ORDER));
     if split {
         let mut total = 0.0;
         for (dx, dy) in [(0.0, 0.0), (half, 0.0), (0.0, half), (half, half)] {
@@ -751,21 +791,6 @@ fn cell(
     total * jac
 }
 
-/// A cell too coarse for a narrow lobe that may lie on it: its `nodes`
-/// per side are farther apart than half the lobe's width, and the mirror direction
-/// passes within its angular size plus six widths (beyond which the lobe
-/// is below e⁻¹⁸ of its peak).
-fn lobe_unresolved(ctx: &Ctx, lo: DVec2, size: f64, nodes: usize) -> bool {
-    let centre = ctx.lobe.direction(lo.x + 0.5 * size, lo.y + 0.5 * size);
-    let dist = centre.length();
-    let angular = size * ctx.side * std::f64::consts::SQRT_2 / dist;
-    if angular / nodes as f64 <= 0.5 * ctx.width {
-        return false;
-    }
-    let cos = (centre / dist).dot(ctx.mirror).clamp(-1.0, 1.0);
-    cos.acos() < angular + 6.0 * ctx.width
-}
-
 /// The pieces of level `d` clipped to the cell [lo, lo + size]², into
 /// level d + 1.
 fn clip_level(s: &mut CubatureScratch, d: usize, lo: DVec2, size: f64) {
@@ -816,8 +841,8 @@ fn clip_level(s: &mut CubatureScratch, d: usize, lo: DVec2, size: f64) {
 #[cfg(test)]
 mod tests {
     use super::{
-        Ctx, Lobe, MAX_DEPTH, NODES, TOLERANCE, lobe_at_nodes, lobe_bound_ln, pow_one_minus,
-        whole_cell,
+        CellView, Ctx, Lobe, MAX_DEPTH, NODES, TOLERANCE, lobe_at_nodes, lobe_bound_ln,
+        pow_one_minus, whole_cell,
     };
     use crate::render::rng::Rng;
     use glam::{DVec2, DVec3};
@@ -992,7 +1017,8 @@ mod tests {
             }
             tried += 1;
             let ctx = Ctx::new(&lobe);
-            let Some((value, estimate)) = whole_cell(&ctx, lo, size, depth == MAX_DEPTH) else {
+            let view = (depth < MAX_DEPTH).then(|| CellView::new(&ctx, lo, size));
+            let Some((value, estimate)) = whole_cell(&ctx, lo, size, view.as_ref()) else {
                 continue;
             };
             accepted += 1;

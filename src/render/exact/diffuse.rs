@@ -190,6 +190,7 @@ pub fn segment_term(p: DVec2, q: DVec2, a: DVec2, b: f64, h: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::segment_term;
+    use crate::render::rng::Rng;
     use glam::DVec2;
 
     /// `analytic.rs`'s form of one edge: G at each end, asinh and atan2 of
@@ -218,13 +219,8 @@ mod tests {
     /// edges): the same value to rounding of the terms' size.
     #[test]
     fn segment_term_matches_the_two_ended_form() {
-        let mut state = 0x243f_6a88_85a3_08d3_u64;
-        let mut next = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-        };
+        let mut rng = Rng::new(3);
+        let mut next = || rng.next_f64() * 2.0 - 1.0;
         for case in 0..4000 {
             let p = DVec2::new(next(), next()) * 3.0;
             let mut q = match case % 4 {

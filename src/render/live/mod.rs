@@ -220,28 +220,35 @@ impl LiveRender {
                     cancel,
                     on_tile,
                     None,
+                    Vec::new(),
                 )?
             }
             EditClass::Relight | EditClass::Retrace => {
                 desc.validate()?;
                 let last = self.current.take().expect("a scene to re-trace");
                 let scene = Arc::new(last.scene.with_view(desc));
-                let previous = last
-                    .frame
-                    .filter(|f| {
-                        class == EditClass::Relight
-                            && f.tile_size == super::progressive::tile_side(options)
-                    })
-                    .map(|f| Previous {
-                        tiles: f
-                            .tiles
-                            .into_iter()
-                            .map(|t| {
-                                Mutex::new(Some(t.into_inner().unwrap_or_else(|e| e.into_inner())))
-                            })
-                            .collect(),
+                let follow = class == EditClass::Relight
+                    && last
+                        .frame
+                        .as_ref()
+                        .is_some_and(|f| f.tile_size == super::progressive::tile_side(options));
+                let tiles = last.frame.map_or(Vec::new(), |f| {
+                    f.tiles
+                        .into_iter()
+                        .map(|t| t.into_inner().unwrap_or_else(|e| e.into_inner()))
+                        .collect()
+                });
+                // A light edit follows the last frame's paths; any other
+                // re-trace records into their buffers.
+                let (previous, spares) = if follow {
+                    let previous = Previous {
+                        tiles: tiles.into_iter().map(|t| Mutex::new(Some(t))).collect(),
                         reflections: scene.scale == last.scene.scale,
-                    });
+                    };
+                    (Some(previous), Vec::new())
+                } else {
+                    (None, tiles)
+                };
                 self.retrace(
                     desc,
                     scene,
@@ -251,6 +258,7 @@ impl LiveRender {
                     cancel,
                     on_tile,
                     previous,
+                    spares,
                 )?
             }
             EditClass::Nothing | EditClass::Recombine | EditClass::Reshade => {
@@ -275,6 +283,7 @@ impl LiveRender {
         cancel: &CancelToken,
         on_tile: &(dyn Fn(&TileUpdate) + Sync),
         previous: Option<Previous>,
+        spares: Vec<TileRecord>,
     ) -> Result<LiveReport, LiveError> {
         // Until the final pass is done there are no records of this scene.
         self.current = Some(Current {
@@ -284,7 +293,7 @@ impl LiveRender {
             shading: shading.clone(),
             frame: None,
         });
-        let budget = Budget::new(self.cap);
+        let budget = Budget::new(self.cap, spares);
         let final_pass = Pass {
             shadow_rays: settings.shadow_rays,
             block: 1,
@@ -356,13 +365,29 @@ impl LiveRender {
             // Above the memory cap the visibility was not kept.
             let scene = self.current.take().expect("a scene").scene;
             return self.retrace(
-                desc, scene, settings, shading, options, cancel, on_tile, None,
+                desc,
+                scene,
+                settings,
+                shading,
+                options,
+                cancel,
+                on_tile,
+                None,
+                Vec::new(),
             );
         }
         if frame.tile_size != super::progressive::tile_side(options) {
             let scene = self.current.take().expect("a scene").scene;
             return self.retrace(
-                desc, scene, settings, shading, options, cancel, on_tile, None,
+                desc,
+                scene,
+                settings,
+                shading,
+                options,
+                cancel,
+                on_tile,
+                None,
+                Vec::new(),
             );
         }
         let scene = current.scene.clone();

@@ -59,7 +59,7 @@ pub const DEFAULT_RECORD_CAP: usize = 64_000_000;
 /// when the last frame took at most this long per tile and thread: its
 /// first full tile then arrives within a frame, as a preview's would, and
 /// the image does not flash to blocks on every step of a drag (the preview
-/// also cost about 4 % of the time to full quality, most of it delivering
+/// also cost about 2 % of the time to full quality, most of it delivering
 /// a whole image of blocks).
 const PREVIEW_TILE_TIME: Duration = Duration::from_millis(4);
 

@@ -311,12 +311,7 @@ pub(crate) fn render_passes(
             let Some(budget) = record else {
                 return render_tile(&tracer, rect, pass.block, cancel, scratch, pixels);
             };
-            let mut rec = TileRecord::new(
-                rect,
-                tracer.pattern.count(),
-                budget.shapes_allowed(),
-                shininess.clone(),
-            );
+            let mut rec = budget.record(rect, tracer.pattern.count(), shininess.clone());
             let old = previous
                 .and_then(|p| Some((lock(p.tiles.get(i)?).take()?, p.reflections)))
                 .filter(|(old, _)| old.rect == rect);
@@ -333,6 +328,9 @@ pub(crate) fn render_passes(
             };
             if !finished {
                 return false;
+            }
+            if let Some((old, _)) = old {
+                budget.recycle(old);
             }
             rec.shrink();
             budget.add(&rec);

@@ -55,6 +55,14 @@ use super::tracer::{ReplayMaterial, Tracer, replay_materials, replay_pixel};
 /// (`cosine_logs.rs`). 64 MB in decimal units, as the bench prints them.
 pub const DEFAULT_RECORD_CAP: usize = 64_000_000;
 
+/// A light edit goes straight to its final pass, without the preview,
+/// when the last frame took at most this long per tile and thread: its
+/// first full tile then arrives within a frame, as a preview's would, and
+/// the image does not flash to blocks on every step of a drag (the preview
+/// also cost about 2 % of the time to full quality, most of it delivering
+/// a whole image of blocks).
+const PREVIEW_TILE_TIME: Duration = Duration::from_millis(4);
+
 /// What one live render did.
 #[derive(Debug, Clone)]
 pub struct LiveReport {
@@ -95,6 +103,19 @@ struct Frame {
     shapes: bool,
     /// Side of the tiles the records were cut into.
     tile_size: u32,
+    /// The render's time per tile and thread (all its passes).
+    tile_time: Duration,
+}
+
+/// What a re-trace takes over from the last frame.
+#[derive(Default)]
+struct Reuse {
+    /// Its paths, for a light edit to follow.
+    previous: Option<Previous>,
+    /// Its records, whose buffers the new ones take over.
+    spares: Vec<TileRecord>,
+    /// Whether to go straight to the final pass (see [`PREVIEW_TILE_TIME`]).
+    skip_preview: bool,
 }
 
 impl Frame {
@@ -219,29 +240,42 @@ impl LiveRender {
                     options,
                     cancel,
                     on_tile,
-                    None,
+                    Reuse::default(),
                 )?
             }
             EditClass::Relight | EditClass::Retrace => {
                 desc.validate()?;
                 let last = self.current.take().expect("a scene to re-trace");
                 let scene = Arc::new(last.scene.with_view(desc));
-                let previous = last
-                    .frame
-                    .filter(|f| {
-                        class == EditClass::Relight
-                            && f.tile_size == super::progressive::tile_side(options)
-                    })
-                    .map(|f| Previous {
-                        tiles: f
+                let reuse = match last.frame {
+                    Some(frame) => {
+                        let follow = class == EditClass::Relight
+                            && frame.tile_size == super::progressive::tile_side(options);
+                        let skip_preview = follow && frame.tile_time <= PREVIEW_TILE_TIME;
+                        let tiles = frame
                             .tiles
                             .into_iter()
-                            .map(|t| {
-                                Mutex::new(Some(t.into_inner().unwrap_or_else(|e| e.into_inner())))
-                            })
-                            .collect(),
-                        reflections: scene.scale == last.scene.scale,
-                    });
+                            .map(|t| t.into_inner().unwrap_or_else(|e| e.into_inner()));
+                        // A light edit follows the last frame's paths; any
+                        // other re-trace records into their buffers.
+                        if follow {
+                            Reuse {
+                                previous: Some(Previous {
+                                    tiles: tiles.map(|t| Mutex::new(Some(t))).collect(),
+                                    reflections: scene.scale == last.scene.scale,
+                                }),
+                                spares: Vec::new(),
+                                skip_preview,
+                            }
+                        } else {
+                            Reuse {
+                                spares: tiles.collect(),
+                                ..Reuse::default()
+                            }
+                        }
+                    }
+                    None => Reuse::default(),
+                };
                 self.retrace(
                     desc,
                     scene,
@@ -250,7 +284,7 @@ impl LiveRender {
                     options,
                     cancel,
                     on_tile,
-                    previous,
+                    reuse,
                 )?
             }
             EditClass::Nothing | EditClass::Recombine | EditClass::Reshade => {
@@ -274,7 +308,7 @@ impl LiveRender {
         options: &RenderOptions,
         cancel: &CancelToken,
         on_tile: &(dyn Fn(&TileUpdate) + Sync),
-        previous: Option<Previous>,
+        reuse: Reuse,
     ) -> Result<LiveReport, LiveError> {
         // Until the final pass is done there are no records of this scene.
         self.current = Some(Current {
@@ -284,12 +318,12 @@ impl LiveRender {
             shading: shading.clone(),
             frame: None,
         });
-        let budget = Budget::new(self.cap);
+        let budget = Budget::new(self.cap, reuse.spares);
         let final_pass = Pass {
             shadow_rays: settings.shadow_rays,
             block: 1,
         };
-        let plan = if options.progressive {
+        let plan = if options.progressive && !reuse.skip_preview {
             pass_plan(settings.shadow_rays)
         } else {
             vec![final_pass]
@@ -310,9 +344,11 @@ impl LiveRender {
                 cancel,
                 on_tile,
                 Some(&budget),
-                previous.as_ref(),
+                reuse.previous.as_ref(),
             )
         })?;
+        let threads = options.threads.unwrap_or_else(rayon::current_num_threads);
+        let tile_time = report.elapsed * threads as u32 / tiles.len().max(1) as u32;
         // The `exact` model records no visibility bits to recompute its
         // specular factor from: a shininess edit traces again.
         let shapes = budget.shapes_allowed() && settings.model != AreaLightModel::Exact;
@@ -324,6 +360,7 @@ impl LiveRender {
             tiles: tiles.into_iter().map(Mutex::new).collect(),
             shapes,
             tile_size: super::progressive::tile_side(options),
+            tile_time,
         });
         if let Some(c) = &mut self.current {
             c.frame = frame;
@@ -356,13 +393,27 @@ impl LiveRender {
             // Above the memory cap the visibility was not kept.
             let scene = self.current.take().expect("a scene").scene;
             return self.retrace(
-                desc, scene, settings, shading, options, cancel, on_tile, None,
+                desc,
+                scene,
+                settings,
+                shading,
+                options,
+                cancel,
+                on_tile,
+                Reuse::default(),
             );
         }
         if frame.tile_size != super::progressive::tile_side(options) {
             let scene = self.current.take().expect("a scene").scene;
             return self.retrace(
-                desc, scene, settings, shading, options, cancel, on_tile, None,
+                desc,
+                scene,
+                settings,
+                shading,
+                options,
+                cancel,
+                on_tile,
+                Reuse::default(),
             );
         }
         let scene = current.scene.clone();

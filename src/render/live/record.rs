@@ -12,16 +12,18 @@
 //! ended). At 960×540, 64 shadow rays, depth 4 on the seed room (575 k
 //! hits): about 42 MB.
 
-use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex};
 
 use glam::Vec3;
 
 use super::cosine_logs::CosineLogs;
-use crate::render::progressive::TileRect;
+use crate::render::progressive::{TileRect, lock};
 use crate::render::shading::LightTerms;
 use crate::render::shading_params::ShadingParams;
-use crate::render::shadow::{ShadowBuffers, live_rays};
+use crate::render::shadow::ShadowBuffers;
+#[cfg(not(target_arch = "x86_64"))]
+use crate::render::shadow::live_rays;
 use crate::render::tracer::{HitRecord, PathEnd, PathSink};
 
 /// The colour tier of one hit.
@@ -71,6 +73,16 @@ pub struct Shapes {
     pub words: usize,
 }
 
+impl Shapes {
+    fn with_room(hits: usize, words: usize) -> Shapes {
+        Shapes {
+            hits: Vec::with_capacity(hits),
+            visible: Vec::with_capacity(hits * words),
+            words,
+        }
+    }
+}
+
 impl TileRecord {
     pub fn new(
         rect: TileRect,
@@ -91,14 +103,42 @@ impl TileRecord {
             hits: Vec::with_capacity(hits),
             objects: Vec::with_capacity(hits),
             distances: Vec::with_capacity(hits),
-            shapes: with_shapes.then(|| Shapes {
-                hits: Vec::with_capacity(hits),
-                visible: Vec::with_capacity(hits * light_points.div_ceil(64)),
-                words: light_points.div_ceil(64),
-            }),
+            shapes: with_shapes.then(|| Shapes::with_room(hits, light_points.div_ceil(64))),
             shininess,
             logs: None,
         }
+    }
+
+    /// `self`'s buffers, emptied, as the record of tile `rect` (see
+    /// [`Budget::record`]); they grow as [`TileRecord::new`]'s do.
+    fn reused(
+        mut self,
+        rect: TileRect,
+        light_points: usize,
+        with_shapes: bool,
+        shininess: Arc<[f32]>,
+    ) -> TileRecord {
+        self.rect = rect;
+        self.starts.clear();
+        self.starts.push(0);
+        self.ends.clear();
+        self.hits.clear();
+        self.objects.clear();
+        self.distances.clear();
+        let words = light_points.div_ceil(64);
+        self.shapes = match (with_shapes, self.shapes.take()) {
+            (false, _) => None,
+            (true, Some(mut shapes)) => {
+                shapes.hits.clear();
+                shapes.visible.clear();
+                shapes.words = words;
+                Some(shapes)
+            }
+            (true, None) => Some(Shapes::with_room(2 * (rect.w * rect.h) as usize, words)),
+        };
+        self.shininess = shininess;
+        self.logs = None;
+        self
     }
 
     /// Heap bytes held.
@@ -159,7 +199,9 @@ pub struct TileRecorder<'a> {
 impl PathSink for TileRecorder<'_> {
     const RECORD: bool = true;
 
-    #[inline]
+    // Inlined into the path's loop: passed through memory, the hit's 60
+    // bytes cost more than writing them out.
+    #[inline(always)]
     fn hit(&mut self, hit: HitRecord, buf: &ShadowBuffers, count: usize) {
         let r = &mut *self.record;
         r.hits.push(ColourHit {
@@ -189,15 +231,11 @@ impl PathSink for TileRecorder<'_> {
 /// Appends one bit per light point (bit j of word j / 64) for the first
 /// `count` points of `vis`, set where the point is not 0, the last word
 /// padded with 0s. `vis` runs on to a multiple of 8 (as in
-/// [`ShadowBuffers`]; what the padding holds is masked off): each word is
-/// built in a register by the shadow packets' [`live_rays`], eight points
-/// per compare. Or-ing bit by bit into the buffer made every bit wait on
-/// the store of the one before, and was the largest cost of recording a
-/// path (a fifth of a one-shot render's time).
+/// [`ShadowBuffers`]; what the padding holds is masked off).
 #[inline]
 pub fn push_visibility_bits(vis: &[f32], count: usize, out: &mut Vec<u64>) {
     for (k, points) in vis[..count.next_multiple_of(8)].chunks(64).enumerate() {
-        let word = live_rays(points);
+        let word = visibility_word(points);
         let left = count - 64 * k;
         out.push(if left < 64 {
             word & ((1 << left) - 1)
@@ -207,29 +245,75 @@ pub fn push_visibility_bits(vis: &[f32], count: usize, out: &mut Vec<u64>) {
     }
 }
 
+/// Bit j set where `points[j]` is not 0 (at most 64 points, whole chunks
+/// of 4): one compare and one move-mask per four points. The recorder runs
+/// in the baseline build, where the shadow packets' [`live_rays`] (written
+/// for the AVX2 kernels) became shifts and ors bit by bit, a third of the
+/// cost of recording a hit.
+#[inline(always)]
+fn visibility_word(points: &[f32]) -> u64 {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{_mm_cmpneq_ps, _mm_loadu_ps, _mm_movemask_ps, _mm_setzero_ps};
+        let mut word = 0u64;
+        for (c, four) in points.chunks_exact(4).enumerate() {
+            // Not equal or unordered: NaN counts as visible, −0 not, as `!=`.
+            // SAFETY: SSE is part of x86_64, and `four` holds four floats.
+            let bits = unsafe {
+                _mm_movemask_ps(_mm_cmpneq_ps(_mm_loadu_ps(four.as_ptr()), _mm_setzero_ps()))
+            };
+            word |= (bits as u64) << (4 * c);
+        }
+        word
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    live_rays(points)
+}
+
 /// The memory budget of one frame's records, shared by the threads that
 /// fill them: once the cap is passed, tiles still to come keep no
 /// shininess tier ([`Budget::shapes_allowed`]), and the frame then drops
 /// it everywhere, or all records if the colour tier alone is over the cap
-/// (`Frame::trimmed`).
+/// (`Frame::trimmed`). It also holds the records of the frame before, whose
+/// buffers the new tiles take over ([`Budget::record`]).
 #[derive(Debug)]
 pub struct Budget {
     pub cap: usize,
     used: AtomicUsize,
     shapes: AtomicBool,
+    spares: Mutex<Vec<TileRecord>>,
 }
 
 impl Budget {
-    pub fn new(cap: usize) -> Budget {
+    /// A budget of `cap` bytes whose tiles reuse the buffers of `spares`.
+    pub fn new(cap: usize, spares: Vec<TileRecord>) -> Budget {
         Budget {
             cap,
             used: AtomicUsize::new(0),
             shapes: AtomicBool::new(true),
+            spares: Mutex::new(spares),
         }
     }
 
     pub fn shapes_allowed(&self) -> bool {
         self.shapes.load(Ordering::Relaxed)
+    }
+
+    /// An empty record of tile `rect`, in a spare record's buffers while
+    /// there is one: the frame before's pages, already mapped, instead of
+    /// fresh ones (freed and mapped again, the ~60 MB of a frame's records
+    /// cost a page fault every 4 kB, several per cent of a re-trace).
+    pub fn record(&self, rect: TileRect, light_points: usize, shininess: Arc<[f32]>) -> TileRecord {
+        let with_shapes = self.shapes_allowed();
+        match lock(&self.spares).pop() {
+            Some(spare) => spare.reused(rect, light_points, with_shapes, shininess),
+            None => TileRecord::new(rect, light_points, with_shapes, shininess),
+        }
+    }
+
+    /// Gives a record no longer needed to the tiles still to come.
+    pub fn recycle(&self, record: TileRecord) {
+        lock(&self.spares).push(record);
     }
 
     /// Accounts a finished tile's record.

@@ -271,9 +271,42 @@ pub fn write_atomic(
     if writes_interrupted() {
         return Err(fail(INTERRUPTED_MESSAGE.into()));
     }
-    tmp.persist(path).map_err(|e| fail(os_message(&e.error)))?;
+    put_in_place(tmp, path).map_err(|e| fail(os_message(&e)))?;
     drop(registered);
     Ok(())
+}
+
+/// Moves the finished temporary file to `path`. An existing file is
+/// swapped with it (one atomic step, as a rename) and then removed under
+/// the temporary name: ext4 writes a new file's data out inside a rename
+/// over an existing file (its auto_da_alloc guard for writers that do not
+/// fsync), which made a PNG write take 0.1 to 140 ms on a busy disk; the
+/// swap leaves the data to the usual write-back, as a write to a new file.
+fn put_in_place(tmp: tempfile::NamedTempFile, path: &Path) -> std::io::Result<()> {
+    #[cfg(target_os = "linux")]
+    if std::fs::symlink_metadata(path).is_ok_and(|m| m.is_file()) {
+        use std::os::unix::ffi::OsStrExt;
+        let c = |p: &Path| std::ffi::CString::new(p.as_os_str().as_bytes());
+        if let (Ok(from), Ok(to)) = (c(tmp.path()), c(path)) {
+            // SAFETY: two NUL-terminated paths that live across the call.
+            let swapped = unsafe {
+                libc::renameat2(
+                    libc::AT_FDCWD,
+                    from.as_ptr(),
+                    libc::AT_FDCWD,
+                    to.as_ptr(),
+                    libc::RENAME_EXCHANGE,
+                )
+            } == 0;
+            if swapped {
+                // The temporary name now holds the old file.
+                return tmp.close();
+            }
+            // A file system without the swap (or a file gone meanwhile):
+            // a plain rename.
+        }
+    }
+    tmp.persist(path).map(drop).map_err(|e| e.error)
 }
 
 /// Writes a film as PNG (sRGB 8-bit) or EXR (linear f32), by extension.

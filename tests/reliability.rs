@@ -757,6 +757,38 @@ fn render_tiny(out: &Path) -> std::process::Output {
 }
 
 #[test]
+fn an_existing_output_is_replaced_whole_and_keeps_its_permissions() {
+    use std::os::unix::fs::PermissionsExt;
+    let dir = scratch();
+    let out = dir.path().join("x.png");
+    assert!(render_tiny(&out).status.success());
+    std::fs::set_permissions(&out, std::fs::Permissions::from_mode(0o600)).unwrap();
+    let r = penumbra(&[
+        "render",
+        "-o",
+        out.to_str().unwrap(),
+        "--width",
+        "16",
+        "--height",
+        "8",
+    ]);
+    assert!(r.status.success(), "{}", stderr(&r));
+    let film = penumbra::render::output::read_film(&out).unwrap();
+    assert_eq!((film.width, film.height), (16, 8));
+    let mode = std::fs::metadata(&out).unwrap().permissions().mode();
+    assert_eq!(mode & 0o777, 0o600);
+    assert_eq!(files_in(dir.path()), ["x.png"]);
+
+    // A folder named like an image is neither replaced nor moved away.
+    let folder = dir.path().join("f.png");
+    std::fs::create_dir(&folder).unwrap();
+    let r = render_tiny(&folder);
+    assert_eq!(r.status.code(), Some(1), "{}", stderr(&r));
+    assert!(folder.is_dir());
+    assert_eq!(files_in(dir.path()), ["f.png", "x.png"]);
+}
+
+#[test]
 fn a_missing_output_folder_is_named_without_the_temporary_file() {
     let dir = scratch();
     let out = dir.path().join("no/such/folder/x.png");

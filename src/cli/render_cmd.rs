@@ -5,7 +5,7 @@ use std::time::{Duration, Instant};
 use indicatif::{ProgressBar, ProgressStyle};
 
 use super::{CliError, RenderArgs, SceneOverrides};
-use crate::render::output::{FileKind, write_film, writes_interrupted};
+use crate::render::output::{FileKind, PngCodes, write_film, writes_interrupted};
 use crate::render::region::{Part, check_region, fingerprint, write_part};
 use crate::render::{
     CancelToken, Loaded, RenderOptions, RenderReport, Scene, SceneDesc, TileRect, TileUpdate,
@@ -171,7 +171,15 @@ pub fn render(args: &RenderArgs) -> Result<(), CliError> {
         );
         bar
     });
+    // A whole image's PNG codes are encoded as its final pass's tiles finish.
+    let png = (args.region.is_none() && FileKind::of(&args.output).ok() == Some(FileKind::Png))
+        .then(|| PngCodes::new(whole.w, whole.h));
     let on_tile = |t: &TileUpdate| {
+        if let Some(png) = &png
+            && t.pass_index + 1 == t.pass_count
+        {
+            png.put(t.rect, t.pixels);
+        }
         if let Some(bar) = &bar {
             if t.tiles_done == 1 {
                 bar.set_position(0);
@@ -203,7 +211,10 @@ pub fn render(args: &RenderArgs) -> Result<(), CliError> {
                 };
                 write_part(&part, &args.output)
             }
-            None => write_film(&report.film, &args.output),
+            None => match &png {
+                Some(png) => png.write(&report.film, &args.output),
+                None => write_film(&report.film, &args.output),
+            },
         };
         written.map_err(|e| {
             if writes_interrupted() {

@@ -28,9 +28,14 @@ avx2_dispatch!(
         => packet_generic
 );
 
-/// Rays left in a packet below which they walk the tree one by one: a
-/// slab test per ray and box is then cheaper than the footprints.
-const SOLO: u32 = 2;
+/// Whether `m` holds at most two rays: then they walk the tree one by
+/// one (a slab test per ray and box is cheaper than the footprints). Bit
+/// arithmetic: the kernels' CPU features leave out the popcount.
+#[inline(always)]
+fn at_most_two(m: u64) -> bool {
+    let m = m & m.wrapping_sub(1);
+    m & m.wrapping_sub(1) == 0
+}
 
 /// Scratch space of the packet traversal.
 #[derive(Debug, Default)]
@@ -74,7 +79,7 @@ fn packet_generic(
         if rays == 0 {
             continue;
         }
-        if rays.count_ones() <= SOLO {
+        if at_most_two(rays) {
             // Each ray alone through this subtree, nearest boxes first.
             let mut each = rays;
             while each != 0 {
@@ -205,7 +210,12 @@ impl Tests<'_, '_> {
         }
         self.tested |= m;
         let occ = Occluder::new(prim, pk.q.point, inside);
-        let few = m.count_ones() <= FEW;
+        // At most four rays (each step clears the lowest).
+        let mut rest = m;
+        for _ in 0..4 {
+            rest &= rest.wrapping_sub(1);
+        }
+        let few = rest == 0;
         let vis = &mut *self.vis;
         let mut live = live;
         if few && let Some(blocks) = LoneRayTest::of(&occ) {
@@ -221,14 +231,22 @@ impl Tests<'_, '_> {
             }
             return live;
         }
-        let chunks: [bool; 8] = std::array::from_fn(|c| (m >> (8 * c)) & 0xff != 0);
-        if chunks.iter().filter(|&&c| c).count() <= SPARSE_CHUNKS {
+        // Bit 8c set where chunk c holds a ray of `m`.
+        let mut chunks = m;
+        for shift in [1, 2, 4] {
+            chunks |= chunks >> shift;
+        }
+        chunks &= 0x0101_0101_0101_0101;
+        let mut rest = chunks;
+        for _ in 0..SPARSE_CHUNKS {
+            rest &= rest.wrapping_sub(1);
+        }
+        if rest == 0 {
             // The chunks holding rays of `m`, each inlined (eight lanes of
             // this kernel's vectors).
-            for c in 0..8 {
-                if !chunks[c] {
-                    continue;
-                }
+            while chunks != 0 {
+                let c = chunks.trailing_zeros() as usize / 8;
+                chunks &= chunks - 1;
                 let r = 8 * c..8 * c + 8;
                 let v = &mut vis[r.clone()];
                 occ.block_inline(d.range(r), v);
@@ -247,14 +265,10 @@ impl Tests<'_, '_> {
     }
 }
 
-/// Rays of a test from which each is tested alone (the lane test without
-/// a vector call).
-const FEW: u32 = 4;
-
 /// Chunks of 8 rays up to which a test covers only the chunks holding its
 /// rays, inlined; beyond, the span from the first to the last in one
 /// (wider) vector call.
-const SPARSE_CHUNKS: usize = 3;
+const SPARSE_CHUNKS: u32 = 3;
 
 /// An occluder whose lane test, run on one ray, is cheap enough to beat
 /// a vector call for a few rays.

@@ -28,13 +28,19 @@ avx2_dispatch!(
         => packet_generic
 );
 
-/// Whether `m` holds at most two rays: then they walk the tree one by
-/// one (a slab test per ray and box is cheaper than the footprints). Bit
-/// arithmetic: the kernels' CPU features leave out the popcount.
+/// Rays left in a packet up to which they walk the tree one by one: a
+/// slab test per ray and box is then cheaper than the footprints.
+const SOLO: u32 = 2;
+
+/// Whether `m` has at most `n` bits set: `n` times the lowest cleared. Bit
+/// arithmetic, as the kernels' CPU features leave out the popcount.
 #[inline(always)]
-fn at_most_two(m: u64) -> bool {
-    let m = m & m.wrapping_sub(1);
-    m & m.wrapping_sub(1) == 0
+fn at_most(m: u64, n: u32) -> bool {
+    let mut rest = m;
+    for _ in 0..n {
+        rest &= rest.wrapping_sub(1);
+    }
+    rest == 0
 }
 
 /// Scratch space of the packet traversal.
@@ -79,7 +85,7 @@ fn packet_generic(
         if rays == 0 {
             continue;
         }
-        if at_most_two(rays) {
+        if at_most(rays, SOLO) {
             // Each ray alone through this subtree, nearest boxes first.
             let mut each = rays;
             while each != 0 {
@@ -210,12 +216,7 @@ impl Tests<'_, '_> {
         }
         self.tested |= m;
         let occ = Occluder::new(prim, pk.q.point, inside);
-        // At most four rays (each step clears the lowest).
-        let mut rest = m;
-        for _ in 0..4 {
-            rest &= rest.wrapping_sub(1);
-        }
-        let few = rest == 0;
+        let few = at_most(m, FEW);
         let vis = &mut *self.vis;
         let mut live = live;
         if few && let Some(blocks) = LoneRayTest::of(&occ) {
@@ -237,11 +238,7 @@ impl Tests<'_, '_> {
             chunks |= chunks >> shift;
         }
         chunks &= 0x0101_0101_0101_0101;
-        let mut rest = chunks;
-        for _ in 0..SPARSE_CHUNKS {
-            rest &= rest.wrapping_sub(1);
-        }
-        if rest == 0 {
+        if at_most(chunks, SPARSE_CHUNKS) {
             // The chunks holding rays of `m`, each inlined (eight lanes of
             // this kernel's vectors).
             while chunks != 0 {
@@ -269,6 +266,10 @@ impl Tests<'_, '_> {
 /// rays, inlined; beyond, the span from the first to the last in one
 /// (wider) vector call.
 const SPARSE_CHUNKS: u32 = 3;
+
+/// Rays of a test up to which each is tested alone (the lane test without
+/// a vector call).
+const FEW: u32 = 4;
 
 /// An occluder whose lane test, run on one ray, is cheap enough to beat
 /// a vector call for a few rays.

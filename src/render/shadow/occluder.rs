@@ -77,8 +77,10 @@ impl Occluder {
         block(self, d, vis)
     }
 
+    /// [`block`](Self::block) inlined into the caller, compiled for its CPU
+    /// features (the same operations, so the same bits).
     #[inline(always)]
-    fn block_generic(&self, d: Dirs, vis: &mut [f32]) {
+    pub(super) fn block_inline(&self, d: Dirs, vis: &mut [f32]) {
         let n = vis.len();
         let (dx, dy, dz) = (&d.x[..n], &d.y[..n], &d.z[..n]);
         match *self {
@@ -200,7 +202,7 @@ avx2_dispatch!(
 
 #[inline(always)]
 fn block_generic(occ: &Occluder, d: Dirs, vis: &mut [f32]) {
-    occ.block_generic(d, vis)
+    occ.block_inline(d, vis)
 }
 
 /// Directions of shadow rays as parallel slices (unnormalized: from the

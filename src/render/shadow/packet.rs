@@ -1,10 +1,13 @@
 //! Shadow rays as packets through the BVH built in the light's frame.
 
+use super::RAY_END;
 use super::light_frame::{Eye, LightFrame, OccluderBvh};
 use super::occluder::{Dirs, Occluder, sphere_blocks};
 use super::ray_packet::RayBins;
 use super::visibility::ShadowQuery;
-use crate::render::geometry::Slot;
+use glam::Vec3;
+
+use crate::render::geometry::{Slot, TriangleOccluder};
 use crate::render::math::avx2_dispatch;
 use crate::render::scene::Scene;
 
@@ -25,9 +28,20 @@ avx2_dispatch!(
         => packet_generic
 );
 
-/// Rays left in a packet below which they walk the tree one by one: a
+/// Rays left in a packet up to which they walk the tree one by one: a
 /// slab test per ray and box is then cheaper than the footprints.
 const SOLO: u32 = 2;
+
+/// Whether `m` has at most `n` bits set: `n` times the lowest cleared. Bit
+/// arithmetic, as the kernels' CPU features leave out the popcount.
+#[inline(always)]
+fn at_most(m: u64, n: u32) -> bool {
+    let mut rest = m;
+    for _ in 0..n {
+        rest &= rest.wrapping_sub(1);
+    }
+    rest == 0
+}
 
 /// Scratch space of the packet traversal.
 #[derive(Debug, Default)]
@@ -56,44 +70,13 @@ fn packet_generic(
     if live == 0 || tree.nodes.is_empty() {
         return 0;
     }
-    let mut tested = 0;
-    // Tests object i against the rays `m` (and whichever share their chunks
-    // of 8); returns the rays still live. Every answer is the exact f32
-    // test, so the order of the tests changes nothing but the time.
-    let mut test = |i: u32, m: u64, live: u64| -> u64 {
-        let prim = scene.primitive(i);
-        let inside = i == pk.q.object && pk.q.inside;
-        if i == pk.q.object && prim.skips_itself(pk.q.inside) {
-            return live;
-        }
-        tested |= m;
-        let occ = Occluder::new(prim, pk.q.point, inside);
-        if let Occluder::Sphere { oc, r2, inside } = occ
-            && m.count_ones() <= 4
-        {
-            // A few rays: the lane test alone, without a vector call.
-            let mut live = live;
-            let mut rays = m;
-            while rays != 0 {
-                let j = rays.trailing_zeros() as usize;
-                rays &= rays - 1;
-                if sphere_blocks(oc, r2, inside, d.x[j], d.y[j], d.z[j]) {
-                    vis[j] = 0.0;
-                    live &= !(1 << j);
-                }
-            }
-            return live;
-        }
-        // The chunks from the first to the last ray to test, in one call.
-        let first = m.trailing_zeros() as usize / 8 * 8;
-        let past = (64 - m.leading_zeros() as usize).div_ceil(8) * 8;
-        let r = first..past;
-        let v = &mut vis[r.clone()];
-        occ.block(d.range(r), v);
-        let span = (u64::MAX >> (64 - (past - first))) << first;
-        live & (!span | (live_rays(v) << first))
+    let mut tests = Tests {
+        pk,
+        scene,
+        d,
+        vis,
+        tested: 0,
     };
-
     // Depth-first; each entry holds the rays that may meet the node.
     stack.clear();
     stack.push((0, live));
@@ -102,7 +85,7 @@ fn packet_generic(
         if rays == 0 {
             continue;
         }
-        if rays.count_ones() <= SOLO {
+        if at_most(rays, SOLO) {
             // Each ray alone through this subtree, nearest boxes first.
             let mut each = rays;
             while each != 0 {
@@ -133,9 +116,9 @@ fn packet_generic(
                                 n_next += 1;
                             }
                             Slot::Object(i) => {
-                                live = test(i, 1 << j, live);
+                                live = tests.test(i, 1 << j, live);
                                 if live == 0 {
-                                    return tested;
+                                    return tests.tested;
                                 }
                                 if live & (1 << j) == 0 {
                                     break 'walk;
@@ -143,9 +126,9 @@ fn packet_generic(
                             }
                             Slot::Leaf { first, count } => {
                                 for &i in &tree.items[first as usize..(first + count) as usize] {
-                                    live = test(i, 1 << j, live);
+                                    live = tests.test(i, 1 << j, live);
                                     if live == 0 {
-                                        return tested;
+                                        return tests.tested;
                                     }
                                     if live & (1 << j) == 0 {
                                         break 'walk;
@@ -178,16 +161,16 @@ fn packet_generic(
                     n_next += 1;
                 }
                 Slot::Object(i) => {
-                    live = test(i, m, live);
+                    live = tests.test(i, m, live);
                     if live == 0 {
-                        return tested;
+                        return tests.tested;
                     }
                 }
                 Slot::Leaf { first, count } => {
                     for &i in &tree.items[first as usize..(first + count) as usize] {
-                        live = test(i, m & live, live);
+                        live = tests.test(i, m & live, live);
                         if live == 0 {
-                            return tested;
+                            return tests.tested;
                         }
                         if m & live == 0 {
                             break;
@@ -201,7 +184,120 @@ fn packet_generic(
         sort_far_first(next);
         stack.extend(next.iter().map(|&(_, c)| c));
     }
-    tested
+    tests.tested
+}
+
+/// Rays of one packet tested against single objects. A struct with an
+/// inlined method, not a closure: a closure would stay a call of baseline
+/// code, outside the kernel's CPU features.
+struct Tests<'p, 'a> {
+    pk: &'p Packets<'a>,
+    scene: &'p Scene,
+    d: Dirs<'p>,
+    vis: &'p mut [f32],
+    /// The rays tested against at least one object.
+    tested: u64,
+}
+
+impl Tests<'_, '_> {
+    /// Tests object i against the rays `m` (and possibly others of their
+    /// chunks of 8); returns the rays still live. Every answer is the
+    /// exact f32 test, so which rays are tested together changes nothing
+    /// but the time.
+    // Lanes of parallel arrays: index loops are what vectorizes.
+    #[allow(clippy::needless_range_loop)]
+    #[inline(always)]
+    fn test(&mut self, i: u32, m: u64, live: u64) -> u64 {
+        let (pk, d) = (self.pk, self.d);
+        let prim = self.scene.primitive(i);
+        let inside = i == pk.q.object && pk.q.inside;
+        if i == pk.q.object && prim.skips_itself(pk.q.inside) {
+            return live;
+        }
+        self.tested |= m;
+        let occ = Occluder::new(prim, pk.q.point, inside);
+        let few = at_most(m, FEW);
+        let vis = &mut *self.vis;
+        let mut live = live;
+        if few && let Some(blocks) = LoneRayTest::of(&occ) {
+            // A few rays: the lane test alone, without a vector call.
+            let mut rays = m;
+            while rays != 0 {
+                let j = rays.trailing_zeros() as usize;
+                rays &= rays - 1;
+                if blocks.blocks(d.x[j], d.y[j], d.z[j]) {
+                    vis[j] = 0.0;
+                    live &= !(1 << j);
+                }
+            }
+            return live;
+        }
+        // Bit 8c set where chunk c holds a ray of `m`.
+        let mut chunks = m;
+        for shift in [1, 2, 4] {
+            chunks |= chunks >> shift;
+        }
+        chunks &= 0x0101_0101_0101_0101;
+        if at_most(chunks, SPARSE_CHUNKS) {
+            // The chunks holding rays of `m`, each inlined (eight lanes of
+            // this kernel's vectors).
+            while chunks != 0 {
+                let c = chunks.trailing_zeros() as usize / 8;
+                chunks &= chunks - 1;
+                let r = 8 * c..8 * c + 8;
+                let v = &mut vis[r.clone()];
+                occ.block_inline(d.range(r), v);
+                live &= !(0xff << (8 * c)) | (live_rays(v) << (8 * c));
+            }
+            return live;
+        }
+        // The chunks from the first to the last ray to test, in one call.
+        let first = m.trailing_zeros() as usize / 8 * 8;
+        let past = (64 - m.leading_zeros() as usize).div_ceil(8) * 8;
+        let r = first..past;
+        let v = &mut vis[r.clone()];
+        occ.block(d.range(r), v);
+        let span = (u64::MAX >> (64 - (past - first))) << first;
+        live & (!span | (live_rays(v) << first))
+    }
+}
+
+/// Chunks of 8 rays up to which a test covers only the chunks holding its
+/// rays, inlined; beyond, the span from the first to the last in one
+/// (wider) vector call.
+const SPARSE_CHUNKS: u32 = 3;
+
+/// Rays of a test up to which each is tested alone (the lane test without
+/// a vector call).
+const FEW: u32 = 4;
+
+/// An occluder whose lane test, run on one ray, is cheap enough to beat
+/// a vector call for a few rays.
+#[derive(Clone, Copy)]
+enum LoneRayTest {
+    Sphere { oc: Vec3, r2: f32, inside: bool },
+    Triangle(TriangleOccluder),
+}
+
+impl LoneRayTest {
+    #[inline(always)]
+    fn of(occ: &Occluder) -> Option<LoneRayTest> {
+        match *occ {
+            Occluder::Sphere { oc, r2, inside } => Some(LoneRayTest::Sphere { oc, r2, inside }),
+            Occluder::Triangle(t) => Some(LoneRayTest::Triangle(t)),
+            _ => None,
+        }
+    }
+
+    /// The lane test of [`Occluder::block`] (the same operations, so the
+    /// same answer).
+    #[inline(always)]
+    fn blocks(self, x: f32, y: f32, z: f32) -> bool {
+        match self {
+            LoneRayTest::Sphere { oc, r2, inside } => sphere_blocks(oc, r2, inside, x, y, z),
+            LoneRayTest::Triangle(t) => t.blocks(x, y, z, RAY_END),
+        }
+    }
 }
 
 /// Sorts up to four children by distance, farthest first (so that the
@@ -220,16 +316,41 @@ fn sort_far_first<K: PartialOrd + Copy, T: Copy>(v: &mut [(K, T)]) {
 }
 
 /// Bit j set where `vis[j]` is not 0 (at most 64 rays, whole chunks of 8:
-/// each chunk becomes one compare and one move-mask).
+/// each chunk becomes two compares and two move-masks).
 #[inline(always)]
 pub(crate) fn live_rays(vis: &[f32]) -> u64 {
     let mut m = 0;
     for (c, chunk) in vis.chunks_exact(8).enumerate() {
-        let mut byte = 0u64;
-        for (i, &v) in chunk.iter().enumerate() {
-            byte |= ((v != 0.0) as u64) << i;
-        }
-        m |= byte << (8 * c);
+        m |= (chunk_bits(chunk.try_into().expect("chunks of 8")) as u64) << (8 * c);
     }
     m
+}
+
+/// Bit i set where `chunk[i]` is not 0. On x86-64 with the move-mask of
+/// its baseline SSE2 (the compiler packs the bits of a plain loop one
+/// shift at a time).
+#[inline(always)]
+fn chunk_bits(chunk: &[f32; 8]) -> u32 {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{_mm_cmpneq_ps, _mm_loadu_ps, _mm_movemask_ps, _mm_setzero_ps};
+        // SAFETY: the chunk holds eight f32, read as two unaligned groups of
+        // four; SSE2 is part of x86-64.
+        unsafe {
+            let zero = _mm_setzero_ps();
+            let lo = _mm_loadu_ps(chunk.as_ptr());
+            let hi = _mm_loadu_ps(chunk.as_ptr().add(4));
+            let lo = _mm_movemask_ps(_mm_cmpneq_ps(lo, zero)) as u32;
+            let hi = _mm_movemask_ps(_mm_cmpneq_ps(hi, zero)) as u32;
+            lo | (hi << 4)
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        let mut byte = 0;
+        for (i, &v) in chunk.iter().enumerate() {
+            byte |= ((v != 0.0) as u32) << i;
+        }
+        byte
+    }
 }

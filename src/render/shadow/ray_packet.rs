@@ -69,7 +69,7 @@ impl RayBins {
     /// cell range.
     #[inline(always)]
     fn cell(&self, axis: usize, v: f64) -> usize {
-        clamp_cell((v - self.min[axis]) * self.scale[axis])
+        clamp_cell((v - self.min[axis]) * self.scale[axis]) as usize
     }
 
     /// For each of four rectangles, the rays whose light point may lie
@@ -90,14 +90,23 @@ impl RayBins {
             c[2][s] = (f.y0[s] - self.min[1]) * self.scale[1];
             c[3][s] = (f.y1[s] - self.min[1]) * self.scale[1] + 1.0;
         }
+        // The cells, clamped and converted four lanes at a time.
+        let mut cell = [[0i32; 4]; 4];
+        for k in 0..4 {
+            for s in 0..4 {
+                cell[k][s] = clamp_cell(c[k][s]);
+            }
+        }
         let [bx, by] = &self.below;
+        let at = |table: &[u64; CELLS + 1], cell: i32| {
+            // SAFETY: a clamped cell lies in 0..=CELLS, the table's indices.
+            unsafe { *table.get_unchecked(cell as usize) }
+        };
         let mut rays = [0u64; 4];
         for s in 0..4 {
-            rays[s] = self.all
-                & bx[clamp_cell(c[1][s])]
-                & !bx[clamp_cell(c[0][s])]
-                & by[clamp_cell(c[3][s])]
-                & !by[clamp_cell(c[2][s])];
+            // Every table entry lies within the packet's rays.
+            rays[s] =
+                at(bx, cell[1][s]) & !at(bx, cell[0][s]) & at(by, cell[3][s]) & !at(by, cell[2][s]);
         }
         rays
     }
@@ -106,11 +115,12 @@ impl RayBins {
 /// ⌊c⌋ clamped to 0..=CELLS (NaN to 0), with plain comparisons and an
 /// in-range conversion: cheaper than `f64::clamp` and a saturating `as`.
 #[inline(always)]
-fn clamp_cell(c: f64) -> usize {
+fn clamp_cell(c: f64) -> i32 {
     let c = if c > 0.0 { c } else { 0.0 };
     let c = if c < CELLS as f64 { c } else { CELLS as f64 };
-    // SAFETY: c is in [0, CELLS], finite and not NaN.
-    unsafe { c.to_int_unchecked::<u32>() as usize }
+    // SAFETY: c is in [0, CELLS], finite and not NaN. (A signed conversion:
+    // the one with a vector instruction.)
+    unsafe { c.to_int_unchecked::<i32>() }
 }
 
 #[cfg(test)]

@@ -2,15 +2,12 @@
 
 mod common;
 
-use std::path::PathBuf;
 use std::process::Output;
 
 use common::{files_in, penumbra};
 
-fn scratch_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("penumbra-cli-{name}-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+fn scratch_dir(name: &str) -> common::Scratch {
+    common::Scratch::new(&format!("cli-{name}"))
 }
 
 fn stderr(o: &Output) -> String {
@@ -96,7 +93,6 @@ fn render_writes_a_png_of_the_requested_size_and_a_summary() {
         .unwrap();
     assert!(rmse > 0.0 && rmse < 0.05, "{report}");
     assert_eq!(image::open(&diff).unwrap().width(), 64);
-    std::fs::remove_dir_all(dir).unwrap();
 }
 
 #[test]
@@ -124,7 +120,6 @@ fn compare_of_different_sizes_exits_2() {
         "{}",
         stderr(&o)
     );
-    std::fs::remove_dir_all(dir).unwrap();
 }
 
 #[test]
@@ -169,5 +164,4 @@ fn bad_scene_exits_2_with_the_field_and_leaves_no_file() {
         let o = penumbra(&args);
         assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
     }
-    std::fs::remove_dir_all(dir).unwrap();
 }

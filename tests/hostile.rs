@@ -7,7 +7,6 @@
 
 mod common;
 
-use std::path::PathBuf;
 use std::process::Command;
 
 use common::{files_in, penumbra};
@@ -382,7 +381,7 @@ fn bad_files_are_refused_with_the_file_name() {
         (&empty, "EOF"),
         (&binary, "not UTF-8"),
         (&big, "at most"),
-        (&dir, "a directory, not a regular file"),
+        (&dir.to_path_buf(), "a directory, not a regular file"),
         (&dir.join("missing.json"), "cannot read"),
     ] {
         let e = SceneDesc::load(path).unwrap_err();
@@ -393,14 +392,10 @@ fn bad_files_are_refused_with_the_file_name() {
         );
         assert!(message.contains(words), "{message}");
     }
-    std::fs::remove_dir_all(dir).unwrap();
 }
 
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("penumbra-hostile-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+fn scratch(name: &str) -> common::Scratch {
+    common::Scratch::new(&format!("hostile-{name}"))
 }
 
 #[test]
@@ -440,7 +435,6 @@ fn the_cli_refuses_broken_scenes_with_exit_2_and_writes_nothing() {
         "{:?}",
         files_in(&dir)
     );
-    std::fs::remove_dir_all(dir).unwrap();
 }
 
 #[test]
@@ -480,7 +474,6 @@ fn the_cli_refuses_bad_overrides_with_exit_2_and_keeps_an_existing_file() {
         assert_eq!(std::fs::read(&out).unwrap(), b"precious", "{args:?}");
     }
     assert_eq!(files_in(&dir), vec!["keep.png"]);
-    std::fs::remove_dir_all(dir).unwrap();
 }
 
 #[test]
@@ -518,7 +511,6 @@ fn an_interrupted_render_leaves_no_file_and_keeps_an_existing_one() {
     assert!(err.contains("interrupted: no image written"), "{err}");
     assert_eq!(std::fs::read(&out).unwrap(), b"precious");
     assert_eq!(files_in(&dir), vec!["keep.png"]);
-    std::fs::remove_dir_all(dir).unwrap();
 }
 
 /// Odd but valid scenes: accepted, and rendered to finite pixels.
@@ -612,7 +604,7 @@ fn mesh_errors_quote_long_values_cut() {
         .unwrap()
         .push(json!({"type": "mesh", "file": name, "material": "white"}));
     let mut desc = SceneDesc::from_json(&v.to_string()).unwrap();
-    desc.base_dir = Some(dir);
+    desc.base_dir = Some(dir.to_path_buf());
     let Err(e) = Loaded::new(&desc) else {
         panic!("no such mesh file")
     };

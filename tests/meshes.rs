@@ -5,7 +5,7 @@
 mod common;
 
 use std::fmt::Write as _;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use common::{box_obj, penumbra, seed_room};
 use penumbra::render::compare::compare;
@@ -14,10 +14,8 @@ use penumbra::render::scene_file::{
 };
 use penumbra::render::{CancelToken, Film, Loaded, RenderOptions, SceneDesc, TileRect};
 
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("penumbra-mesh-{name}-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+fn scratch(name: &str) -> common::Scratch {
+    common::Scratch::new(&format!("mesh-{name}"))
 }
 
 fn small_room() -> SceneDesc {

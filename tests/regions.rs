@@ -10,10 +10,8 @@ use common::penumbra;
 use penumbra::render::output::read_film;
 use penumbra::render::region::{read_part, write_part};
 
-fn scratch_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("penumbra-regions-{name}-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+fn scratch_dir(name: &str) -> common::Scratch {
+    common::Scratch::new(&format!("regions-{name}"))
 }
 
 fn stderr(o: &Output) -> String {

@@ -332,12 +332,11 @@ fn too_much_work_is_refused() {
 
 #[test]
 fn errors_from_files_name_the_file() {
-    let dir = std::env::temp_dir().join(format!("penumbra-errors-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let dir = dir.path();
     let path = dir.join("truncated.json");
     std::fs::write(&path, &SEED_ROOM_JSON[..200]).unwrap();
     let e = Loaded::load(&path).unwrap_err().to_string();
     assert!(e.starts_with(&format!("{}: ", path.display())), "{e}");
     assert!(e.contains("EOF while parsing"), "{e}");
-    std::fs::remove_dir_all(dir).unwrap();
 }

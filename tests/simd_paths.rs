@@ -44,8 +44,10 @@ fn avx2_and_portable_kernels_render_the_same_bits() {
 /// once per process, so each variant is a run of the binary.
 #[test]
 fn wide_narrow_and_portable_kernels_write_the_same_files() {
-    let dir = std::env::temp_dir().join(format!("penumbra-kernels-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    // A fresh folder: files of an earlier run must not stand in for ones
+    // a variant failed to write.
+    let scratch = tempfile::tempdir().unwrap();
+    let dir = scratch.path();
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
     let cases: [(&str, &[&str]); 5] = [
         ("scenes/seed-room.json", &[]),
@@ -85,5 +87,4 @@ fn wide_narrow_and_portable_kernels_write_the_same_files() {
             );
         }
     }
-    std::fs::remove_dir_all(&dir).ok();
 }

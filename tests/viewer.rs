@@ -1286,8 +1286,7 @@ fn a_recombine_or_reshade_edit_keeps_the_refined_samples() {
 /// image is the room's once more), and undo brings it back.
 #[test]
 fn a_dropped_mesh_joins_the_scene_and_its_toggle_hides_it() {
-    let dir = std::env::temp_dir().join(format!("penumbra-viewer-mesh-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = common::Scratch::new("viewer-mesh");
     let file = dir.join("box.obj");
     std::fs::write(&file, common::box_obj([1.0; 3])).unwrap();
 

@@ -78,3 +78,26 @@ pub fn box_obj(h: [f64; 3]) -> String {
     }
     s
 }
+
+/// A fresh folder for one test's files, removed when the test ends. Its
+/// name is unique even when a process id comes round again (pids wrap at
+/// 32768 here): a folder named by the pid alone could hold an earlier
+/// run's files, and an assertion that a file was not written would fail.
+pub struct Scratch(tempfile::TempDir);
+
+impl Scratch {
+    pub fn new(name: &str) -> Scratch {
+        let dir = tempfile::Builder::new()
+            .prefix(&format!("penumbra-{name}-"))
+            .tempdir()
+            .expect("a scratch folder");
+        Scratch(dir)
+    }
+}
+
+impl std::ops::Deref for Scratch {
+    type Target = Path;
+    fn deref(&self) -> &Path {
+        self.0.path()
+    }
+}

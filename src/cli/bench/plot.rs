@@ -131,7 +131,9 @@ pub fn plot(
                 .y_label_area_size(78)
                 .build_cartesian_2d(
                     ((t0 / 1.5)..(t1 * 1.5)).log_scale(),
-                    ((e0 / 1.5)..(e1 * 1.5)).log_scale(),
+                    // A decade of room below the lowest error: the legend
+                    // sits there, clear of every line.
+                    ((e0 / 15.0)..(e1 * 1.5)).log_scale(),
                 )
                 .map_err(|e| fail(&e))?;
             chart
@@ -208,8 +210,6 @@ pub fn plot(
             }
             chart
                 .configure_series_labels()
-                // Fast and exact is where no configuration lies: the legend
-                // covers no line there.
                 .position(SeriesLabelPosition::LowerLeft)
                 .label_font((FONT, 15))
                 .background_style(WHITE.mix(0.85))

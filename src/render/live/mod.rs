@@ -389,21 +389,12 @@ impl LiveRender {
         let shading = ShadingParams::from_desc(desc);
         let shininess = shininess_of(&shading);
         let frame = current.frame.as_ref().expect("a recorded frame");
-        if !frame.shapes && frame.tiles.iter().any(|t| lock(t).shininess != shininess) {
-            // Above the memory cap the visibility was not kept.
-            let scene = self.current.take().expect("a scene").scene;
-            return self.retrace(
-                desc,
-                scene,
-                settings,
-                shading,
-                options,
-                cancel,
-                on_tile,
-                Reuse::default(),
-            );
-        }
-        if frame.tile_size != super::progressive::tile_side(options) {
+        // Above the memory cap the visibility was not kept; records of
+        // another tile size cover other rectangles.
+        let unusable = (!frame.shapes
+            && frame.tiles.iter().any(|t| lock(t).shininess != shininess))
+            || frame.tile_size != super::progressive::tile_side(options);
+        if unusable {
             let scene = self.current.take().expect("a scene").scene;
             return self.retrace(
                 desc,

@@ -21,9 +21,7 @@ use super::cosine_logs::CosineLogs;
 use crate::render::progressive::{TileRect, lock};
 use crate::render::shading::LightTerms;
 use crate::render::shading_params::ShadingParams;
-use crate::render::shadow::ShadowBuffers;
-#[cfg(not(target_arch = "x86_64"))]
-use crate::render::shadow::live_rays;
+use crate::render::shadow::{ShadowBuffers, live_rays};
 use crate::render::tracer::{HitRecord, PathEnd, PathSink};
 
 /// The colour tier of one hit.
@@ -231,11 +229,13 @@ impl PathSink for TileRecorder<'_> {
 /// Appends one bit per light point (bit j of word j / 64) for the first
 /// `count` points of `vis`, set where the point is not 0, the last word
 /// padded with 0s. `vis` runs on to a multiple of 8 (as in
-/// [`ShadowBuffers`]; what the padding holds is masked off).
+/// [`ShadowBuffers`]; what the padding holds is masked off): each word is
+/// built in a register by the shadow packets' [`live_rays`], two SSE
+/// move-masks per eight points.
 #[inline]
 pub fn push_visibility_bits(vis: &[f32], count: usize, out: &mut Vec<u64>) {
     for (k, points) in vis[..count.next_multiple_of(8)].chunks(64).enumerate() {
-        let word = visibility_word(points);
+        let word = live_rays(points);
         let left = count - 64 * k;
         out.push(if left < 64 {
             word & ((1 << left) - 1)
@@ -243,31 +243,6 @@ pub fn push_visibility_bits(vis: &[f32], count: usize, out: &mut Vec<u64>) {
             word
         });
     }
-}
-
-/// Bit j set where `points[j]` is not 0 (at most 64 points, whole chunks
-/// of 4): one compare and one move-mask per four points. The recorder runs
-/// in the baseline build, where the shadow packets' [`live_rays`] (written
-/// for the AVX2 kernels) became shifts and ors bit by bit, a third of the
-/// cost of recording a hit.
-#[inline(always)]
-fn visibility_word(points: &[f32]) -> u64 {
-    #[cfg(target_arch = "x86_64")]
-    {
-        use std::arch::x86_64::{_mm_cmpneq_ps, _mm_loadu_ps, _mm_movemask_ps, _mm_setzero_ps};
-        let mut word = 0u64;
-        for (c, four) in points.chunks_exact(4).enumerate() {
-            // Not equal or unordered: NaN counts as visible, −0 not, as `!=`.
-            // SAFETY: SSE is part of x86_64, and `four` holds four floats.
-            let bits = unsafe {
-                _mm_movemask_ps(_mm_cmpneq_ps(_mm_loadu_ps(four.as_ptr()), _mm_setzero_ps()))
-            };
-            word |= (bits as u64) << (4 * c);
-        }
-        word
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    live_rays(points)
 }
 
 /// The memory budget of one frame's records, shared by the threads that

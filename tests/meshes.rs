@@ -12,7 +12,9 @@ use penumbra::render::compare::compare;
 use penumbra::render::scene_file::{
     MeshDesc, MeshScale, MeshShading, ObjectDesc, RectDesc, TriangleDesc,
 };
-use penumbra::render::{CancelToken, Film, Loaded, RenderOptions, SceneDesc, TileRect};
+use penumbra::render::{
+    AreaLightModel, CancelToken, Film, Loaded, RenderOptions, Sampling, SceneDesc, TileRect,
+};
 
 fn scratch(name: &str) -> common::Scratch {
     common::Scratch::new(&format!("mesh-{name}"))
@@ -109,16 +111,29 @@ fn render_crop(desc: &SceneDesc, skip: bool, region: TileRect) -> Film {
     .film
 }
 
+/// With every sampling pattern (the random ones draw the same numbers for
+/// both, hit for hit) and both the sampled and the report's light model.
 #[test]
 fn a_twelve_triangle_box_renders_as_the_box() {
     let dir = scratch("box");
-    let prims = small_room();
-    let meshes = boxes_as_meshes(&prims, &dir);
+    let mut prims = small_room();
+    let mut meshes = boxes_as_meshes(&prims, &dir);
     let loaded = Loaded::new(&meshes).unwrap();
     assert_eq!(loaded.scene.triangles, 24);
-    for skip in [true, false] {
-        let (e, max) = rmse(&render(&prims, skip), &render(&meshes, skip));
-        assert!(e <= 1e-6, "skip {skip}: rmse {e}, max {max}");
+    for model in [AreaLightModel::Sampled, AreaLightModel::NearestPoint] {
+        for sampling in Sampling::ALL {
+            for d in [&mut prims, &mut meshes] {
+                d.render.sampling = sampling;
+                d.render.area_light_model = model;
+            }
+            for skip in [true, false] {
+                let (e, max) = rmse(&render(&prims, skip), &render(&meshes, skip));
+                assert!(
+                    e <= 1e-6,
+                    "{model:?}, {sampling:?}, skip {skip}: rmse {e}, max {max}"
+                );
+            }
+        }
     }
 }
 

@@ -185,8 +185,10 @@ impl Meshes {
         Aabb::from_points(&self.vertices(f)).padded()
     }
 
-    /// See [`Triangle::occluder`].
-    #[inline]
+    /// See [`Triangle::occluder`]. Always inlined: the shadow kernels call
+    /// it for every face they test, and a call leaves their CPU features
+    /// (the same operations, so the same bits).
+    #[inline(always)]
     pub fn occluder(&self, f: u32, p: DVec3) -> TriangleOccluder {
         triangle::occluder(&self.vertices(f), p)
     }

@@ -194,7 +194,7 @@ pub fn surface(
 }
 
 /// The shadow-ray form of the triangle `v` seen from `p`.
-#[inline]
+#[inline(always)]
 pub fn occluder(v: &[DVec3; 3], p: DVec3) -> TriangleOccluder {
     let [a, b, c] = v.map(|v| (v - p).as_vec3());
     let n = (b - a).cross(c - a);

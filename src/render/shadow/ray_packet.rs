@@ -90,6 +90,17 @@ impl RayBins {
             c[2][s] = (f.y0[s] - self.min[1]) * self.scale[1];
             c[3][s] = (f.y1[s] - self.min[1]) * self.scale[1] + 1.0;
         }
+        // Most rectangles lie beside the packet's points: one is empty if
+        // its high ends fall in no cell above the lowest or its low ends in
+        // the last (what its cells would say; a NaN end goes the long way).
+        let mut empty = [false; 4];
+        for s in 0..4 {
+            let top = CELLS as f64;
+            empty[s] = c[1][s] <= 0.0 || c[0][s] >= top || c[3][s] <= 0.0 || c[2][s] >= top;
+        }
+        if empty == [true; 4] {
+            return [0; 4];
+        }
         // The cells, clamped and converted four lanes at a time.
         let mut cell = [[0i32; 4]; 4];
         for k in 0..4 {

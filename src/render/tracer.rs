@@ -118,8 +118,8 @@ pub struct TraceScratch {
     factors: Vec<LightTerms>,
     /// The objects [`Tracer::tile`]'s camera rays test.
     camera_objects: Vec<u32>,
-    /// The directions of one row of a tile's camera rays.
-    camera_dirs: Vec<DVec3>,
+    /// One row of a tile's camera rays.
+    camera_rays: Vec<Ray>,
 }
 
 impl<'a> Tracer<'a> {
@@ -153,7 +153,7 @@ impl<'a> Tracer<'a> {
             terms: Vec::new(),
             factors: Vec::new(),
             camera_objects: Vec::new(),
-            camera_dirs: Vec::new(),
+            camera_rays: Vec::new(),
         }
     }
 
@@ -270,8 +270,8 @@ impl<'a> Tracer<'a> {
     }
 
     /// Calls `each` with the camera ray of every pixel of `rect` (one
-    /// sample a pixel), row by row, a row's directions computed at once
-    /// ([`Camera::row_directions`](super::camera::Camera::row_directions));
+    /// sample a pixel), row by row, a row's rays computed at once
+    /// ([`Camera::row_rays`](super::camera::Camera::row_rays));
     /// false if cancelled part-way.
     #[inline]
     fn each_camera_ray(
@@ -282,19 +282,19 @@ impl<'a> Tracer<'a> {
         mut each: impl FnMut(u32, u32, Ray, &mut TraceScratch),
     ) -> bool {
         let camera = &self.scene.camera;
-        let mut dirs = std::mem::take(&mut scratch.camera_dirs);
+        let mut rays = std::mem::take(&mut scratch.camera_rays);
         let mut finished = true;
         for y in rect.y..rect.y + rect.h {
             if cancel.is_cancelled() {
                 finished = false;
                 break;
             }
-            camera.row_directions(rect.x, y, rect.w, &mut dirs);
-            for (x, &dir) in (rect.x..).zip(&dirs) {
-                each(x, y, Ray::new(camera.origin, dir), scratch);
+            camera.row_rays(rect.x, y, rect.w, &mut rays);
+            for (x, &ray) in (rect.x..).zip(&rays) {
+                each(x, y, ray, scratch);
             }
         }
-        scratch.camera_dirs = dirs;
+        scratch.camera_rays = rays;
         finished
     }
 

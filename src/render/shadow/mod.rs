@@ -43,7 +43,7 @@ mod visibility;
 pub use buffers::ShadowBuffers;
 pub use light_frame::OccluderBvh;
 pub(crate) use packet::live_rays;
-pub(crate) use visibility::{ShadowQuery, possible_occluders, visibility};
+pub(crate) use visibility::{ShadowQuery, possible_occluders, visibility, visibility_inline};
 
 /// Shadow rays end at this fraction of the way to their light point: a
 /// surface the light lies in (a light flush with a ceiling) must not block

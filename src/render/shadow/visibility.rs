@@ -58,11 +58,13 @@ avx2_dispatch!(
         count: usize,
         buf: &mut ShadowBuffers,
         stats: &mut RayStats,
-    ) => visibility_generic
+    ) => visibility_inline
 );
 
+/// [`visibility`] inlined into the caller, compiled for its CPU features
+/// (the same operations, so the same bits).
 #[inline(always)]
-fn visibility_generic(
+pub(crate) fn visibility_inline(
     scene: &Scene,
     settings: &RenderSettings,
     q: &ShadowQuery,

@@ -20,7 +20,7 @@ use crate::render::scene::Scene;
 /// Cubes per side of the scene's finite part ([`Scene::scale`]): small
 /// enough that a cube's hull with the light stays close to the pyramids of
 /// its points, large enough that neighbouring hit points share one.
-const CUBES_PER_SCALE: f64 = 64.0;
+const CUBES_PER_SCALE: f64 = 40.0;
 
 /// Cache slots: 2^SLOT_BITS.
 const SLOT_BITS: u32 = 12;

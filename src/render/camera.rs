@@ -85,7 +85,6 @@ impl Camera {
 
 #[cfg(test)]
 mod tests {
-    use super::*;
     use crate::render::scene::Loaded;
 
     #[test]

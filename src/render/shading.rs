@@ -161,6 +161,7 @@ avx2_dispatch!(
     /// inlined: one feature check per hit point, and the shadow query stays
     /// in registers (handed to a separate kernel, its point was read back
     /// across two of the stores that wrote it, which stalls the load).
+    #[allow(clippy::too_many_arguments)]
     pub(crate) fn light_points(
         scene: &Scene,
         s: &RenderSettings,

@@ -116,7 +116,7 @@ impl OccluderCells {
         }
         let c = (p * self.per_side).floor();
         // Far outside the scene (or not finite): the full list.
-        if !(c.abs().max_element() < 1e9) {
+        if !c.is_finite() || c.abs().max_element() >= 1e9 {
             return None;
         }
         let cube = [c.x as i32, c.y as i32, c.z as i32];

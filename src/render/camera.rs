@@ -54,11 +54,14 @@ impl Camera {
         self.ray(px as f64 + 0.5, py as f64 + 0.5)
     }
 
-    /// The directions of [`Camera::pixel_ray`] for the `n` pixels from
-    /// (x0, y) rightwards, into `out`: the same operations, so the same
-    /// bits, but eight pixels at a time, so that their divisions and square
-    /// roots overlap instead of each waiting for the one before.
-    pub fn row_directions(&self, x0: u32, y: u32, n: u32, out: &mut Vec<DVec3>) {
+    /// [`Camera::pixel_ray`] of the `n` pixels from (x0, y) rightwards,
+    /// into `out`: the same operations, so the same bits, but eight pixels
+    /// at a time, so that their divisions and square roots overlap instead
+    /// of each waiting for the one before. Whole rays, not directions: a
+    /// ray copied whole from here is read back at the offsets it was
+    /// written with (a direction put into a ray on the stack was read back
+    /// across two of its stores, which stalls the load).
+    pub fn row_rays(&self, x0: u32, y: u32, n: u32, out: &mut Vec<Ray>) {
         const CHUNK: usize = 8;
         out.clear();
         let (w, h) = (self.width as f64, self.height as f64);
@@ -72,33 +75,37 @@ impl Camera {
             let inv: [f64; CHUNK] =
                 from_fn(|k| 1.0 / (dx[k] * dx[k] + dy[k] * dy[k] + dz[k] * dz[k]).sqrt());
             let len = CHUNK.min((x0 + n - start) as usize);
-            out.extend(
-                (0..len).map(|k| DVec3::new(dx[k] * inv[k], dy[k] * inv[k], dz[k] * inv[k])),
-            );
+            out.extend((0..len).map(|k| {
+                let dir = DVec3::new(dx[k] * inv[k], dy[k] * inv[k], dz[k] * inv[k]);
+                Ray::new(self.origin, dir)
+            }));
         }
     }
 }
 
 #[cfg(test)]
 mod tests {
-    use super::*;
     use crate::render::scene::Loaded;
 
     #[test]
-    fn a_row_of_directions_is_each_pixel_ray_s() {
+    fn a_row_of_rays_is_each_pixel_ray_s() {
         let mut camera = Loaded::seed_room().scene.camera.clone();
         for (width, height) in [(960, 540), (37, 11), (1, 1)] {
             camera.width = width;
             camera.height = height;
-            let mut dirs = Vec::new();
+            let mut rays = Vec::new();
             for (x0, y, n) in [
                 (0, 0, width),
                 (width - 1, height - 1, 1),
                 (width / 3, height / 2, width / 2),
             ] {
-                camera.row_directions(x0, y, n, &mut dirs);
-                let want: Vec<DVec3> = (x0..x0 + n).map(|x| camera.pixel_ray(x, y).dir).collect();
-                assert_eq!(dirs, want, "{width}×{height}: {n} from ({x0}, {y})");
+                camera.row_rays(x0, y, n, &mut rays);
+                let got: Vec<_> = rays.iter().map(|r| (r.origin, r.dir)).collect();
+                let want: Vec<_> = (x0..x0 + n)
+                    .map(|x| camera.pixel_ray(x, y))
+                    .map(|r| (r.origin, r.dir))
+                    .collect();
+                assert_eq!(got, want, "{width}×{height}: {n} from ({x0}, {y})");
             }
         }
     }

@@ -12,6 +12,8 @@ macro_rules! avx2_dispatch {
         $vis fn $name($($arg: $ty),*) -> $ret {
             #[cfg(target_arch = "x86_64")]
             {
+                // The kernel's own signature, however long.
+                #[allow(clippy::too_many_arguments)]
                 #[target_feature(enable = "avx2")]
                 fn avx2($($arg: $ty),*) -> $ret {
                     $body_fn($($arg),*)
@@ -99,24 +101,30 @@ static KERNELS: AtomicU8 = AtomicU8::new(0);
 
 /// Whether the vector kernels run as AVX2: chosen once per process, from
 /// the CPU and `PENUMBRA_KERNELS=portable` (which forces the baseline
-/// build, to compare the two), then one relaxed load per call.
-#[inline]
+/// build, to compare the two), then one relaxed load per call, inlined
+/// into the caller (the choice itself is out of line).
+#[inline(always)]
 pub fn avx2_kernels() -> bool {
     match KERNELS.load(Ordering::Relaxed) {
-        0 => {
-            let forced = std::env::var("PENUMBRA_KERNELS").is_ok_and(|v| v == "portable");
-            #[cfg(target_arch = "x86_64")]
-            let avx2 = !forced && std::arch::is_x86_feature_detected!("avx2");
-            #[cfg(not(target_arch = "x86_64"))]
-            let avx2 = {
-                let _ = forced;
-                false
-            };
-            KERNELS.store(if avx2 { 2 } else { 1 }, Ordering::Relaxed);
-            avx2
-        }
+        0 => choose_kernels(),
         k => k == 2,
     }
+}
+
+/// The first call of [`avx2_kernels`]: chooses, and returns the choice.
+#[cold]
+#[inline(never)]
+fn choose_kernels() -> bool {
+    let forced = std::env::var("PENUMBRA_KERNELS").is_ok_and(|v| v == "portable");
+    #[cfg(target_arch = "x86_64")]
+    let avx2 = !forced && std::arch::is_x86_feature_detected!("avx2");
+    #[cfg(not(target_arch = "x86_64"))]
+    let avx2 = {
+        let _ = forced;
+        false
+    };
+    KERNELS.store(if avx2 { 2 } else { 1 }, Ordering::Relaxed);
+    avx2
 }
 
 /// Forces the portable kernels (`true`) or goes back to the CPU's choice,

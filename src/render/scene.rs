@@ -384,21 +384,23 @@ impl Scene {
             return self.closest_hit(ray);
         }
         let all = self.unbounded.iter().chain(self.bounded.iter());
-        self.camera_hit_among(ray, true, all.copied())
+        self.camera_hit_among(ray, true, true, all.copied())
     }
 
     /// [`Scene::camera_hit`] testing, of the unbounded and bounded
     /// objects, only `objects` (a subsequence of them that leaves out only
-    /// objects the ray misses: the same hit), the BVH as ever.
+    /// objects the ray misses: the same hit), the light only if `light`
+    /// (false only if the ray misses it), the BVH as ever.
     pub fn camera_hit_among(
         &self,
         ray: &Ray,
         cutaway: bool,
+        light: bool,
         objects: impl IntoIterator<Item = u32>,
     ) -> Option<(HitTarget, f64)> {
         let mut best: Option<(HitTarget, f64)> = None;
         let mut t_max = f64::INFINITY;
-        if let Some(t) = self.light.shape.intersect(ray, t_max) {
+        if light && let Some(t) = self.light.shape.intersect(ray, t_max) {
             best = Some((HitTarget::Light, t));
             t_max = t;
         }

@@ -154,11 +154,29 @@ pub(crate) enum Lit {
     Points,
 }
 
-/// The first part of [`light_terms`]: the light points of one hit point
-/// and their visibility, unless the factors are known without them.
+avx2_dispatch!(
+    /// The first part of [`light_terms`]: the light points of one hit point
+    /// and their visibility, unless the factors are known without them.
+    /// Compiled for AVX2 as a whole where the CPU has it, the shadow culling
+    /// inlined: one feature check per hit point, and the shadow query stays
+    /// in registers (handed to a separate kernel, its point was read back
+    /// across two of the stores that wrote it, which stalls the load).
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn light_points(
+        scene: &Scene,
+        s: &RenderSettings,
+        sp: &ShadingPoint,
+        needs: Needs,
+        pattern: &Pattern,
+        rng: &mut Rng,
+        buf: &mut ShadowBuffers,
+        stats: &mut RayStats,
+    ) -> Lit => light_points_generic
+);
+
 #[allow(clippy::too_many_arguments)]
-#[inline]
-pub(crate) fn light_points(
+#[inline(always)]
+fn light_points_generic(
     scene: &Scene,
     s: &RenderSettings,
     sp: &ShadingPoint,
@@ -210,7 +228,7 @@ pub(crate) fn light_points(
         object: sp.object,
         inside: sp.inside,
     };
-    shadow::visibility(scene, s, &query, count, buf, stats);
+    shadow::visibility_inline(scene, s, &query, count, buf, stats);
     Lit::Points
 }
 

@@ -1,4 +1,5 @@
-//! The objects a tile's camera rays may meet: every camera ray of a tile
+//! The objects a tile's camera rays may meet, and whether they may meet
+//! the light: every camera ray of a tile
 //! starts at the camera and runs inside the cone spanned by the rays
 //! through its corner pixels, so an object wholly outside that cone (or a
 //! plane that every one of those rays runs away from) is met by none of
@@ -8,16 +9,27 @@
 
 use glam::DVec3;
 
-use super::geometry::{Primitive, Shape};
+use super::geometry::{Aabb, Primitive, Shape};
 use super::progressive::TileRect;
 use super::scene::Scene;
 
-/// Writes into `out` the unbounded and bounded objects (in the order the
-/// closest-hit loop takes them) that a camera ray through a pixel centre
-/// of `rect` may meet; the BVH's objects are not listed (they are found
-/// through the BVH as before).
-pub(crate) fn camera_objects(scene: &Scene, rect: TileRect, out: &mut Vec<u32>) {
-    out.clear();
+/// What the camera rays of one tile may meet.
+#[derive(Debug, Default)]
+pub(crate) struct TileTargets {
+    /// The unbounded and bounded objects, in the order the closest-hit
+    /// loop takes them; the BVH's objects are not listed (they are found
+    /// through the BVH as before).
+    pub objects: Vec<u32>,
+    /// Whether the light may be met (most tiles see no light: their rays
+    /// skip its test).
+    pub light: bool,
+}
+
+/// Writes into `out` what a camera ray through a pixel centre of `rect`
+/// may meet.
+pub(crate) fn camera_objects(scene: &Scene, rect: TileRect, out: &mut TileTargets) {
+    let out_objects = &mut out.objects;
+    out_objects.clear();
     let camera = &scene.camera;
     let origin = camera.origin;
     // (An empty rectangle, which no caller passes, counts as its corner.)
@@ -38,6 +50,14 @@ pub(crate) fn camera_objects(scene: &Scene, rect: TileRect, out: &mut Vec<u32>) 
     // scene's extent.
     let margin = 1e-6 * scene.scale;
     const SLOPE: f64 = 1e-9;
+    // The box corner furthest along a side's inner normal lies outside it.
+    let outside = |b: &Aabb| {
+        sides.iter().any(|&n| {
+            let x = DVec3::select(n.cmpge(DVec3::ZERO), b.max, b.min);
+            n.dot(x - origin) < -margin
+        })
+    };
+    out.light = !outside(&Aabb::from_points(&scene.light.shape.corners()));
     for &i in scene.unbounded.iter().chain(scene.bounded.iter()) {
         let missed = match (scene.primitive(i), scene.bounds_of(i)) {
             // t = −distance / (normal · direction) > 0 for none of the
@@ -50,15 +70,11 @@ pub(crate) fn camera_objects(scene: &Scene, rect: TileRect, out: &mut Vec<u32>) 
                 (side >= 0.0 && along.iter().all(|&a| a > SLOPE))
                     || (side <= 0.0 && along.iter().all(|&a| a < -SLOPE))
             }
-            (_, Some(b)) => sides.iter().any(|&n| {
-                // The box corner furthest along the side's inner normal.
-                let x = DVec3::select(n.cmpge(DVec3::ZERO), b.max, b.min);
-                n.dot(x - origin) < -margin
-            }),
+            (_, Some(b)) => outside(&b),
             (_, None) => false,
         };
         if !missed {
-            out.push(i);
+            out_objects.push(i);
         }
     }
 }
@@ -84,27 +100,44 @@ mod tests {
             w: scene.camera.width,
             h: scene.camera.height,
         };
-        let mut listed = Vec::new();
+        let mut listed = TileTargets::default();
+        let mut lit_tiles = 0;
         let (mut kept, mut all) = (0, 0);
         for rect in tiles_of(whole, 32) {
             camera_objects(scene, rect, &mut listed);
-            kept += listed.len();
+            lit_tiles += listed.light as usize;
+            kept += listed.objects.len();
             all += scene.unbounded.len() + scene.bounded.len();
             for y in (rect.y..rect.y + rect.h).step_by(3) {
                 for x in (rect.x..rect.x + rect.w).step_by(3) {
                     let ray = scene.camera.pixel_ray(x, y);
-                    if let Some((HitTarget::Object(i), _)) = scene.camera_hit(&ray, false) {
-                        assert!(
-                            listed.contains(&i),
+                    match scene.camera_hit(&ray, false) {
+                        Some((HitTarget::Object(i), _)) => assert!(
+                            listed.objects.contains(&i),
                             "tile {rect:?}: pixel ({x}, {y}) meets {i}"
-                        );
+                        ),
+                        Some((HitTarget::Light, _)) => assert!(
+                            listed.light,
+                            "tile {rect:?}: pixel ({x}, {y}) meets the light"
+                        ),
+                        None => {}
                     }
-                    let among = scene.camera_hit_among(&ray, false, listed.iter().copied());
+                    let among = scene.camera_hit_among(
+                        &ray,
+                        false,
+                        listed.light,
+                        listed.objects.iter().copied(),
+                    );
                     assert_eq!(among, scene.camera_hit(&ray, false));
                 }
             }
         }
         assert!(kept * 2 < all, "{kept} of {all} objects kept");
+        // The light, at the top of the image's middle, is seen by few tiles.
+        assert!(
+            (1..40).contains(&lit_tiles),
+            "{lit_tiles} tiles see the light"
+        );
         // Top right: rays above the horizon, towards −x.
         let top_right = TileRect {
             x: 928,
@@ -113,8 +146,16 @@ mod tests {
             h: 32,
         };
         camera_objects(scene, top_right, &mut listed);
-        assert!(!listed.contains(&0), "the floor: {listed:?}");
-        assert!(!listed.contains(&2), "the wall at x = 5: {listed:?}");
-        assert_eq!(listed, [1, 3, 4], "ceiling, walls at x = −5 and z = 5");
+        assert!(!listed.objects.contains(&0), "the floor: {listed:?}");
+        assert!(
+            !listed.objects.contains(&2),
+            "the wall at x = 5: {listed:?}"
+        );
+        assert_eq!(
+            listed.objects,
+            [1, 3, 4],
+            "ceiling, walls at x = −5 and z = 5"
+        );
+        assert!(!listed.light);
     }
 }

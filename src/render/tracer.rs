@@ -27,7 +27,7 @@ use super::shading::{
 use super::shading_params::ShadingParams;
 use super::shadow::ShadowBuffers;
 use super::stats::RayStats;
-use super::tile_frustum::camera_objects;
+use super::tile_frustum::{TileTargets, camera_objects};
 
 /// Reflected rays whose path weight falls below this are not traced (when
 /// skipping is on): they could change the pixel by at most this fraction of
@@ -116,10 +116,10 @@ pub struct TraceScratch {
     lanes: SampledLanes,
     terms: Vec<Term>,
     factors: Vec<LightTerms>,
-    /// The objects [`Tracer::tile`]'s camera rays test.
-    camera_objects: Vec<u32>,
-    /// The directions of one row of a tile's camera rays.
-    camera_dirs: Vec<DVec3>,
+    /// What [`Tracer::tile`]'s camera rays test.
+    camera_objects: TileTargets,
+    /// One row of a tile's camera rays.
+    camera_rays: Vec<Ray>,
 }
 
 impl<'a> Tracer<'a> {
@@ -152,8 +152,8 @@ impl<'a> Tracer<'a> {
             lanes: SampledLanes::default(),
             terms: Vec::new(),
             factors: Vec::new(),
-            camera_objects: Vec::new(),
-            camera_dirs: Vec::new(),
+            camera_objects: TileTargets::default(),
+            camera_rays: Vec::new(),
         }
     }
 
@@ -270,8 +270,8 @@ impl<'a> Tracer<'a> {
     }
 
     /// Calls `each` with the camera ray of every pixel of `rect` (one
-    /// sample a pixel), row by row, a row's directions computed at once
-    /// ([`Camera::row_directions`](super::camera::Camera::row_directions));
+    /// sample a pixel), row by row, a row's rays computed at once
+    /// ([`Camera::row_rays`](super::camera::Camera::row_rays));
     /// false if cancelled part-way.
     #[inline]
     fn each_camera_ray(
@@ -282,19 +282,19 @@ impl<'a> Tracer<'a> {
         mut each: impl FnMut(u32, u32, Ray, &mut TraceScratch),
     ) -> bool {
         let camera = &self.scene.camera;
-        let mut dirs = std::mem::take(&mut scratch.camera_dirs);
+        let mut rays = std::mem::take(&mut scratch.camera_rays);
         let mut finished = true;
         for y in rect.y..rect.y + rect.h {
             if cancel.is_cancelled() {
                 finished = false;
                 break;
             }
-            camera.row_directions(rect.x, y, rect.w, &mut dirs);
-            for (x, &dir) in (rect.x..).zip(&dirs) {
-                each(x, y, Ray::new(camera.origin, dir), scratch);
+            camera.row_rays(rect.x, y, rect.w, &mut rays);
+            for (x, &ray) in (rect.x..).zip(&rays) {
+                each(x, y, ray, scratch);
             }
         }
-        scratch.camera_dirs = dirs;
+        scratch.camera_rays = rays;
         finished
     }
 
@@ -302,7 +302,7 @@ impl<'a> Tracer<'a> {
     fn tile_in_lanes(
         &self,
         rect: TileRect,
-        objects: &[u32],
+        objects: &TileTargets,
         cancel: &CancelToken,
         scratch: &mut TraceScratch,
         out: &mut Vec<Vec3>,
@@ -357,8 +357,7 @@ impl<'a> Tracer<'a> {
     }
 
     /// One camera sample's path, its linear RGB added to `colour`;
-    /// `camera_objects`: the only unbounded and bounded objects the camera
-    /// ray may meet, if known.
+    /// `camera_objects`: what the camera ray may meet, if known.
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
     fn trace_path<S: PathSink, C: PathColour>(
@@ -367,7 +366,7 @@ impl<'a> Tracer<'a> {
         y: u32,
         sample: u32,
         mut ray: Ray,
-        camera_objects: Option<&[u32]>,
+        camera_objects: Option<&TileTargets>,
         scratch: &mut TraceScratch,
         sink: &mut S,
         colour: &mut C,
@@ -380,9 +379,12 @@ impl<'a> Tracer<'a> {
             let hit = sink.nearest(depth, &ray, || {
                 if depth == 1 {
                     match camera_objects {
-                        Some(objects) => {
-                            scene.camera_hit_among(&ray, s.cutaway, objects.iter().copied())
-                        }
+                        Some(tile) => scene.camera_hit_among(
+                            &ray,
+                            s.cutaway,
+                            tile.light,
+                            tile.objects.iter().copied(),
+                        ),
                         None => scene.camera_hit(&ray, s.cutaway),
                     }
                 } else {

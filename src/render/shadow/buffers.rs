@@ -1,5 +1,6 @@
 //! Per-thread buffers of one hit point's shadow rays.
 
+use super::cells::OccluderCells;
 use super::packet::PacketScratch;
 use super::ray_packet::{PACKET, RayBins};
 use super::visibility::Candidate;
@@ -27,6 +28,9 @@ pub struct ShadowBuffers {
     /// The fixed pattern whose points `a` and `b` already hold, if any.
     pub filled: Option<(Sampling, u32)>,
     pub(super) occluders: Vec<Candidate>,
+    /// The objects that may block shadow rays from each small cube of
+    /// space.
+    pub(super) cells: OccluderCells,
     /// The light points binned per packet of 64 rays, and the fixed pattern
     /// they were binned for (a pattern drawn per hit point is binned anew).
     pub(super) bins: Vec<RayBins>,
@@ -55,6 +59,7 @@ impl ShadowBuffers {
             term_f: v(0.0),
             filled: None,
             occluders: Vec::with_capacity(16),
+            cells: OccluderCells::default(),
             bins: Vec::with_capacity(points.div_ceil(PACKET)),
             bins_for: None,
             scratch: PacketScratch::default(),

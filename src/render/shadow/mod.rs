@@ -16,7 +16,9 @@
 //! Work is skipped where the answer is known (when `settings.skip`):
 //! - objects whose bounds miss the pyramid spanned by p and the light
 //!   rectangle can block nothing; planes with the whole light on p's side
-//!   neither. With no candidate left, every facing point is visible.
+//!   neither. With no candidate left, every facing point is visible. A
+//!   hit point first narrows the objects to those of its small cube of
+//!   space (`cells.rs`).
 //! - if one convex candidate, lying wholly between p and the light's plane,
 //!   blocks the rays to all four light corners, it blocks every ray to the
 //!   light (the directions that meet a convex body form a convex cone).
@@ -30,6 +32,7 @@
 //! the same with skipping on or off.
 
 mod buffers;
+mod cells;
 pub(crate) mod light_frame;
 mod occluder;
 mod packet;
@@ -40,7 +43,7 @@ mod visibility;
 pub use buffers::ShadowBuffers;
 pub use light_frame::OccluderBvh;
 pub(crate) use packet::live_rays;
-pub(crate) use visibility::{ShadowQuery, possible_occluders, visibility};
+pub(crate) use visibility::{ShadowQuery, possible_occluders, visibility, visibility_inline};
 
 /// Shadow rays end at this fraction of the way to their light point: a
 /// surface the light lies in (a light flush with a ceiling) must not block

@@ -4,6 +4,7 @@
 use glam::{DVec3, Vec3};
 
 use super::buffers::ShadowBuffers;
+use super::cells::ObjectBits;
 use super::light_frame::Eye;
 use super::occluder::{Dirs, Occluder};
 use super::packet::{PacketScratch, Packets, packet};
@@ -57,11 +58,13 @@ avx2_dispatch!(
         count: usize,
         buf: &mut ShadowBuffers,
         stats: &mut RayStats,
-    ) => visibility_generic
+    ) => visibility_inline
 );
 
+/// [`visibility`] inlined into the caller, compiled for its CPU features
+/// (the same operations, so the same bits).
 #[inline(always)]
-fn visibility_generic(
+pub(crate) fn visibility_inline(
     scene: &Scene,
     settings: &RenderSettings,
     q: &ShadowQuery,
@@ -91,6 +94,19 @@ fn visibility_generic(
     }
 
     let skip = settings.skip;
+    // The objects that may block a ray from p's cube of space (all of
+    // them when not skipping).
+    let listed = match skip.then(|| buf.cells.bits_at(scene, q.point)).flatten() {
+        Some(bits) => {
+            let own = |i: u32| i == q.object && scene.primitive(i).skips_itself(q.inside);
+            if each_bit(bits, buf.cells.objects()).all(own) {
+                stats.shadow_unoccluded += facing;
+                return;
+            }
+            bits
+        }
+        None => ObjectBits::MAX,
+    };
     let umbra_tested = skip && count >= UMBRA_TEST_RAYS;
     let corners = light.corners();
     let pyramid = ShadowPyramid::new(q.point, &corners, light.normal, light.centre());
@@ -104,9 +120,17 @@ fn visibility_generic(
 
     // Objects outside the BVH (planes, and all objects of small scenes).
     buf.occluders.clear();
-    for &i in scene.unbounded.iter().chain(scene.bounded.iter()) {
-        if let Some(c) = culling.candidate(i) {
-            buf.occluders.push(c);
+    if listed == ObjectBits::MAX {
+        for &i in scene.unbounded.iter().chain(scene.bounded.iter()) {
+            if let Some(c) = culling.candidate(i) {
+                buf.occluders.push(c);
+            }
+        }
+    } else {
+        for i in each_bit(listed, buf.cells.objects()) {
+            if let Some(c) = culling.candidate(i) {
+                buf.occluders.push(c);
+            }
         }
     }
     if buf.occluders.is_empty() && scene.bvh.is_empty() {
@@ -423,6 +447,19 @@ pub(crate) fn possible_occluders(scene: &Scene, q: &ShadowQuery, out: &mut Vec<(
             true
         },
     );
+}
+
+/// The objects of `objects` whose bits are set in `bits`, in order.
+#[inline(always)]
+fn each_bit(mut bits: ObjectBits, objects: &[u32]) -> impl Iterator<Item = u32> + '_ {
+    std::iter::from_fn(move || {
+        if bits == 0 {
+            return None;
+        }
+        let k = bits.trailing_zeros();
+        bits &= bits - 1;
+        Some(objects[k as usize])
+    })
 }
 
 /// Shadow rays as parallel slices: light points, directions, visibility.

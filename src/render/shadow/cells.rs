@@ -1,0 +1,313 @@
+//! The objects that may block a shadow ray from anywhere in a small cube of
+//! space: each hit point tests only its cube's list, not every object.
+//!
+//! Every shadow ray from a point of the cube lies in the convex hull of the
+//! cube and the light. An object left out of a cube's list is separated
+//! from that hull by a margin far beyond the rounding of the f32 ray tests
+//! (as the shadow packets' margin, `visibility.rs`), so none of those rays
+//! could find it blocking: the same visibility bits. A plane is left out
+//! only where the per-hit-point test would leave it out at every point of
+//! the cube (the whole light on the point's side).
+//!
+//! The lists are made lazily, cube by cube, into a small direct-mapped
+//! cache per thread: neighbouring pixels' hit points share a cube.
+
+use glam::DVec3;
+
+use crate::render::geometry::{Primitive, Shape};
+use crate::render::scene::Scene;
+
+/// Cubes per side of the scene's finite part ([`Scene::scale`]): small
+/// enough that a cube's hull with the light stays close to the pyramids of
+/// its points, large enough that neighbouring hit points share one.
+const CUBES_PER_SCALE: f64 = 40.0;
+
+/// Cache slots: 2^SLOT_BITS.
+const SLOT_BITS: u32 = 12;
+
+/// The margin, as a fraction of the scene's scale.
+const MARGIN: f64 = 1e-4;
+
+/// The objects tested one by one ([`Scene::unbounded`], then
+/// [`Scene::bounded`]) as bits, in this order; the lists serve up to 64 of
+/// them.
+pub(super) type ObjectBits = u64;
+
+/// What the lists were made for: they hold only for the same objects
+/// under the same light.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Made {
+    /// The address of [`Scene::objects`].
+    objects: usize,
+    corner: DVec3,
+    edge_u: DVec3,
+    edge_v: DVec3,
+}
+
+impl Made {
+    /// Field by field from the scene (a copy on the stack compared at once
+    /// would stall on forwarding its stores).
+    #[inline(always)]
+    fn is_for(&self, scene: &Scene) -> bool {
+        let light = &scene.light.shape;
+        self.objects == objects_address(scene)
+            && self.corner == light.corner
+            && self.edge_u == light.edge_u
+            && self.edge_v == light.edge_v
+    }
+}
+
+#[inline(always)]
+fn objects_address(scene: &Scene) -> usize {
+    std::sync::Arc::as_ptr(&scene.objects) as *const () as usize
+}
+
+#[derive(Debug, Clone, Copy)]
+struct Slot {
+    cube: [i32; 3],
+    bits: ObjectBits,
+}
+
+/// Per-thread occluder lists of the cubes met so far.
+#[derive(Debug, Default)]
+pub(super) struct OccluderCells {
+    made: Option<Made>,
+    /// Object ids, in the order of the bits.
+    objects: Vec<u32>,
+    side: f64,
+    /// 1 / `side`.
+    per_side: f64,
+    margin: f64,
+    /// The last cube's list: neighbouring hit points mostly share it.
+    last: Slot,
+    slots: Vec<Slot>,
+}
+
+impl Default for Slot {
+    fn default() -> Slot {
+        EMPTY_SLOT
+    }
+}
+
+/// A slot of a cube no point maps to.
+const EMPTY_SLOT: Slot = Slot {
+    cube: [i32::MIN; 3],
+    bits: 0,
+};
+
+impl OccluderCells {
+    /// The object ids the bits stand for (valid after [`Self::bits_at`]
+    /// returned `Some`).
+    #[inline(always)]
+    pub(super) fn objects(&self) -> &[u32] {
+        &self.objects
+    }
+
+    /// The objects (as bits of [`Self::objects`]) that may block a shadow
+    /// ray from `p`; `None` where the lists do not serve (more than 64
+    /// objects, a BVH, or `p` far outside the scene).
+    #[inline(always)]
+    pub(super) fn bits_at(&mut self, scene: &Scene, p: DVec3) -> Option<ObjectBits> {
+        if !self.made.is_some_and(|m| m.is_for(scene)) {
+            self.start(scene);
+        }
+        if self.slots.is_empty() {
+            return None;
+        }
+        let c = (p * self.per_side).floor();
+        // Far outside the scene (or not finite): the full list.
+        if !c.is_finite() || c.abs().max_element() >= 1e9 {
+            return None;
+        }
+        let cube = [c.x as i32, c.y as i32, c.z as i32];
+        if self.last.cube == cube {
+            return Some(self.last.bits);
+        }
+        let hash = (cube[0] as u32).wrapping_mul(0x9E37_79B1)
+            ^ (cube[1] as u32).wrapping_mul(0x85EB_CA77)
+            ^ (cube[2] as u32).wrapping_mul(0xC2B2_AE3D);
+        let slot = &mut self.slots[(hash >> (32 - SLOT_BITS)) as usize];
+        if slot.cube != cube {
+            let lo = c * self.side;
+            *slot = Slot {
+                cube,
+                bits: cube_bits(scene, &self.objects, lo, lo + self.side, self.margin),
+            };
+        }
+        self.last = *slot;
+        Some(slot.bits)
+    }
+
+    /// Forgets every list: they are made anew for `made`'s scene.
+    #[cold]
+    fn start(&mut self, scene: &Scene) {
+        let light = &scene.light.shape;
+        self.made = Some(Made {
+            objects: objects_address(scene),
+            corner: light.corner,
+            edge_u: light.edge_u,
+            edge_v: light.edge_v,
+        });
+        self.objects.clear();
+        self.objects
+            .extend(scene.unbounded.iter().chain(scene.bounded.iter()));
+        self.slots.clear();
+        if !scene.bvh.is_empty() || self.objects.len() > ObjectBits::BITS as usize {
+            return;
+        }
+        self.side = scene.scale / CUBES_PER_SCALE;
+        self.per_side = 1.0 / self.side;
+        self.last = EMPTY_SLOT;
+        self.margin = MARGIN * scene.scale;
+        self.slots.resize(1 << SLOT_BITS, EMPTY_SLOT);
+    }
+}
+
+/// The bits of the objects that may block a shadow ray from a point of the
+/// box `lo..hi`.
+fn cube_bits(scene: &Scene, objects: &[u32], lo: DVec3, hi: DVec3, margin: f64) -> ObjectBits {
+    // The cube grown by the margin: a point rounds into its cube's index
+    // from as far as a few ulps outside it.
+    let (lo, hi) = (lo - margin, hi + margin);
+    let light = &scene.light.shape;
+    let corners = light.corners();
+    let mut hull = [DVec3::ZERO; 12];
+    for (k, h) in hull.iter_mut().enumerate().take(8) {
+        *h = DVec3::new(
+            if k & 1 == 0 { lo.x } else { hi.x },
+            if k & 2 == 0 { lo.y } else { hi.y },
+            if k & 4 == 0 { lo.z } else { hi.z },
+        );
+    }
+    hull[8..].copy_from_slice(&corners);
+    // Directions that may separate an object from the hull: the axes, the
+    // light's normal, the way from the light to the cube, and the sides of
+    // the pyramid from the cube's centre to the light.
+    let centre = (lo + hi) * 0.5;
+    let light_centre = light.centre();
+    let mut axes = [
+        DVec3::X,
+        DVec3::NEG_X,
+        DVec3::Y,
+        DVec3::NEG_Y,
+        DVec3::Z,
+        DVec3::NEG_Z,
+        -light.normal,
+        (centre - light_centre).normalize_or_zero(),
+        DVec3::ZERO,
+        DVec3::ZERO,
+        DVec3::ZERO,
+        DVec3::ZERO,
+    ];
+    for i in 0..4 {
+        let n = (corners[i] - centre)
+            .cross(corners[(i + 1) % 4] - centre)
+            .normalize_or_zero();
+        axes[8 + i] = if n.dot(light_centre - centre) > 0.0 {
+            -n
+        } else {
+            n
+        };
+    }
+    // The hull's extent along each direction.
+    let reach = axes.map(|n| hull.iter().map(|h| n.dot(*h)).fold(f64::MIN, f64::max));
+    let mut bits = 0;
+    for (k, &i) in objects.iter().enumerate() {
+        let may_block = match (scene.primitive(i), scene.bounds_of(i)) {
+            (Primitive::Shape(Shape::Plane(pl)), _) => {
+                let d = hull[..8].iter().map(|h| pl.signed_distance(*h));
+                let range = (
+                    d.clone().fold(f64::MAX, f64::min),
+                    d.fold(f64::MIN, f64::max),
+                );
+                plane_may_block(range, &scene.light_sides_of(i))
+            }
+            (Primitive::Shape(Shape::Sphere(s)), _) => axes
+                .iter()
+                .zip(&reach)
+                .all(|(n, r)| n.dot(s.centre) - s.radius <= r + margin),
+            (_, Some(b)) => axes.iter().zip(&reach).all(|(n, r)| {
+                // The box's corner furthest along −n.
+                let x = DVec3::select(n.cmpge(DVec3::ZERO), b.min, b.max);
+                n.dot(x) <= r + margin
+            }),
+            (_, None) => true,
+        };
+        if may_block {
+            bits |= 1 << k;
+        }
+    }
+    bits
+}
+
+/// Whether a plane may block a shadow ray from some point whose signed
+/// distance from it lies in `range` (conservative in its rounding): the
+/// per-point test leaves it out where every `c * distance > 0`, `c` the
+/// light corners' distances `sides`. A bound of the range nearest zero
+/// with that product positive gives every distance of the range its sign,
+/// and the product only grows with the distance's size.
+fn plane_may_block((near, far): (f64, f64), sides: &[f64; 4]) -> bool {
+    let all_positive = |d: f64| sides.iter().all(|&c| c * d > 0.0);
+    !(near > 0.0 && all_positive(near) || far < 0.0 && all_positive(far))
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::DVec2;
+
+    use super::*;
+    use crate::render::generate::spheres_in_room;
+    use crate::render::geometry::Ray;
+    use crate::render::rng::Rng;
+    use crate::render::scene::Loaded;
+    use crate::render::scene_file::{ObjectDesc, RectDesc};
+
+    /// At random points of the room, no object left out of the point's
+    /// list meets a segment to any of 256 light points (f64 intersection,
+    /// planes included), and the lists do leave objects out: the seed room,
+    /// and spheres with a tilted rect under a tilted light.
+    #[test]
+    fn a_cube_leaves_out_only_objects_that_block_no_shadow_ray() {
+        let mut tilted = spheres_in_room(6, 5);
+        tilted.light.corner = [-1.5, 7.0, -1.0];
+        tilted.light.edge_u = [2.5, 0.6, 0.3];
+        tilted.light.edge_v = [0.8, 0.2, 2.0];
+        tilted.objects.push(ObjectDesc::Rect(RectDesc {
+            corner: [0.5, 3.0, 0.5],
+            edge_u: [1.0, 0.4, -0.2],
+            edge_v: [0.1, 0.2, 1.3],
+            material: "green".into(),
+        }));
+        for scene in [
+            Loaded::seed_room().scene,
+            Loaded::new(&tilted).unwrap().scene,
+        ] {
+            let light = &scene.light.shape;
+            let mut cells = OccluderCells::default();
+            let mut rng = Rng::new(7);
+            let mut u =
+                |lo: f64, hi: f64| lo + (hi - lo) * (rng.next_u64() >> 11) as f64 / 2f64.powi(53);
+            let mut left_out = 0;
+            for _ in 0..4000 {
+                let p = DVec3::new(u(-5.0, 5.0), u(0.0, 8.0), u(-5.0, 5.0));
+                let bits = cells.bits_at(&scene, p).expect("a small scene has lists");
+                for (k, &i) in cells.objects().iter().enumerate() {
+                    if bits >> k & 1 == 1 {
+                        continue;
+                    }
+                    left_out += 1;
+                    for j in 0..256 {
+                        let y =
+                            light.point(DVec2::new((j % 16) as f64 / 15.0, (j / 16) as f64 / 15.0));
+                        let ray = Ray::new(p, y - p);
+                        assert!(
+                            scene.intersect(i, &ray, 1.0).is_none(),
+                            "object {i} left out at {p} meets the ray to {y}"
+                        );
+                    }
+                }
+            }
+            assert!(left_out > 4000, "{left_out} objects left out");
+        }
+    }
+}

@@ -131,23 +131,26 @@ impl ConicShadow {
 
     /// ∫ (a·x + b)/√(|x|² + h²) dx over the part of the counter-clockwise
     /// convex polygon `poly` inside the shadow (a·x + b ≥ 0 on `poly`);
-    /// `light_area` scales the arcs' tolerance. `None` for a piece of more
-    /// than [`MAX_EDGES`] edges.
-    pub fn diffuse_inside(&self, poly: &[DVec2], a: DVec2, b: f64, light_area: f64) -> Option<f64> {
+    /// `light_area` scales the arcs' tolerance.
+    pub fn diffuse_inside(
+        &self,
+        poly: &[DVec2],
+        a: DVec2,
+        b: f64,
+        light_area: f64,
+        s: &mut ArcScratch,
+    ) -> f64 {
         let n = poly.len();
         if n < 3 {
-            return Some(0.0);
-        }
-        if n > MAX_EDGES {
-            return None;
+            return 0.0;
         }
         let h = self.h;
         let mut total = 0.0;
         // P's edges inside S: the cone's test (d·oc)² ≥ k|d|² along
         // d(t) = (p + t e, −h), a quadratic A t² + B t + C ≥ 0 with A < 0.
-        let mut angles: [f64; 2 * MAX_EDGES + 2] = [0.0; 2 * MAX_EDGES + 2];
-        let mut m = 0;
-        let mut lines = [(0.0, 0.0, 0.0); MAX_EDGES];
+        let (angles, lines) = (&mut s.angles, &mut s.lines);
+        angles.clear();
+        lines.clear();
         for i in 0..n {
             let (p, q) = (poly[i], poly[(i + 1) % n]);
             let e = q - p;
@@ -177,25 +180,22 @@ impl ConicShadow {
                 self.rho * lin(self.u),
                 self.rho * lin(self.w),
             );
-            lines[i] = (g0, g1, g2);
+            lines.push((g0, g1, g2));
             let amp = g1.hypot(g2);
             if amp > g0.abs() {
                 let phi = g2.atan2(g1);
                 let delta = (-g0 / amp).acos();
                 for t in [phi - delta, phi + delta] {
-                    angles[m] = t.rem_euclid(std::f64::consts::TAU);
-                    m += 1;
+                    angles.push(t.rem_euclid(std::f64::consts::TAU));
                 }
             }
         }
-        angles[m] = 0.0;
-        angles[m + 1] = std::f64::consts::TAU;
-        m += 2;
-        let angles = &mut angles[..m];
+        angles.push(0.0);
+        angles.push(std::f64::consts::TAU);
         angles.sort_unstable_by(f64::total_cmp);
         let inside = |t: f64| {
             let (s, c) = t.sin_cos();
-            lines[..n]
+            lines
                 .iter()
                 .all(|&(g0, g1, g2)| g0 + g1 * c + g2 * s >= 0.0)
         };
@@ -206,7 +206,7 @@ impl ConicShadow {
                 total += self.arc(t0, t1, a, b, tol, MAX_SPLITS);
             }
         }
-        Some(total)
+        total
     }
 
     /// The flux of F out through the arc t0 → t1 (adaptive).
@@ -240,9 +240,14 @@ impl ConicShadow {
     }
 }
 
-/// Edges of a piece at most (pieces are cut from the light's rectangle by
-/// at most a few dozen half-planes).
-const MAX_EDGES: usize = 256;
+/// Scratch of [`ConicShadow::diffuse_inside`]: the circle's angles where
+/// it crosses a piece's edge lines, and those lines (kept warm: a piece
+/// may have dozens of edges, too many to zero on the stack per call).
+#[derive(Debug, Clone, Default)]
+pub struct ArcScratch {
+    angles: Vec<f64>,
+    lines: Vec<(f64, f64, f64)>,
+}
 
 fn gl16() -> &'static [(f64, f64)] {
     static RULE: OnceLock<Vec<(f64, f64)>> = OnceLock::new();

@@ -51,7 +51,7 @@ pub use cubature::{CubatureReport, TOLERANCE};
 pub use projection::{CircleFit, Unsupported};
 pub use visible::{Fallback, MAX_PIECES, MAX_TRIANGLES, SPHERE_EDGES, TINY_LIGHT};
 
-use conic::ConicShadow;
+use conic::{ArcScratch, ConicShadow};
 use cubature::{CubatureScratch, Lobe, specular_factor};
 use diffuse::{Edge, diffuse_over_pieces};
 use polygon::{HalfPlane, Pieces};
@@ -105,6 +105,7 @@ pub struct ExactScratch {
     region: RegionScratch,
     cubature: CubatureScratch,
     conics: Vec<ConicShadow>,
+    arcs: ArcScratch,
     before: Pieces,
     edges: Vec<Edge>,
 }
@@ -113,7 +114,7 @@ pub struct ExactScratch {
 /// the pieces before the spheres (clipped to the horizon) minus each
 /// sphere's part of them, or `None` where there is no sphere, or the conic
 /// cannot stand in for the polygon (a silhouette near q's plane, shadows
-/// of two spheres that may overlap, a piece of too many edges).
+/// of two spheres that may overlap).
 fn conic_diffuse(view: &LightView, a: DVec2, b: f64, h: f64, s: &mut ExactScratch) -> Option<f64> {
     let spheres = &s.region.spheres;
     if spheres.is_empty() {
@@ -134,7 +135,7 @@ fn conic_diffuse(view: &LightView, a: DVec2, b: f64, h: f64, s: &mut ExactScratc
     let mut total = diffuse_over_pieces(&s.before, &view.rect, a, b, h, &mut s.edges);
     for poly in s.before.iter() {
         for c in &s.conics {
-            total -= c.diffuse_inside(poly, a, b, view.area)?;
+            total -= c.diffuse_inside(poly, a, b, view.area, &mut s.arcs);
         }
     }
     Some(total)

@@ -31,12 +31,14 @@
 //! [`MAX_TRIANGLES`] triangles in the pyramid, more than [`MAX_PIECES`]
 //! visible pieces, a light smaller than [`TINY_LIGHT`] of its height above
 //! the point. Spheres: the visible pieces and the specular factor use the
-//! polygon of [`SPHERE_EDGES`] edges with the silhouette's area (the
-//! inscribed and circumscribed polygons bracket the exact value); the
-//! diffuse factor uses the conic, within 1e-6 relative of a dense
-//! integration (measured ~1e-9, `tests/exact_shadows.rs`), except where two
-//! spheres' shadow cones may overlap or a silhouette reaches within 10⁻³
-//! of the light's height of q's plane: there the polygon's value stands.
+//! polygon with the silhouette's area (the inscribed and circumscribed
+//! polygons bracket the exact value); the diffuse factor uses the conic,
+//! within 1e-6 relative of a dense integration (measured ~1e-9,
+//! `tests/exact_shadows.rs`), except where two spheres' shadow cones may
+//! overlap or a silhouette reaches within 10⁻³ of the light's height of
+//! q's plane: there the polygon's value stands, and the polygon has
+//! [`SPHERE_EDGES`] edges; elsewhere [`CONIC_SPHERE_EDGES`] (only the
+//! specular factor sees it).
 
 mod conic;
 mod cubature;
@@ -49,7 +51,9 @@ use glam::{DVec2, DVec3};
 
 pub use cubature::{CubatureReport, TOLERANCE};
 pub use projection::{CircleFit, Unsupported};
-pub use visible::{Fallback, MAX_PIECES, MAX_TRIANGLES, SPHERE_EDGES, TINY_LIGHT};
+pub use visible::{
+    CONIC_SPHERE_EDGES, Fallback, MAX_PIECES, MAX_TRIANGLES, SPHERE_EDGES, TINY_LIGHT,
+};
 
 use conic::{ArcScratch, ConicShadow};
 use cubature::{CubatureScratch, Lobe, specular_factor};

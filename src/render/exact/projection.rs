@@ -449,16 +449,18 @@ pub fn sphere_shadow(
 }
 
 /// (sin, cos) of i · 2π/n for i < n: the same values as computing them,
-/// kept for the usual n (every sphere of every hit point needs them).
+/// kept for the two usual n (every sphere of every hit point needs them).
 fn unit_ring(n: usize) -> std::borrow::Cow<'static, [(f64, f64)]> {
+    use std::sync::OnceLock;
     let make = |n: usize| -> Vec<(f64, f64)> {
         let step = std::f64::consts::TAU / n as f64;
         (0..n).map(|i| (i as f64 * step).sin_cos()).collect()
     };
-    static USUAL: std::sync::OnceLock<Vec<(f64, f64)>> = std::sync::OnceLock::new();
-    if n == super::SPHERE_EDGES {
-        std::borrow::Cow::Borrowed(USUAL.get_or_init(|| make(n)))
-    } else {
-        std::borrow::Cow::Owned(make(n))
+    static POLYGON: OnceLock<Vec<(f64, f64)>> = OnceLock::new();
+    static CONIC: OnceLock<Vec<(f64, f64)>> = OnceLock::new();
+    match n {
+        super::SPHERE_EDGES => std::borrow::Cow::Borrowed(POLYGON.get_or_init(|| make(n))),
+        super::CONIC_SPHERE_EDGES => std::borrow::Cow::Borrowed(CONIC.get_or_init(|| make(n))),
+        _ => std::borrow::Cow::Owned(make(n)),
     }
 }

@@ -781,16 +781,26 @@ fn cell(
     // against the coefficients.
     let mut m = [[0.0; ORDER]; ORDER];
     // Along the pieces' outline only: an edge two pieces share is crossed
-    // once each way, and its moments would cancel.
+    // once each way, and its moments would cancel. One piece is its own
+    // outline (no sort to find it).
     let to_cell = |p: DVec2| (p - lo) / half - DVec2::ONE;
-    outline(&s.levels[d], &mut s.edges);
-    for e in &s.edges {
-        let (p0, p1) = (to_cell(e.lo), to_cell(e.hi));
-        for _ in 0..e.sign.abs() as u32 {
-            if e.sign > 0.0 {
-                edge_moments(r, degree, p0, p1, &mut m);
-            } else {
-                edge_moments(r, degree, p1, p0, &mut m);
+    let pieces = &s.levels[d];
+    if pieces.len() == 1 {
+        let poly = pieces.piece(0);
+        for (i, &p) in poly.iter().enumerate() {
+            let q = poly[(i + 1) % poly.len()];
+            edge_moments(r, degree, to_cell(p), to_cell(q), &mut m);
+        }
+    } else {
+        outline(pieces, &mut s.edges);
+        for e in &s.edges {
+            let (p0, p1) = (to_cell(e.lo), to_cell(e.hi));
+            for _ in 0..e.sign.abs() as u32 {
+                if e.sign > 0.0 {
+                    edge_moments(r, degree, p0, p1, &mut m);
+                } else {
+                    edge_moments(r, degree, p1, p0, &mut m);
+                }
             }
         }
     }

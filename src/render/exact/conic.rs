@@ -92,7 +92,8 @@ impl ConicShadow {
             orient: 1.0,
         };
         let yc = c.project(centre);
-        c.orient = (c.point(0.0) - yc).perp_dot(c.tangent(0.0)).signum();
+        let (y0, t0) = c.point_and_tangent(0.0);
+        c.orient = (y0 - yc).perp_dot(t0).signum();
         Some(c)
     }
 
@@ -108,46 +109,41 @@ impl ConicShadow {
         DVec2::new(x.x, x.y) * (self.h / -x.z)
     }
 
+    /// The shadow's boundary point at the circle's angle t, and its
+    /// derivative in t.
     #[inline]
-    fn circle(&self, t: f64) -> DVec3 {
-        let (s, c) = t.sin_cos();
-        self.centre + (self.u * c + self.w * s) * self.rho
-    }
-
-    #[inline]
-    fn point(&self, t: f64) -> DVec2 {
-        self.project(self.circle(t))
-    }
-
-    /// d/dt of [`ConicShadow::point`].
-    #[inline]
-    fn tangent(&self, t: f64) -> DVec2 {
+    fn point_and_tangent(&self, t: f64) -> (DVec2, DVec2) {
         let (s, c) = t.sin_cos();
         let x = self.centre + (self.u * c + self.w * s) * self.rho;
         let dx = (self.w * c - self.u * s) * self.rho;
         let z = -x.z;
-        (DVec2::new(dx.x, dx.y) * z + DVec2::new(x.x, x.y) * dx.z) * (self.h / (z * z))
+        let tangent =
+            (DVec2::new(dx.x, dx.y) * z + DVec2::new(x.x, x.y) * dx.z) * (self.h / (z * z));
+        (self.project(x), tangent)
     }
 
     /// ∫ (a·x + b)/√(|x|² + h²) dx over the part of the counter-clockwise
     /// convex polygon `poly` inside the shadow (a·x + b ≥ 0 on `poly`);
-    /// `light_area` scales the arcs' tolerance. `None` for a piece of more
-    /// than [`MAX_EDGES`] edges.
-    pub fn diffuse_inside(&self, poly: &[DVec2], a: DVec2, b: f64, light_area: f64) -> Option<f64> {
+    /// `light_area` scales the arcs' tolerance.
+    pub fn diffuse_inside(
+        &self,
+        poly: &[DVec2],
+        a: DVec2,
+        b: f64,
+        light_area: f64,
+        s: &mut ArcScratch,
+    ) -> f64 {
         let n = poly.len();
         if n < 3 {
-            return Some(0.0);
-        }
-        if n > MAX_EDGES {
-            return None;
+            return 0.0;
         }
         let h = self.h;
         let mut total = 0.0;
         // P's edges inside S: the cone's test (d·oc)² ≥ k|d|² along
         // d(t) = (p + t e, −h), a quadratic A t² + B t + C ≥ 0 with A < 0.
-        let mut angles: [f64; 2 * MAX_EDGES + 2] = [0.0; 2 * MAX_EDGES + 2];
-        let mut m = 0;
-        let mut lines = [(0.0, 0.0, 0.0); MAX_EDGES];
+        let (angles, lines) = (&mut s.angles, &mut s.lines);
+        angles.clear();
+        lines.clear();
         for i in 0..n {
             let (p, q) = (poly[i], poly[(i + 1) % n]);
             let e = q - p;
@@ -177,25 +173,22 @@ impl ConicShadow {
                 self.rho * lin(self.u),
                 self.rho * lin(self.w),
             );
-            lines[i] = (g0, g1, g2);
+            lines.push((g0, g1, g2));
             let amp = g1.hypot(g2);
             if amp > g0.abs() {
                 let phi = g2.atan2(g1);
                 let delta = (-g0 / amp).acos();
                 for t in [phi - delta, phi + delta] {
-                    angles[m] = t.rem_euclid(std::f64::consts::TAU);
-                    m += 1;
+                    angles.push(t.rem_euclid(std::f64::consts::TAU));
                 }
             }
         }
-        angles[m] = 0.0;
-        angles[m + 1] = std::f64::consts::TAU;
-        m += 2;
-        let angles = &mut angles[..m];
+        angles.push(0.0);
+        angles.push(std::f64::consts::TAU);
         angles.sort_unstable_by(f64::total_cmp);
         let inside = |t: f64| {
             let (s, c) = t.sin_cos();
-            lines[..n]
+            lines
                 .iter()
                 .all(|&(g0, g1, g2)| g0 + g1 * c + g2 * s >= 0.0)
         };
@@ -203,22 +196,25 @@ impl ConicShadow {
         for pair in angles.windows(2) {
             let (t0, t1) = (pair[0], pair[1]);
             if t1 > t0 && inside(0.5 * (t0 + t1)) {
-                total += self.arc(t0, t1, a, b, tol, MAX_SPLITS);
+                let whole = self.arc_rule(t0, t1, a, b);
+                total += self.arc(t0, t1, whole, a, b, tol, MAX_SPLITS);
             }
         }
-        Some(total)
+        total
     }
 
-    /// The flux of F out through the arc t0 → t1 (adaptive).
-    fn arc(&self, t0: f64, t1: f64, a: DVec2, b: f64, tol: f64, splits: u32) -> f64 {
-        let whole = self.arc_rule(t0, t1, a, b);
+    /// The flux of F out through the arc t0 → t1 (adaptive), whose rule
+    /// gave `whole`.
+    #[allow(clippy::too_many_arguments)]
+    fn arc(&self, t0: f64, t1: f64, whole: f64, a: DVec2, b: f64, tol: f64, splits: u32) -> f64 {
         let mid = 0.5 * (t0 + t1);
-        let halves = self.arc_rule(t0, mid, a, b) + self.arc_rule(mid, t1, a, b);
+        let (left, right) = (self.arc_rule(t0, mid, a, b), self.arc_rule(mid, t1, a, b));
+        let halves = left + right;
         if splits == 0 || (halves - whole).abs() <= tol {
             return halves;
         }
-        self.arc(t0, mid, a, b, 0.5 * tol, splits - 1)
-            + self.arc(mid, t1, a, b, 0.5 * tol, splits - 1)
+        self.arc(t0, mid, left, a, b, 0.5 * tol, splits - 1)
+            + self.arc(mid, t1, right, a, b, 0.5 * tol, splits - 1)
     }
 
     /// 16-point Gauss–Legendre of the flux through the arc t0 → t1.
@@ -228,8 +224,8 @@ impl ConicShadow {
         let mut sum = 0.0;
         for &(x, wt) in gl16() {
             let t = mid + half * x;
-            let y = self.point(t);
-            let dy = self.tangent(t) * self.orient;
+            let (y, tangent) = self.point_and_tangent(t);
+            let dy = tangent * self.orient;
             let g = (y.length_squared() + ah * ah).sqrt();
             let f = a * g + y * (b / (g + ah));
             // F · ν ds with ν ds = (dy.y, −dy.x) dt for a counter-clockwise
@@ -240,9 +236,14 @@ impl ConicShadow {
     }
 }
 
-/// Edges of a piece at most (pieces are cut from the light's rectangle by
-/// at most a few dozen half-planes).
-const MAX_EDGES: usize = 256;
+/// Scratch of [`ConicShadow::diffuse_inside`]: the circle's angles where
+/// it crosses a piece's edge lines, and those lines (kept warm: a piece
+/// may have dozens of edges, too many to zero on the stack per call).
+#[derive(Debug, Clone, Default)]
+pub struct ArcScratch {
+    angles: Vec<f64>,
+    lines: Vec<(f64, f64, f64)>,
+}
 
 fn gl16() -> &'static [(f64, f64)] {
     static RULE: OnceLock<Vec<(f64, f64)>> = OnceLock::new();

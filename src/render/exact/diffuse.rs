@@ -69,10 +69,22 @@ pub fn diffuse_over_pieces(
             .sum();
     }
     outline(pieces, edges);
-    edges
-        .iter()
-        .map(|e| e.sign * segment_term(e.lo, e.hi, a, b, h))
-        .sum()
+    let mut angle = AngleSum::default();
+    let mut rest = 0.0;
+    for e in edges.iter() {
+        let (r, z) = segment_parts(e.lo, e.hi, a, b, h);
+        rest += e.sign * r;
+        // The angle of the edge run backwards is the negative one: the
+        // conjugate.
+        for _ in 0..e.sign.abs() as u32 {
+            angle.add(if e.sign > 0.0 {
+                z
+            } else {
+                DVec2::new(z.x, -z.y)
+            });
+        }
+    }
+    rest + b * h.abs() * angle.total()
 }
 
 /// The outline of the pieces into `edges`: each edge with its net
@@ -139,9 +151,71 @@ fn piece_integral(poly: &[DVec2], a: DVec2, b: f64, h: f64) -> f64 {
     if radius < SMALL_LIGHT * (centroid.length_squared() + h * h).sqrt() {
         return diffuse_polygon_integral(poly, a, b, h);
     }
-    (0..k)
-        .map(|i| segment_term(poly[i], poly[(i + 1) % k], a, b, h))
-        .sum()
+    let mut angle = AngleSum::default();
+    let mut rest = 0.0;
+    for i in 0..k {
+        let (r, z) = segment_parts(poly[i], poly[(i + 1) % k], a, b, h);
+        rest += r;
+        angle.add(z);
+    }
+    rest + b * h.abs() * angle.total()
+}
+
+/// The sum of the arguments of complex numbers (x + iy as (x, y)), each
+/// in [−π, π] as `atan2` gives it, with one `atan2` at the end: their
+/// product's argument plus the whole turns counted on the way (a product
+/// of two numbers in the same half-plane whose argument lands in the other
+/// one has turned past ±π). The edges' angles φ_q − φ_p all carry the same
+/// factor b|h|, so a piece needs one arctangent instead of one per edge.
+#[derive(Debug, Clone, Copy)]
+struct AngleSum {
+    /// The product so far, rescaled to keep it in range.
+    product: DVec2,
+    turns: f64,
+}
+
+impl Default for AngleSum {
+    fn default() -> AngleSum {
+        AngleSum {
+            product: DVec2::X,
+            turns: 0.0,
+        }
+    }
+}
+
+impl AngleSum {
+    fn add(&mut self, z: DVec2) {
+        // atan2(0, 0) = 0: adds nothing (and would zero the product).
+        if z == DVec2::ZERO {
+            return;
+        }
+        let w = self.product;
+        let p = DVec2::new(w.x * z.x - w.y * z.y, w.x * z.y + w.y * z.x);
+        // The sign bits decide the half-planes as `atan2` does (+0 above,
+        // −0 below).
+        let (lw, lz, lp) = (
+            w.y.is_sign_negative(),
+            z.y.is_sign_negative(),
+            p.y.is_sign_negative(),
+        );
+        if !lw && !lz && lp {
+            self.turns += 1.0;
+        } else if lw && lz && !lp {
+            self.turns -= 1.0;
+        }
+        // Rescaled only when far from 1 (each edge's number is about the
+        // light's size to the sixth power, far inside the range).
+        let size = p.x.abs().max(p.y.abs());
+        self.product = if (1e-100..=1e100).contains(&size) {
+            p
+        } else {
+            p / size
+        };
+    }
+
+    fn total(&self) -> f64 {
+        self.product.y.atan2(self.product.x) + std::f64::consts::TAU * self.turns
+    }
 }
 
 /// The flux of F(x) = a g(x) + b x/(g(x) + |h|) out through the straight
@@ -154,11 +228,19 @@ fn piece_integral(poly: &[DVec2], a: DVec2, b: f64, h: f64) -> f64 {
 /// angles lie in [−π/2, π/2] and their difference in [−π, π]): one
 /// logarithm and one arctangent an edge instead of two of each.
 pub fn segment_term(p: DVec2, q: DVec2, a: DVec2, b: f64, h: f64) -> f64 {
+    let (rest, z) = segment_parts(p, q, a, b, h);
+    rest + b * h.abs() * z.y.atan2(z.x)
+}
+
+/// [`segment_term`] in two parts: the terms but the angle's, and the
+/// complex number (x, y) whose argument is φ_q − φ_p (times b|h| in the
+/// term).
+fn segment_parts(p: DVec2, q: DVec2, a: DVec2, b: f64, h: f64) -> (f64, DVec2) {
     let ah = h.abs();
     let e = q - p;
     let len = e.length();
     if len == 0.0 {
-        return 0.0;
+        return (0.0, DVec2::X);
     }
     let t = e / len;
     let nu = DVec2::new(t.y, -t.x);
@@ -183,13 +265,16 @@ pub fn segment_term(p: DVec2, q: DVec2, a: DVec2, b: f64, h: f64) -> f64 {
         )
     };
     let ((yp, xp), (yq, xq)) = (angle(tp, rp), angle(tq, rq));
-    let dphi = (yq * xp - xq * yp).atan2(xq * xp + yq * yp);
-    an * 0.5 * (tq * rq - tp * rp) + (an * c2 * 0.5 + b * d) * ash + b * ah * dphi
+    let dphi = DVec2::new(xq * xp + yq * yp, yq * xp - xq * yp);
+    (
+        an * 0.5 * (tq * rq - tp * rp) + (an * c2 * 0.5 + b * d) * ash,
+        dphi,
+    )
 }
 
 #[cfg(test)]
 mod tests {
-    use super::segment_term;
+    use super::{AngleSum, segment_term};
     use crate::render::rng::Rng;
     use glam::DVec2;
 
@@ -241,6 +326,36 @@ mod tests {
             let scale = (a.length() * r * r + b.abs() * r).max(want.abs());
             assert!(
                 (got - want).abs() <= 1e-14 * scale,
+                "case {case}: {got} vs {want}"
+            );
+        }
+    }
+
+    /// One arctangent of the product with the turns counted against the
+    /// sum of one arctangent each: random numbers, runs that wind several
+    /// times either way, and numbers on the negative real axis (±0 above
+    /// and below, where `atan2` gives ±π).
+    #[test]
+    fn angle_sum_matches_the_sum_of_arctangents() {
+        let mut rng = Rng::new(4);
+        let mut next = || rng.next_f64() * 2.0 - 1.0;
+        for case in 0..4000 {
+            let count = 1 + case % 40;
+            let (mut sum, mut want) = (AngleSum::default(), 0.0);
+            for i in 0..count {
+                let z = match (case + i) % 5 {
+                    0 => DVec2::new(-1.0 - next().abs(), 0.0),
+                    1 => DVec2::new(-1.0 - next().abs(), -0.0),
+                    // Winding one way: angles near +3 (or −3).
+                    2 => DVec2::from_angle(3.0 * (case % 2) as f64 * 2.0 - 3.0 + 0.1 * next()),
+                    _ => DVec2::new(next(), next()) * 10f64.powf(3.0 * next()),
+                };
+                sum.add(z);
+                want += z.y.atan2(z.x);
+            }
+            let got = sum.total();
+            assert!(
+                (got - want).abs() <= 1e-12 * count as f64,
                 "case {case}: {got} vs {want}"
             );
         }

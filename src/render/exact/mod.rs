@@ -31,12 +31,14 @@
 //! [`MAX_TRIANGLES`] triangles in the pyramid, more than [`MAX_PIECES`]
 //! visible pieces, a light smaller than [`TINY_LIGHT`] of its height above
 //! the point. Spheres: the visible pieces and the specular factor use the
-//! polygon of [`SPHERE_EDGES`] edges with the silhouette's area (the
-//! inscribed and circumscribed polygons bracket the exact value); the
-//! diffuse factor uses the conic, within 1e-6 relative of a dense
-//! integration (measured ~1e-9, `tests/exact_shadows.rs`), except where two
-//! spheres' shadow cones may overlap or a silhouette reaches within 10⁻³
-//! of the light's height of q's plane: there the polygon's value stands.
+//! polygon with the silhouette's area (the inscribed and circumscribed
+//! polygons bracket the exact value); the diffuse factor uses the conic,
+//! within 1e-6 relative of a dense integration (measured ~1e-9,
+//! `tests/exact_shadows.rs`), except where two spheres' shadow cones may
+//! overlap or a silhouette reaches within 10⁻³ of the light's height of
+//! q's plane: there the polygon's value stands, and the polygon has
+//! [`SPHERE_EDGES`] edges; elsewhere [`CONIC_SPHERE_EDGES`] (only the
+//! specular factor sees it).
 
 mod conic;
 mod cubature;
@@ -49,9 +51,11 @@ use glam::{DVec2, DVec3};
 
 pub use cubature::{CubatureReport, TOLERANCE};
 pub use projection::{CircleFit, Unsupported};
-pub use visible::{Fallback, MAX_PIECES, MAX_TRIANGLES, SPHERE_EDGES, TINY_LIGHT};
+pub use visible::{
+    CONIC_SPHERE_EDGES, Fallback, MAX_PIECES, MAX_TRIANGLES, SPHERE_EDGES, TINY_LIGHT,
+};
 
-use conic::ConicShadow;
+use conic::{ArcScratch, ConicShadow};
 use cubature::{CubatureScratch, Lobe, specular_factor};
 use diffuse::{Edge, diffuse_over_pieces};
 use polygon::{HalfPlane, Pieces};
@@ -105,6 +109,7 @@ pub struct ExactScratch {
     region: RegionScratch,
     cubature: CubatureScratch,
     conics: Vec<ConicShadow>,
+    arcs: ArcScratch,
     before: Pieces,
     edges: Vec<Edge>,
 }
@@ -113,7 +118,7 @@ pub struct ExactScratch {
 /// the pieces before the spheres (clipped to the horizon) minus each
 /// sphere's part of them, or `None` where there is no sphere, or the conic
 /// cannot stand in for the polygon (a silhouette near q's plane, shadows
-/// of two spheres that may overlap, a piece of too many edges).
+/// of two spheres that may overlap).
 fn conic_diffuse(view: &LightView, a: DVec2, b: f64, h: f64, s: &mut ExactScratch) -> Option<f64> {
     let spheres = &s.region.spheres;
     if spheres.is_empty() {
@@ -134,7 +139,7 @@ fn conic_diffuse(view: &LightView, a: DVec2, b: f64, h: f64, s: &mut ExactScratc
     let mut total = diffuse_over_pieces(&s.before, &view.rect, a, b, h, &mut s.edges);
     for poly in s.before.iter() {
         for c in &s.conics {
-            total -= c.diffuse_inside(poly, a, b, view.area)?;
+            total -= c.diffuse_inside(poly, a, b, view.area, &mut s.arcs);
         }
     }
     Some(total)

@@ -247,7 +247,7 @@ fn clip_and_project(
     points.extend(face.iter().map(|&x| view.project(x)));
 }
 
-/// The shadow of the convex polygons `faces` (world vertices), into `out`
+/// The shadow of the convex polygons `faces` (frame coordinates), into `out`
 /// (counter-clockwise; empty if none). `extra` are points of the plane
 /// known to be in the shadow (the light's corners inside a solid).
 fn faces_shadow(
@@ -262,12 +262,12 @@ fn faces_shadow(
     // The planes that cut any face (each face lies in the faces' hull).
     s.clipped.clear();
     for f in faces {
-        s.clipped.extend(f.iter().map(|&x| view.local(x)));
+        s.clipped.extend_from_slice(f);
     }
     let mask = planes_crossed(view, &s.clipped);
     for f in faces {
         s.face.clear();
-        s.face.extend(f.iter().map(|&x| view.local(x)));
+        s.face.extend_from_slice(f);
         clip_and_project(view, mask, &mut s.face, &mut s.clipped, &mut s.points);
     }
     hull_into(&mut s.points, out);
@@ -328,7 +328,7 @@ pub fn box_shadow(
             n_extra += 1;
         }
     }
-    let faces: [[DVec3; 4]; 6] = BOX_FACES.map(|f| f.map(|i| corners[i]));
+    let faces: [[DVec3; 4]; 6] = BOX_FACES.map(|f| f.map(|i| local[i]));
     let refs: [&[DVec3]; 6] = std::array::from_fn(|i| &faces[i][..]);
     faces_shadow(view, &refs, &extra[..n_extra], s, out);
     Ok(())
@@ -340,7 +340,7 @@ pub fn rect_shadow(
     s: &mut ProjectScratch,
     out: &mut Vec<DVec2>,
 ) {
-    faces_shadow(view, &[&r.corners()], &[], s, out);
+    faces_shadow(view, &[&r.corners().map(|x| view.local(x))], &[], s, out);
 }
 
 pub fn triangle_shadow(
@@ -349,7 +349,7 @@ pub fn triangle_shadow(
     s: &mut ProjectScratch,
     out: &mut Vec<DVec2>,
 ) {
-    faces_shadow(view, &[&vertices], &[], s, out);
+    faces_shadow(view, &[&vertices.map(|x| view.local(x))], &[], s, out);
 }
 
 /// The circle where the tangent cone from q (at the origin) touches a
@@ -449,16 +449,18 @@ pub fn sphere_shadow(
 }
 
 /// (sin, cos) of i · 2π/n for i < n: the same values as computing them,
-/// kept for the usual n (every sphere of every hit point needs them).
+/// kept for the two usual n (every sphere of every hit point needs them).
 fn unit_ring(n: usize) -> std::borrow::Cow<'static, [(f64, f64)]> {
+    use std::sync::OnceLock;
     let make = |n: usize| -> Vec<(f64, f64)> {
         let step = std::f64::consts::TAU / n as f64;
         (0..n).map(|i| (i as f64 * step).sin_cos()).collect()
     };
-    static USUAL: std::sync::OnceLock<Vec<(f64, f64)>> = std::sync::OnceLock::new();
-    if n == super::SPHERE_EDGES {
-        std::borrow::Cow::Borrowed(USUAL.get_or_init(|| make(n)))
-    } else {
-        std::borrow::Cow::Owned(make(n))
+    static POLYGON: OnceLock<Vec<(f64, f64)>> = OnceLock::new();
+    static CONIC: OnceLock<Vec<(f64, f64)>> = OnceLock::new();
+    match n {
+        super::SPHERE_EDGES => std::borrow::Cow::Borrowed(POLYGON.get_or_init(|| make(n))),
+        super::CONIC_SPHERE_EDGES => std::borrow::Cow::Borrowed(CONIC.get_or_init(|| make(n))),
+        _ => std::borrow::Cow::Owned(make(n)),
     }
 }

@@ -12,10 +12,12 @@
 //! The lists are made lazily, cube by cube, into a small direct-mapped
 //! cache per thread: neighbouring pixels' hit points share a cube.
 
+use std::sync::Arc;
+
 use glam::DVec3;
 
 use crate::render::geometry::{Primitive, Shape};
-use crate::render::scene::Scene;
+use crate::render::scene::{Object, Scene};
 
 /// Cubes per side of the scene's finite part ([`Scene::scale`]): small
 /// enough that a cube's hull with the light stays close to the pyramids of
@@ -35,10 +37,11 @@ pub(super) type ObjectBits = u64;
 
 /// What the lists were made for: they hold only for the same objects
 /// under the same light.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug)]
 struct Made {
-    /// The address of [`Scene::objects`].
-    objects: usize,
+    /// The scene's objects, held so that their address cannot be reused by
+    /// another scene's while the lists exist.
+    objects: Arc<[Object]>,
     corner: DVec3,
     edge_u: DVec3,
     edge_v: DVec3,
@@ -50,16 +53,11 @@ impl Made {
     #[inline(always)]
     fn is_for(&self, scene: &Scene) -> bool {
         let light = &scene.light.shape;
-        self.objects == objects_address(scene)
+        Arc::ptr_eq(&self.objects, &scene.objects)
             && self.corner == light.corner
             && self.edge_u == light.edge_u
             && self.edge_v == light.edge_v
     }
-}
-
-#[inline(always)]
-fn objects_address(scene: &Scene) -> usize {
-    std::sync::Arc::as_ptr(&scene.objects) as *const () as usize
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -108,7 +106,7 @@ impl OccluderCells {
     /// objects, a BVH, or `p` far outside the scene).
     #[inline(always)]
     pub(super) fn bits_at(&mut self, scene: &Scene, p: DVec3) -> Option<ObjectBits> {
-        if !self.made.is_some_and(|m| m.is_for(scene)) {
+        if !self.made.as_ref().is_some_and(|m| m.is_for(scene)) {
             self.start(scene);
         }
         if self.slots.is_empty() {
@@ -143,7 +141,7 @@ impl OccluderCells {
     fn start(&mut self, scene: &Scene) {
         let light = &scene.light.shape;
         self.made = Some(Made {
-            objects: objects_address(scene),
+            objects: Arc::clone(&scene.objects),
             corner: light.corner,
             edge_u: light.edge_u,
             edge_v: light.edge_v,

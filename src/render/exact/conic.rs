@@ -22,6 +22,7 @@ use std::sync::OnceLock;
 use glam::{DVec2, DVec3};
 
 use super::diffuse::segment_term;
+use super::polygon::edges_of;
 use super::projection::{LightView, Silhouette};
 use crate::render::geometry::Sphere;
 
@@ -144,8 +145,7 @@ impl ConicShadow {
         let (angles, lines) = (&mut s.angles, &mut s.lines);
         angles.clear();
         lines.clear();
-        for i in 0..n {
-            let (p, q) = (poly[i], poly[(i + 1) % n]);
+        for (p, q) in edges_of(poly) {
             let e = q - p;
             let d0 = DVec3::new(p.x, p.y, -h);
             let de = DVec3::new(e.x, e.y, 0.0);

@@ -36,7 +36,7 @@ use std::sync::OnceLock;
 use glam::{DVec2, DVec3};
 
 use super::diffuse::{Edge, outline};
-use super::polygon::{HalfPlane, Pieces, clip_into, twice_area};
+use super::polygon::{HalfPlane, Pieces, clip_into, edges_of, twice_area};
 use crate::render::math::avx2_dispatch;
 
 /// Nodes per axis of a cell (the fit has degree `ORDER − 1`).
@@ -787,8 +787,7 @@ fn cell(
     let pieces = &s.levels[d];
     if pieces.len() == 1 {
         let poly = pieces.piece(0);
-        for (i, &p) in poly.iter().enumerate() {
-            let q = poly[(i + 1) % poly.len()];
+        for (p, q) in edges_of(poly) {
             edge_moments(r, degree, to_cell(p), to_cell(q), &mut m);
         }
     } else {

@@ -13,7 +13,7 @@
 
 use glam::DVec2;
 
-use super::polygon::Pieces;
+use super::polygon::{Pieces, edges_of};
 use crate::render::analytic::diffuse_polygon_integral;
 
 /// Light radius below this fraction of its distance: the per-piece path
@@ -93,10 +93,8 @@ pub fn diffuse_over_pieces(
 pub fn outline(pieces: &Pieces, edges: &mut Vec<Edge>) {
     edges.clear();
     for poly in pieces.iter() {
-        let n = poly.len();
         let mut kp = key(poly[0]);
-        for i in 0..n {
-            let (p, q) = (poly[i], poly[(i + 1) % n]);
+        for (p, q) in edges_of(poly) {
             let kq = key(q);
             match kp.cmp(&kq) {
                 std::cmp::Ordering::Less => edges.push(Edge {
@@ -153,8 +151,8 @@ fn piece_integral(poly: &[DVec2], a: DVec2, b: f64, h: f64) -> f64 {
     }
     let mut angle = AngleSum::default();
     let mut rest = 0.0;
-    for i in 0..k {
-        let (r, z) = segment_parts(poly[i], poly[(i + 1) % k], a, b, h);
+    for (p, q) in edges_of(poly) {
+        let (r, z) = segment_parts(p, q, a, b, h);
         rest += r;
         angle.add(z);
     }

@@ -39,10 +39,15 @@ impl HalfPlane {
 /// (Sutherland–Hodgman); returns how many vertices it appended (0 or ≥ 3).
 pub fn clip_into(poly: &[DVec2], h: HalfPlane, out: &mut Vec<DVec2>) -> usize {
     let start = out.len();
-    let k = poly.len();
-    for i in 0..k {
-        let (a, b) = (poly[i], poly[(i + 1) % k]);
-        let (da, db) = (h.eval(a), h.eval(b));
+    let Some(&first) = poly.first() else {
+        return 0;
+    };
+    // Each edge a → b, b the next vertex (the last edge closes on the
+    // first): no index modulo per edge.
+    let mut a = first;
+    let mut da = h.eval(a);
+    for &b in poly[1..].iter().chain(std::iter::once(&first)) {
+        let db = h.eval(b);
         if da >= 0.0 {
             out.push(a);
         }
@@ -50,6 +55,7 @@ pub fn clip_into(poly: &[DVec2], h: HalfPlane, out: &mut Vec<DVec2>) -> usize {
             // Opposite signs: da − db ≠ 0.
             out.push(a + (b - a) * (da / (da - db)));
         }
+        (a, da) = (b, db);
     }
     let n = out.len() - start;
     if n < 3 {
@@ -57,6 +63,14 @@ pub fn clip_into(poly: &[DVec2], h: HalfPlane, out: &mut Vec<DVec2>) -> usize {
         return 0;
     }
     n
+}
+
+/// The edges of a closed polygon, each (a, b) with b the next vertex (the
+/// last edge closes on the first), without an index modulo per edge.
+#[inline]
+pub fn edges_of(poly: &[DVec2]) -> impl Iterator<Item = (DVec2, DVec2)> + '_ {
+    let next = poly.get(1..).unwrap_or_default().iter().chain(poly.first());
+    poly.iter().zip(next).map(|(&a, &b)| (a, b))
 }
 
 /// Twice the signed area (positive counter-clockwise).
@@ -174,7 +188,6 @@ impl Pieces {
     pub fn subtract(&mut self, s: &[DVec2], min_area: f64, work: &mut Work) {
         let Work { tmp, rest, next } = work;
         tmp.clear();
-        let k = s.len();
         let (lo, hi) = bounds(s);
         'pieces: for p in self.iter() {
             let (plo, phi) = bounds(p);
@@ -184,8 +197,8 @@ impl Pieces {
             }
             rest.clear();
             rest.extend_from_slice(p);
-            for i in 0..k {
-                let inner = HalfPlane::left_of(s[i], s[(i + 1) % k]);
+            for (p0, p1) in edges_of(s) {
+                let inner = HalfPlane::left_of(p0, p1);
                 let (all_in, all_out) = sides(rest, inner);
                 if all_in {
                     continue;

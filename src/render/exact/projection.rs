@@ -200,15 +200,20 @@ pub struct ProjectScratch {
 
 /// Bit i set: some of `points` (frame coordinates) lie outside the
 /// frustum's plane i. The polygons of those points need clipping by those
-/// planes only.
-fn planes_crossed(view: &LightView, points: &[DVec3]) -> u8 {
+/// planes only. And whether all of them lie outside one plane (the polygon
+/// clips to nothing).
+fn planes_crossed(view: &LightView, points: &[DVec3]) -> (u8, bool) {
     let mut mask = 0;
     for (i, &(n, c)) in view.planes.iter().enumerate() {
-        if points.iter().any(|&x| n.dot(x) + c < 0.0) {
+        let out = points.iter().filter(|&&x| n.dot(x) + c < 0.0).count();
+        if out == points.len() {
+            return (mask, true);
+        }
+        if out > 0 {
             mask |= 1 << i;
         }
     }
-    mask
+    (mask, false)
 }
 
 /// Clips a planar polygon (frame coordinates) to the frustum's planes of
@@ -228,16 +233,22 @@ fn clip_and_project(
         .filter(|&(i, _)| mask & (1 << i) != 0)
     {
         tmp.clear();
-        let k = face.len();
-        for i in 0..k {
-            let (a, b) = (face[i], face[(i + 1) % k]);
-            let (da, db) = (n.dot(a) + c, n.dot(b) + c);
+        // Each edge a → b, b the next vertex (the last edge closes on the
+        // first): no index modulo per edge.
+        let Some(&first) = face.first() else {
+            return;
+        };
+        let mut a = first;
+        let mut da = n.dot(a) + c;
+        for &b in face[1..].iter().chain(std::iter::once(&first)) {
+            let db = n.dot(b) + c;
             if da >= 0.0 {
                 tmp.push(a);
             }
             if (da >= 0.0) != (db >= 0.0) {
                 tmp.push(a + (b - a) * (da / (da - db)));
             }
+            (a, da) = (b, db);
         }
         std::mem::swap(face, tmp);
         if face.len() < 3 {
@@ -259,16 +270,17 @@ fn faces_shadow(
 ) {
     s.points.clear();
     s.points.extend_from_slice(extra);
-    // The planes that cut any face (each face lies in the faces' hull).
-    s.clipped.clear();
     for f in faces {
-        s.clipped.extend_from_slice(f);
-    }
-    let mask = planes_crossed(view, &s.clipped);
-    for f in faces {
+        // Only the planes that cut this face: a face wholly inside a plane
+        // comes out of its clip as it went in, and one wholly outside any
+        // plane adds nothing.
+        let (crossed, outside) = planes_crossed(view, f);
+        if outside {
+            continue;
+        }
         s.face.clear();
         s.face.extend_from_slice(f);
-        clip_and_project(view, mask, &mut s.face, &mut s.clipped, &mut s.points);
+        clip_and_project(view, crossed, &mut s.face, &mut s.clipped, &mut s.points);
     }
     hull_into(&mut s.points, out);
 }

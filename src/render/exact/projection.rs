@@ -109,6 +109,56 @@ impl LightView {
         })
     }
 
+    /// Whether the box hides the whole light: its shadow (convex, as the
+    /// projection of a convex solid) holds the four corners. A corner is
+    /// hidden where its ray from q meets the box between the frustum's
+    /// ends (t in [`NEAR`], `RAY_END` of the way). `false` where q is
+    /// inside the box (its shadow is not computed).
+    pub fn box_hides_light(&self, c: &Cuboid) -> bool {
+        let o = c.to_local(self.q - c.centre);
+        if o.abs().cmplt(c.half).all() {
+            return false;
+        }
+        self.corners.iter().all(|&ray| {
+            let d = c.to_local(self.e1 * ray.x + self.e2 * ray.y + self.m * ray.z);
+            let (mut lo, mut hi) = (NEAR, self.ray_end);
+            for k in 0..3 {
+                if d[k] == 0.0 {
+                    if o[k].abs() > c.half[k] {
+                        return false;
+                    }
+                    continue;
+                }
+                let (t1, t2) = ((-c.half[k] - o[k]) / d[k], (c.half[k] - o[k]) / d[k]);
+                lo = lo.max(t1.min(t2));
+                hi = hi.min(t1.max(t2));
+            }
+            lo <= hi
+        })
+    }
+
+    /// [`LightView::box_hides_light`] for a sphere; `false` where q is
+    /// inside it or it reaches below the rays' end (its shadow is not
+    /// computed there either).
+    pub fn sphere_hides_light(&self, sphere: &Sphere) -> bool {
+        let oc = self.local(sphere.centre);
+        let r2 = sphere.radius * sphere.radius;
+        let k = oc.length_squared() - r2;
+        if k <= 0.0 || oc.z - sphere.radius < -self.ray_end * self.h {
+            return false;
+        }
+        self.corners.iter().all(|&ray| {
+            // |t ray − oc|² ≤ r²: a t² − 2 b t + k ≤ 0.
+            let (a, b) = (ray.length_squared(), ray.dot(oc));
+            let disc = b * b - a * k;
+            if disc < 0.0 {
+                return false;
+            }
+            let root = disc.sqrt();
+            (b - root) / a <= self.ray_end && (b + root) / a >= NEAR
+        })
+    }
+
     /// A world point in the frame.
     #[inline]
     pub fn local(&self, x: DVec3) -> DVec3 {

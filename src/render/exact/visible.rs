@@ -101,6 +101,19 @@ pub fn visible_region(
     if triangles > MAX_TRIANGLES {
         return Err(Fallback::TooManyTriangles);
     }
+    s.spheres.clear();
+    s.before_spheres.clear();
+    // Umbra first: one box or sphere that hides the whole light spares
+    // projecting and subtracting every shadow.
+    let hides = |&(i, _): &(u32, bool)| match scene.primitive(i) {
+        Primitive::Shape(Shape::Cuboid(c)) => view.box_hides_light(c),
+        Primitive::Shape(Shape::Sphere(sp)) => view.sphere_hides_light(sp),
+        _ => false,
+    };
+    if occluders.iter().any(hides) {
+        pieces.clear();
+        return Ok(());
+    }
     // Planes first: a clip is cheaper than a subtraction, and it leaves
     // fewer pieces to subtract from.
     for &(i, _) in occluders {
@@ -113,8 +126,6 @@ pub fn visible_region(
             pieces.clip(h, min_area, &mut s.work);
         }
     }
-    s.spheres.clear();
-    s.before_spheres.clear();
     // Spheres last, so that the pieces before them are what the diffuse
     // factor's conics are cut from.
     let is_sphere = |i: u32| matches!(scene.primitive(i), Primitive::Shape(Shape::Sphere(_)));

@@ -643,13 +643,15 @@ const NARROWEST: f64 = 1e-3;
 const NEAR_FIELD: f64 = 0.5;
 
 /// A cell as its gates see it: its centre's distance from the point, its
-/// angular size, and whether the mirror direction passes within that plus
-/// six lobe widths (beyond which the lobe is below e⁻¹⁸ of its peak),
+/// angular size, whether the mirror direction passes within that plus
+/// six lobe widths (beyond which the lobe is below e⁻¹⁸ of its peak), and
+/// the lobe's narrowest width across the plane of incidence on the cell,
 /// taken once for all of a cell's gates.
 struct CellView {
     distance: f64,
     angular: f64,
     near_mirror: bool,
+    narrow: f64,
 }
 
 impl CellView {
@@ -657,23 +659,38 @@ impl CellView {
         let centre = ctx.lobe.direction(lo.x + 0.5 * size, lo.y + 0.5 * size);
         let distance = centre.length();
         let angular = size * ctx.side * std::f64::consts::SQRT_2 / distance;
-        // Only asked with 3 nodes a side or more.
+        // Only asked with 3 nodes a side or more (and the cell's narrow
+        // width is never below the peak's).
         let near_mirror = angular / NESTED_ORDERS[1] as f64 > 0.5 * ctx.narrow && {
             let cos = (centre / distance).dot(ctx.mirror).clamp(-1.0, 1.0);
             cos.acos() < angular + 6.0 * ctx.width
+        };
+        // Across the plane of incidence H turns by the turn of L over
+        // |L + V| (2 N·V at the peak, where `Ctx::narrow` takes it). A cell
+        // whose directions all lie nearer V than that (the light above a
+        // point seen at a grazing angle, the peak beside it) sees the lobe
+        // that much wider: |L + V|/2 = cos(∠(L, V)/2), and ∠(L, V) is at
+        // most the centre's angle plus the cell's angular size.
+        let narrow = if near_mirror {
+            let cos_v = (centre / distance).dot(ctx.lobe.v).clamp(-1.0, 1.0);
+            let widest = (cos_v.acos() + angular).min(std::f64::consts::PI);
+            ctx.narrow.max(ctx.width * (0.5 * widest).cos())
+        } else {
+            ctx.narrow
         };
         CellView {
             distance,
             angular,
             near_mirror,
+            narrow,
         }
     }
 
     /// Too coarse for a narrow lobe that may lie on it: `nodes` (≥ 3) per
     /// side farther apart than half the lobe's width, and the mirror
     /// direction near.
-    fn lobe_unresolved(&self, ctx: &Ctx, nodes: usize) -> bool {
-        self.angular / nodes as f64 > 0.5 * ctx.narrow && self.near_mirror
+    fn lobe_unresolved(&self, nodes: usize) -> bool {
+        self.angular / nodes as f64 > 0.5 * self.narrow && self.near_mirror
     }
 
     /// Too near the point for the nested rules: the side above
@@ -690,10 +707,10 @@ impl CellView {
 fn whole_cell(ctx: &Ctx, lo: DVec2, size: f64, view: Option<&CellView>) -> Option<(f64, f64)> {
     let coarse = match view {
         Some(v) => {
-            if v.near_field(ctx, size) || v.lobe_unresolved(ctx, NESTED_ORDERS[2]) {
+            if v.near_field(ctx, size) || v.lobe_unresolved(NESTED_ORDERS[2]) {
                 return None;
             }
-            !v.lobe_unresolved(ctx, NESTED_ORDERS[1])
+            !v.lobe_unresolved(NESTED_ORDERS[1])
         }
         None => true,
     };
@@ -740,7 +757,7 @@ fn cell(
     fit_rows(r, &nf, &mut t);
     let tail = tail_estimate(r, &t);
 
-    let split = view.is_some_and(|v| tail > TOLERANCE || v.lobe_unresolved(ctx, ORDER));
+    let split = view.is_some_and(|v| tail > TOLERANCE || v.lobe_unresolved(ORDER));
     if split {
         let mut total = 0.0;
         for (dx, dy) in [(0.0, 0.0), (half, 0.0), (0.0, half), (half, half)] {
@@ -994,7 +1011,7 @@ mod tests {
     /// within the tolerance of the cell's area and within their estimate
     /// plus the f32 lobe's rounding. Random lobes from wide to narrow
     /// (views near the mirror direction, so that narrow lobes peak on the
-    /// light, and anywhere in front), points from a tenth of the light's
+    /// light, anywhere in front, and grazing), points from a tenth of the light's
     /// side off its plane to four sides, cells from the whole light to the
     /// deepest level, each in front of the surface as the visible pieces
     /// are.
@@ -1004,15 +1021,23 @@ mod tests {
         let mut next = || rng.next_f64();
         let g = crate::render::math::gauss_legendre(64);
         let (mut tried, mut accepted, mut worst) = (0, 0, 0.0f64);
-        while tried < 10_000 {
+        while tried < 12_500 {
             let n = DVec3::new(next() - 0.5, 1.0, next() - 0.5).normalize();
             let height = 0.2 + 8.0 * next() * next();
             let corner = DVec3::new(-1.0 + next(), height, -1.0 + next());
             let centre = (corner + DVec3::new(1.0, 0.0, 1.0)).normalize();
             let mirror = n * (2.0 * n.dot(centre)) - centre;
             let jitter = DVec3::new(next() - 0.5, next() - 0.5, next() - 0.5) * 0.6;
-            let v = match tried % 4 {
+            let v = match tried % 5 {
                 3 => DVec3::new(next() - 0.5, 0.3 + next(), next() - 0.5),
+                // Grazing views (N·V from 0.02 to 0.3) in any direction:
+                // the peak mostly beside the light, which is then seen
+                // where the lobe is wider than at its peak (the cell's
+                // narrow width of `CellView`).
+                4 => {
+                    let t = DVec3::new(next() - 0.5, 0.0, next() - 0.5) + DVec3::X * 1e-3;
+                    t.reject_from(n).normalize() + n * (0.02 + 0.3 * next())
+                }
                 k => mirror + jitter * k as f64,
             }
             .normalize();

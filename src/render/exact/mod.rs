@@ -63,7 +63,7 @@ use projection::LightView;
 use visible::{RegionScratch, visible_region};
 
 use crate::render::scene::Scene;
-use crate::render::shadow::{ShadowQuery, possible_occluders};
+use crate::render::shadow::{OccluderCells, ShadowQuery, possible_occluders};
 
 /// A hit point as the exact model sees it.
 #[derive(Debug, Clone, Copy)]
@@ -100,8 +100,11 @@ pub struct ExactFactors {
 }
 
 /// Scratch of the exact model (one per thread, kept warm).
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Default)]
 pub struct ExactScratch {
+    /// The objects that may block a shadow ray from each small cube of
+    /// space (the shadow rays' own lists, kept here for the exact model).
+    cells: OccluderCells,
     occluders: Vec<(u32, bool)>,
     pieces: Pieces,
     lit: Pieces,
@@ -169,7 +172,7 @@ pub fn exact_factors(
     };
     s.occluders.clear();
     if p.shadows {
-        possible_occluders(scene, &query, &mut s.occluders);
+        possible_occluders(scene, &query, &mut s.cells, &mut s.occluders);
     }
     let front = view.front_of(p.geometric);
     visible_region(

@@ -68,7 +68,7 @@ struct Slot {
 
 /// Per-thread occluder lists of the cubes met so far.
 #[derive(Debug, Default)]
-pub(super) struct OccluderCells {
+pub(crate) struct OccluderCells {
     made: Option<Made>,
     /// Object ids, in the order of the bits.
     objects: Vec<u32>,

@@ -41,6 +41,7 @@ pub(crate) mod ray_packet;
 mod visibility;
 
 pub use buffers::ShadowBuffers;
+pub(crate) use cells::OccluderCells;
 pub use light_frame::OccluderBvh;
 pub(crate) use packet::live_rays;
 pub(crate) use visibility::{ShadowQuery, possible_occluders, visibility, visibility_inline};

@@ -4,7 +4,7 @@
 use glam::{DVec3, Vec3};
 
 use super::buffers::ShadowBuffers;
-use super::cells::ObjectBits;
+use super::cells::{ObjectBits, OccluderCells};
 use super::light_frame::Eye;
 use super::occluder::{Dirs, Occluder};
 use super::packet::{PacketScratch, Packets, packet};
@@ -415,9 +415,20 @@ fn cannot_block(
 
 /// The objects that may block a shadow ray of `q` (the culling of
 /// [`visibility`], without its rays), each with whether q lies inside it
-/// (hit from inside: the object is kept, and only its exit counts).
-pub(crate) fn possible_occluders(scene: &Scene, q: &ShadowQuery, out: &mut Vec<(u32, bool)>) {
+/// (hit from inside: the object is kept, and only its exit counts). Only
+/// the objects of q's cube of space are tested where `cells` list them.
+pub(crate) fn possible_occluders(
+    scene: &Scene,
+    q: &ShadowQuery,
+    cells: &mut OccluderCells,
+    out: &mut Vec<(u32, bool)>,
+) {
     out.clear();
+    let listed = cells.bits_at(scene, q.point);
+    let own = |i: u32| i == q.object && scene.primitive(i).skips_itself(q.inside);
+    if listed.is_some_and(|bits| each_bit(bits, cells.objects()).all(own)) {
+        return;
+    }
     let light = &scene.light.shape;
     let corners = light.corners();
     let pyramid = ShadowPyramid::new(q.point, &corners, light.normal, light.centre());
@@ -436,6 +447,11 @@ pub(crate) fn possible_occluders(scene: &Scene, q: &ShadowQuery, out: &mut Vec<(
             out.push((i, i == q.object && q.inside));
         }
     };
+    // The lists serve only scenes without a BVH.
+    if let Some(bits) = listed {
+        each_bit(bits, cells.objects()).for_each(consider);
+        return;
+    }
     for &i in scene.unbounded.iter().chain(scene.bounded.iter()) {
         consider(i);
     }

@@ -35,7 +35,7 @@ use std::sync::OnceLock;
 
 use glam::{DVec2, DVec3};
 
-use super::diffuse::{Edge, outline};
+use super::diffuse::{Outline, outline};
 use super::polygon::{HalfPlane, Pieces, clip_into, edges_of, twice_area};
 use crate::render::math::avx2_dispatch;
 
@@ -491,7 +491,7 @@ fn legendre_integrals(x: f64) -> [f64; ORDER] {
 #[derive(Debug, Clone, Default)]
 pub struct CubatureScratch {
     levels: Vec<Pieces>,
-    edges: Vec<Edge>,
+    outline: Outline,
     tmp: Vec<DVec2>,
     tmp2: Vec<DVec2>,
 }
@@ -808,8 +808,8 @@ fn cell(
             edge_moments(r, degree, to_cell(p), to_cell(q), &mut m);
         }
     } else {
-        outline(pieces, &mut s.edges);
-        for e in &s.edges {
+        outline(pieces, &mut s.outline);
+        for e in &s.outline.edges {
             let (p0, p1) = (to_cell(e.lo), to_cell(e.hi));
             for _ in 0..e.sign.abs() as u32 {
                 if e.sign > 0.0 {

@@ -23,7 +23,7 @@ const SMALL_LIGHT: f64 = 0.05;
 /// One directed edge, with its endpoints in a canonical order.
 #[derive(Debug, Clone, Copy)]
 pub struct Edge {
-    /// The sort key: `key(lo)`, `key(hi)`.
+    /// The edge's identity: `key(lo)`, `key(hi)`.
     order: [u64; 4],
     pub lo: DVec2,
     pub hi: DVec2,
@@ -49,7 +49,7 @@ pub fn diffuse_over_pieces(
     a: DVec2,
     b: f64,
     h: f64,
-    edges: &mut Vec<Edge>,
+    outline_scratch: &mut Outline,
 ) -> f64 {
     let centre = (rect[0] + rect[1] + rect[2] + rect[3]) * 0.25;
     let radius = rect
@@ -68,10 +68,10 @@ pub fn diffuse_over_pieces(
             .map(|poly| piece_integral(poly, a, b, h))
             .sum();
     }
-    outline(pieces, edges);
+    outline(pieces, outline_scratch);
     let mut angle = AngleSum::default();
     let mut rest = 0.0;
-    for e in edges.iter() {
+    for e in &outline_scratch.edges {
         let (r, z) = segment_parts(e.lo, e.hi, a, b, h);
         rest += e.sign * r;
         // The angle of the edge run backwards is the negative one: the
@@ -87,50 +87,72 @@ pub fn diffuse_over_pieces(
     rest + b * h.abs() * angle.total()
 }
 
-/// The outline of the pieces into `edges`: each edge with its net
+/// The outline of a set of pieces: its edges, and the hash table that
+/// finds an edge again (kept warm).
+#[derive(Debug, Clone, Default)]
+pub struct Outline {
+    pub edges: Vec<Edge>,
+    /// Index into `edges` + 1 of each slot's edge, 0 for none.
+    slots: Vec<u32>,
+}
+
+/// The outline of the pieces into `out.edges`: each edge with its net
 /// crossings (`sign`, ±1 where the outline runs lo → hi or back), the edges
-/// two pieces share left out.
-pub fn outline(pieces: &Pieces, edges: &mut Vec<Edge>) {
+/// two pieces share left out, in the order they first appear. The same
+/// edge is found again by its endpoints' bits in a hash table (linear in
+/// the edges, where sorting them was n log n moves of whole edges).
+pub fn outline(pieces: &Pieces, out: &mut Outline) {
+    let Outline { edges, slots } = out;
     edges.clear();
+    // At least twice as many slots as edges: short probe runs.
+    let bits = (2 * pieces.verts.len())
+        .max(16)
+        .next_power_of_two()
+        .trailing_zeros();
+    slots.clear();
+    slots.resize(1 << bits, 0);
+    let mask = (1usize << bits) - 1;
     for poly in pieces.iter() {
         let mut kp = key(poly[0]);
         for (p, q) in edges_of(poly) {
             let kq = key(q);
-            match kp.cmp(&kq) {
-                std::cmp::Ordering::Less => edges.push(Edge {
-                    order: [kp.0, kp.1, kq.0, kq.1],
-                    lo: p,
-                    hi: q,
-                    sign: 1.0,
-                }),
-                std::cmp::Ordering::Greater => edges.push(Edge {
-                    order: [kq.0, kq.1, kp.0, kp.1],
-                    lo: q,
-                    hi: p,
-                    sign: -1.0,
-                }),
-                std::cmp::Ordering::Equal => {}
-            }
+            let (order, lo, hi, sign) = match kp.cmp(&kq) {
+                std::cmp::Ordering::Less => ([kp.0, kp.1, kq.0, kq.1], p, q, 1.0),
+                std::cmp::Ordering::Greater => ([kq.0, kq.1, kp.0, kp.1], q, p, -1.0),
+                std::cmp::Ordering::Equal => {
+                    kp = kq;
+                    continue;
+                }
+            };
             kp = kq;
+            let hash = (order[0]
+                ^ order[1].rotate_left(16)
+                ^ order[2].rotate_left(32)
+                ^ order[3].rotate_left(48))
+            .wrapping_mul(0x9E37_79B9_7F4A_7C15);
+            let mut slot = (hash >> (64 - bits)) as usize;
+            loop {
+                match slots[slot] {
+                    0 => {
+                        edges.push(Edge {
+                            order,
+                            lo,
+                            hi,
+                            sign,
+                        });
+                        slots[slot] = edges.len() as u32;
+                        break;
+                    }
+                    k if edges[k as usize - 1].order == order => {
+                        edges[k as usize - 1].sign += sign;
+                        break;
+                    }
+                    _ => slot = (slot + 1) & mask,
+                }
+            }
         }
     }
-    edges.sort_unstable_by_key(|e| e.order);
-    // Merge runs of the same edge in place.
-    let (mut i, mut kept) = (0, 0);
-    while i < edges.len() {
-        let mut e = edges[i];
-        let mut j = i + 1;
-        while j < edges.len() && edges[j].order == e.order {
-            e.sign += edges[j].sign;
-            j += 1;
-        }
-        if e.sign != 0.0 {
-            edges[kept] = e;
-            kept += 1;
-        }
-        i = j;
-    }
-    edges.truncate(kept);
+    edges.retain(|e| e.sign != 0.0);
 }
 
 /// One counter-clockwise convex piece: `analytic.rs`'s integral where the

@@ -57,7 +57,7 @@ pub use visible::{
 
 use conic::{ArcScratch, ConicShadow};
 use cubature::{CubatureScratch, Lobe, specular_factor};
-use diffuse::{Edge, diffuse_over_pieces};
+use diffuse::{Outline, diffuse_over_pieces};
 use polygon::{HalfPlane, Pieces};
 use projection::LightView;
 use visible::{RegionScratch, visible_region};
@@ -114,7 +114,7 @@ pub struct ExactScratch {
     conics: Vec<ConicShadow>,
     arcs: ArcScratch,
     before: Pieces,
-    edges: Vec<Edge>,
+    outline: Outline,
 }
 
 /// The diffuse integral with the spheres' shadows as their conics: over
@@ -139,7 +139,7 @@ fn conic_diffuse(view: &LightView, a: DVec2, b: f64, h: f64, s: &mut ExactScratc
     s.before.clone_from(&s.region.before_spheres);
     s.before
         .clip(HalfPlane { n: a, c: b }, 0.0, &mut s.region.work);
-    let mut total = diffuse_over_pieces(&s.before, &view.rect, a, b, h, &mut s.edges);
+    let mut total = diffuse_over_pieces(&s.before, &view.rect, a, b, h, &mut s.outline);
     for poly in s.before.iter() {
         for c in &s.conics {
             total -= c.diffuse_inside(poly, a, b, view.area, &mut s.arcs);
@@ -204,7 +204,7 @@ pub fn exact_factors(
         _ => None,
     };
     let diffuse =
-        conic.unwrap_or_else(|| diffuse_over_pieces(&s.lit, &view.rect, a, b, h, &mut s.edges));
+        conic.unwrap_or_else(|| diffuse_over_pieces(&s.lit, &view.rect, a, b, h, &mut s.outline));
     out.diffuse = (diffuse / view.area).clamp(0.0, 1.0);
 
     if specular {

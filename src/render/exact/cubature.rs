@@ -407,7 +407,8 @@ avx2_dispatch!(
     /// coordinates) for k, l ≤ `degree`: Green's theorem's moments of one
     /// straight edge, by the (degree + 1)-point rule (exact: the integrand
     /// is a polynomial of degree 2·degree + 1 along the edge). Entries with
-    /// k or l > degree are left alone: the fit is zero there.
+    /// k > degree are left alone, those with l > degree are not exact: the
+    /// fit is zero there, and they are not read.
     fn edge_moments(r: &Rule, degree: usize, p0: DVec2, p1: DVec2, m: &mut [[f64; ORDER]; ORDER]) => edge_moments_generic
 );
 
@@ -433,7 +434,9 @@ fn edge_moments_generic(
         let pl = legendre(p.y);
         for k in 0..=degree {
             let s = wg * rk[k];
-            for l in 0..=degree {
+            // The whole row, a fixed length that vectorizes without a
+            // loop: the entries past `degree` are never read.
+            for l in 0..ORDER {
                 m[k][l] += s * pl[l];
             }
         }

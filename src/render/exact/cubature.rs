@@ -131,7 +131,6 @@ fn lobe_at_nodes_generic<const M: usize>(l: &Lobe, a: &[f64; M], b: &[f64; M], o
 #[inline(always)]
 fn pow_one_minus(e: f32, y: f32) -> f32 {
     // Small e: t = e/(2 − e) ≤ 1/7.
-    let ts = e / (2.0 - e);
     // Elsewhere: 1 − e = m 2^k with m in [√½, √2), t = (m − 1)/(m + 1).
     let x = 1.0 - e;
     let bits = x.to_bits() as i32;
@@ -140,9 +139,10 @@ fn pow_one_minus(e: f32, y: f32) -> f32 {
     let big = m > std::f32::consts::SQRT_2;
     m = if big { m * 0.5 } else { m };
     k += big as i32;
-    let tm = (m - 1.0) / (m + 1.0);
     let small = e < 0.25;
-    let t = if small { ts } else { tm };
+    // One division of the chosen numerator and denominator (the same
+    // quotient as choosing between the two quotients).
+    let t = if small { e } else { m - 1.0 } / if small { 2.0 - e } else { m + 1.0 };
     let t2 = t * t;
     let mut series = 1.0 / 11.0;
     for d in [9.0, 7.0, 5.0, 3.0, 1.0] {

@@ -526,3 +526,80 @@ fn unit_ring(n: usize) -> std::borrow::Cow<'static, [(f64, f64)]> {
         _ => std::borrow::Cow::Owned(make(n)),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::{CircleFit, LightView, ProjectScratch, box_shadow, sphere_shadow};
+    use crate::render::exact::polygon::{Pieces, Work, twice_area};
+    use crate::render::geometry::{Cuboid, Parallelogram, Sphere};
+    use crate::render::rng::Rng;
+    use glam::{DVec2, DVec3};
+
+    /// The light's area left outside a shadow polygon.
+    fn left_visible(view: &LightView, shadow: &[DVec2]) -> f64 {
+        let mut p = Pieces::default();
+        p.push(&view.rect, 0.0);
+        if shadow.len() >= 3 {
+            p.subtract(shadow, 0.0, &mut Work::default());
+        }
+        p.iter().map(twice_area).sum::<f64>() * 0.5
+    }
+
+    /// The umbra shortcut agrees with the projected shadows: from points
+    /// under a box or sphere (in umbra, penumbra and full light), a box
+    /// that hides the light leaves nothing of it outside its shadow and
+    /// one that does not leaves some; a sphere that hides it leaves
+    /// nothing outside its circumscribed polygon, and one whose inscribed
+    /// polygon covers the light hides it.
+    #[test]
+    fn hiding_the_whole_light_agrees_with_the_shadows() {
+        let light = Parallelogram::new(
+            DVec3::new(-1.0, 7.99, -1.0),
+            DVec3::new(2.0, 0.0, 0.0),
+            DVec3::new(0.0, 0.0, 2.0),
+        );
+        let mut rng = Rng::new(21);
+        let mut next = || rng.next_f64();
+        let mut s = ProjectScratch::default();
+        let mut shadow = Vec::new();
+        let (mut hidden, mut seen) = (0, 0);
+        for case in 0..4000 {
+            let q = DVec3::new(6.0 * next() - 3.0, 2.0 * next(), 6.0 * next() - 3.0);
+            let view = LightView::new(&light, q).expect("below the light");
+            let area = view.area;
+            let size = DVec3::new(0.5 + next(), 0.2 + next(), 0.5 + next());
+            let centre = DVec3::new(next() - 0.5, 4.0 + next(), next() - 0.5);
+            if case % 2 == 0 {
+                let c = Cuboid::new(centre - size, centre + size, 90.0 * next(), DVec3::ZERO);
+                let hides = view.box_hides_light(&c);
+                box_shadow(&view, &c, &mut s, &mut shadow).expect("q outside the box");
+                let left = left_visible(&view, &shadow);
+                if hides {
+                    assert!(left <= 1e-9 * area, "case {case}: {left} of {area} left");
+                } else {
+                    assert!(left > 0.0, "case {case}: nothing left, yet not hidden");
+                }
+                (hidden, seen) = (hidden + hides as u32, seen + !hides as u32);
+            } else {
+                let sphere = Sphere {
+                    centre,
+                    radius: 0.5 + next(),
+                };
+                let hides = view.sphere_hides_light(&sphere);
+                let mut left = |fit| {
+                    sphere_shadow(&view, &sphere, 128, fit, &mut s, &mut shadow).expect("outside");
+                    left_visible(&view, &shadow)
+                };
+                if hides {
+                    let outer = left(CircleFit::Circumscribed);
+                    assert!(outer <= 1e-9 * area, "case {case}: {outer} of {area} left");
+                }
+                if left(CircleFit::Inscribed) == 0.0 {
+                    assert!(hides, "case {case}: covered, yet not hidden");
+                }
+                (hidden, seen) = (hidden + hides as u32, seen + !hides as u32);
+            }
+        }
+        assert!(hidden > 150 && seen > 150, "{hidden} hidden, {seen} seen");
+    }
+}

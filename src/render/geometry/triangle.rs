@@ -234,8 +234,8 @@ const EDGE_ROUNDING: f32 = 1.0 / (1 << 19) as f32;
 /// Exact at the edges: where an f32 edge test lies within its rounding
 /// bound of zero, its sign may not be the true one, and the edges are
 /// decided again in f64 from the unrounded vertices (the f32 direction is
-/// the ray). Any closed shape (the `box`) then answers the same grazing
-/// rays as its triangles; the shared-edge argument holds in f64 as well.
+/// the ray): a mesh blocks grazing rays as its exact surface does. The
+/// shared-edge argument holds in f64 as well.
 #[derive(Debug, Clone, Copy)]
 pub struct TriangleOccluder {
     ab: Vec3,

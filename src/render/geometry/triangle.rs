@@ -203,22 +203,27 @@ pub fn occluder(v: &[DVec3; 3], p: DVec3, reach: f32) -> TriangleOccluder {
     // |ab · d| is off by at most 7.2·2⁻²⁴·|a|₁|b|₁|d|₁ from the exact value
     // of the unrounded vertices (their rounding, the cross product's and
     // the dot product's), and |d|₁ ≤ √3·reach: 2⁻¹⁹ leaves room for the
-    // rounding of the bound itself.
-    let [la, lb, lc] = [a, b, c].map(|v| v.abs().element_sum());
-    let unit = reach * EDGE_ROUNDING;
+    // rounding of the bound itself. One bound for the three edges, from
+    // the farthest vertex: a lane then compares the nearest edge only.
+    let far = a
+        .abs()
+        .element_sum()
+        .max(b.abs().element_sum())
+        .max(c.abs().element_sum());
     TriangleOccluder {
         ab: a.cross(b),
         bc: b.cross(c),
         ca: c.cross(a),
         n,
         dist: n.dot(a),
-        unsure: Vec3::new(la * lb * unit, lb * lc * unit, lc * la * unit),
+        unsure: far * far * (reach * EDGE_ROUNDING),
         exact,
     }
 }
 
-/// The rounding bound of an f32 edge test, relative to the product of the
-/// edge's vertex distances and the ray's length (see [`occluder`]).
+/// The rounding bound of an f32 edge test, relative to the squared
+/// distance of the farthest vertex and the ray's length (see
+/// [`occluder`]).
 const EDGE_ROUNDING: f32 = 1.0 / (1 << 19) as f32;
 
 /// A triangle seen from a hit point (the origin), in f32: the normals of
@@ -244,8 +249,8 @@ pub struct TriangleOccluder {
     n: Vec3,
     /// `n · a`: the plane is met at t = dist / (n · d).
     dist: f32,
-    /// The rounding bounds of the three edge tests.
-    unsure: Vec3,
+    /// The rounding bound of the edge tests.
+    unsure: f32,
     /// The vertices relative to the hit point, unrounded.
     exact: [DVec3; 3],
 }
@@ -271,10 +276,7 @@ impl TriangleOccluder {
         let inside = (e0 >= 0.0 && e1 >= 0.0 && e2 >= 0.0) || (e0 <= 0.0 && e1 <= 0.0 && e2 <= 0.0);
         let t = self.dist / e(self.n);
         let on_plane = t > 0.0 && t < end;
-        let unsure = on_plane
-            & ((e0.abs() <= self.unsure.x)
-                | (e1.abs() <= self.unsure.y)
-                | (e2.abs() <= self.unsure.z));
+        let unsure = on_plane & (e0.abs().min(e1.abs()).min(e2.abs()) <= self.unsure);
         (inside & on_plane & !unsure, unsure)
     }
 

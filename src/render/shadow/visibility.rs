@@ -351,8 +351,11 @@ struct Culling<'a> {
 /// its farthest point is a corner), with room for the rays' rounding.
 #[inline(always)]
 fn longest_ray(p: DVec3, corners: &[DVec3; 4]) -> f32 {
-    let longest = corners.iter().map(|c| c.distance(p)).fold(0.0, f64::max);
-    (longest * (1.0 + 1e-3)) as f32
+    let longest2 = corners
+        .iter()
+        .map(|c| c.distance_squared(p))
+        .fold(0.0, f64::max);
+    (longest2.sqrt() * (1.0 + 1e-3)) as f32
 }
 
 impl Culling<'_> {

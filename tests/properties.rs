@@ -237,7 +237,7 @@ proptest! {
         prop_assert!(outside <= tol, "outside the box by {outside:e}");
         let on_face = (q.abs() - half).abs().min_element();
         prop_assert!(on_face <= tol, "inside the box by {on_face:e}");
-        assert_spawn_clean(&Shape::Cuboid(cuboid.clone()), &ray, t, dir, grazing, m);
+        assert_spawn_clean(&Shape::Cuboid(cuboid), &ray, t, dir, grazing, m);
     }
 
     #[test]

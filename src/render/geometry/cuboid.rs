@@ -4,7 +4,7 @@ use super::{Aabb, Ray, SurfacePoint};
 
 /// The `box` object: an axis-aligned box rotated about the y axis through
 /// its centre, then translated. Intersections run in the box's own frame.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Copy)]
 pub struct Cuboid {
     /// World position of the box's centre.
     pub centre: DVec3,
@@ -59,6 +59,20 @@ impl Cuboid {
         let t1 = (self.half - o) * inv;
         // f64::min/max drop a NaN (0·∞ for a ray in a face's plane).
         (t0.min(t1).max_element(), t0.max(t1).min_element())
+    }
+
+    /// Whether the segment `t·d`, t in (0, end), from `origin` (in the
+    /// box's frame, relative to its centre) meets the closed box: the f64
+    /// decision of the shadow test for a ray its f32 form is unsure of.
+    #[cold]
+    #[inline(never)]
+    pub fn segment_meets(&self, origin: DVec3, d: DVec3, end: f64) -> bool {
+        let inv = self.to_local(d).recip();
+        let t0 = (-self.half - origin) * inv;
+        let t1 = (self.half - origin) * inv;
+        let near = t0.min(t1).max_element().max(0.0);
+        let far = t0.max(t1).min_element().min(end);
+        near <= far && far > 0.0 && near < end
     }
 
     #[inline]

@@ -189,8 +189,8 @@ impl Meshes {
     /// it for every face they test, and a call leaves their CPU features
     /// (the same operations, so the same bits).
     #[inline(always)]
-    pub fn occluder(&self, f: u32, p: DVec3) -> TriangleOccluder {
-        triangle::occluder(&self.vertices(f), p)
+    pub fn occluder(&self, f: u32, p: DVec3, reach: f32) -> TriangleOccluder {
+        triangle::occluder(&self.vertices(f), p, reach)
     }
 
     /// Bytes held (vertex buffers, faces, shading flags).

@@ -104,9 +104,9 @@ impl Triangle {
         Aabb::from_points(&self.vertices().map(f))
     }
 
-    /// The shadow-ray form seen from `p`.
-    pub fn occluder(&self, p: DVec3) -> TriangleOccluder {
-        occluder(&self.vertices(), p)
+    /// The shadow-ray form seen from `p`, for rays no longer than `reach`.
+    pub fn occluder(&self, p: DVec3, reach: f32) -> TriangleOccluder {
+        occluder(&self.vertices(), p, reach)
     }
 }
 
@@ -193,19 +193,38 @@ pub fn surface(
     }
 }
 
-/// The shadow-ray form of the triangle `v` seen from `p`.
+/// The shadow-ray form of the triangle `v` seen from `p`, for rays no
+/// longer than `reach`.
 #[inline(always)]
-pub fn occluder(v: &[DVec3; 3], p: DVec3) -> TriangleOccluder {
-    let [a, b, c] = v.map(|v| (v - p).as_vec3());
+pub fn occluder(v: &[DVec3; 3], p: DVec3, reach: f32) -> TriangleOccluder {
+    let exact = v.map(|v| v - p);
+    let [a, b, c] = exact.map(|v| v.as_vec3());
     let n = (b - a).cross(c - a);
+    // |ab · d| is off by at most 7.2·2⁻²⁴·|a|₁|b|₁|d|₁ from the exact value
+    // of the unrounded vertices (their rounding, the cross product's and
+    // the dot product's), and |d|₁ ≤ √3·reach: 2⁻¹⁹ leaves room for the
+    // rounding of the bound itself. One bound for the three edges, from
+    // the farthest vertex: a lane then compares the nearest edge only.
+    let far = a
+        .abs()
+        .element_sum()
+        .max(b.abs().element_sum())
+        .max(c.abs().element_sum());
     TriangleOccluder {
         ab: a.cross(b),
         bc: b.cross(c),
         ca: c.cross(a),
         n,
         dist: n.dot(a),
+        unsure: far * far * (reach * EDGE_ROUNDING),
+        exact,
     }
 }
+
+/// The rounding bound of an f32 edge test, relative to the squared
+/// distance of the farthest vertex and the ray's length (see
+/// [`occluder`]).
+const EDGE_ROUNDING: f32 = 1.0 / (1 << 19) as f32;
 
 /// A triangle seen from a hit point (the origin), in f32: the normals of
 /// the three planes through the origin and an edge, and the triangle's own
@@ -216,6 +235,12 @@ pub fn occluder(v: &[DVec3; 3], p: DVec3) -> TriangleOccluder {
 /// triangles that share an edge share its vertices, so the edge plane's
 /// normal of one is exactly the negation of the other's (`b × a` is `−(a ×
 /// b)` in floating point too): no ray slips between them.
+///
+/// Exact at the edges: where an f32 edge test lies within its rounding
+/// bound of zero, its sign may not be the true one, and the edges are
+/// decided again in f64 from the unrounded vertices (the f32 direction is
+/// the ray): a mesh blocks grazing rays as its exact surface does. The
+/// shared-edge argument holds in f64 as well.
 #[derive(Debug, Clone, Copy)]
 pub struct TriangleOccluder {
     ab: Vec3,
@@ -224,17 +249,46 @@ pub struct TriangleOccluder {
     n: Vec3,
     /// `n · a`: the plane is met at t = dist / (n · d).
     dist: f32,
+    /// The rounding bound of the edge tests.
+    unsure: f32,
+    /// The vertices relative to the hit point, unrounded.
+    exact: [DVec3; 3],
 }
 
 impl TriangleOccluder {
     /// Whether the ray `t·(x, y, z)` meets the triangle for t in (0, end).
     #[inline(always)]
     pub fn blocks(&self, x: f32, y: f32, z: f32, end: f32) -> bool {
+        match self.blocks_f32(x, y, z, end) {
+            (_, true) => self.blocks_exact(x, y, z),
+            (blocked, false) => blocked,
+        }
+    }
+
+    /// The f32 test: (blocked, unsure). An unsure ray meets the plane within
+    /// (0, end) and lies within rounding of an edge plane: it is blocked iff
+    /// [`blocks_exact`](Self::blocks_exact) says so; `blocked` is then false.
+    /// Lane arithmetic without branches, for the vector loops.
+    #[inline(always)]
+    pub fn blocks_f32(&self, x: f32, y: f32, z: f32, end: f32) -> (bool, bool) {
         let e = |n: Vec3| n.x * x + n.y * y + n.z * z;
         let (e0, e1, e2) = (e(self.ab), e(self.bc), e(self.ca));
         let inside = (e0 >= 0.0 && e1 >= 0.0 && e2 >= 0.0) || (e0 <= 0.0 && e1 <= 0.0 && e2 <= 0.0);
         let t = self.dist / e(self.n);
-        inside && t > 0.0 && t < end
+        let on_plane = t > 0.0 && t < end;
+        let unsure = on_plane & (e0.abs().min(e1.abs()).min(e2.abs()) <= self.unsure);
+        (inside & on_plane & !unsure, unsure)
+    }
+
+    /// The edges decided in f64, for a ray that [`blocks_f32`]
+    /// (Self::blocks_f32) found unsure.
+    #[cold]
+    #[inline(never)]
+    pub fn blocks_exact(&self, x: f32, y: f32, z: f32) -> bool {
+        let d = DVec3::new(x as f64, y as f64, z as f64);
+        let [a, b, c] = self.exact;
+        let (e0, e1, e2) = (a.cross(b).dot(d), b.cross(c).dot(d), c.cross(a).dot(d));
+        (e0 >= 0.0 && e1 >= 0.0 && e2 >= 0.0) || (e0 <= 0.0 && e1 <= 0.0 && e2 <= 0.0)
     }
 }
 
@@ -275,7 +329,7 @@ mod tests {
     fn occluder_agrees_with_the_f64_test() {
         let t = tri();
         let p = DVec3::new(0.3, 0.7, -2.0);
-        let occ = t.occluder(p);
+        let occ = t.occluder(p, 6.0);
         for i in -30..30 {
             for j in -30..30 {
                 let target = DVec3::new(i as f64 * 0.1, j as f64 * 0.1 + 0.013, 1.0);
@@ -295,7 +349,7 @@ mod tests {
         let t1 = Triangle::new(a, b, DVec3::new(-1.0, 1.0, 0.1)).unwrap();
         let t2 = Triangle::new(b, a, DVec3::new(1.0, -1.0, 0.0)).unwrap();
         let p = DVec3::new(0.1, 0.2, -3.0);
-        let (o1, o2) = (t1.occluder(p), t2.occluder(p));
+        let (o1, o2) = (t1.occluder(p, 6.0), t2.occluder(p, 6.0));
         // Away from the ends: around a vertex the two triangles cover only
         // a wedge, which a ray rounded off the edge may miss.
         for k in 10..=9_990 {

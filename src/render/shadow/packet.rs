@@ -17,6 +17,8 @@ pub(super) struct Packets<'a> {
     /// The hit point in the light's frame.
     pub(super) eye: Eye,
     pub(super) q: &'a ShadowQuery,
+    /// A bound on the length of every shadow ray (see `Occluder::new`).
+    pub(super) reach: f32,
 }
 
 avx2_dispatch!(
@@ -215,7 +217,7 @@ impl Tests<'_, '_> {
             return live;
         }
         self.tested |= m;
-        let occ = Occluder::new(prim, pk.q.point, inside);
+        let occ = Occluder::new(prim, pk.q.point, inside, pk.reach);
         let few = at_most(m, FEW);
         let vis = &mut *self.vis;
         let mut live = live;

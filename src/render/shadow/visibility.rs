@@ -116,6 +116,7 @@ pub(crate) fn visibility_inline(
         skip,
         umbra_tested,
         pyramid: &pyramid,
+        reach: longest_ray(q.point, &corners),
     };
 
     // Objects outside the BVH (planes, and all objects of small scenes).
@@ -163,6 +164,7 @@ pub(crate) fn visibility_inline(
             sb,
             eye: Eye::new(p, margin),
             q,
+            reach: culling.reach,
         }
     });
 
@@ -341,6 +343,19 @@ struct Culling<'a> {
     skip: bool,
     umbra_tested: bool,
     pyramid: &'a ShadowPyramid,
+    /// See [`longest_ray`].
+    reach: f32,
+}
+
+/// A bound on the length of every shadow ray from `p` (the light is convex:
+/// its farthest point is a corner), with room for the rays' rounding.
+#[inline(always)]
+fn longest_ray(p: DVec3, corners: &[DVec3; 4]) -> f32 {
+    let longest2 = corners
+        .iter()
+        .map(|c| c.distance_squared(p))
+        .fold(0.0, f64::max);
+    (longest2.sqrt() * (1.0 + 1e-3)) as f32
 }
 
 impl Culling<'_> {
@@ -382,7 +397,7 @@ impl Culling<'_> {
                 }
             };
         Some(Candidate {
-            occ: Occluder::new(prim, q.point, inside),
+            occ: Occluder::new(prim, q.point, inside, self.reach),
             umbra_test,
         })
     }

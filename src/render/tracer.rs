@@ -322,12 +322,7 @@ impl<'a> Tracer<'a> {
             let hit = sink.nearest(depth, &ray, || {
                 if depth == 1 {
                     match camera_objects {
-                        Some(tile) => scene.camera_hit_among(
-                            &ray,
-                            s.cutaway,
-                            tile.light,
-                            tile.objects.iter().copied(),
-                        ),
+                        Some(tile) => tile.nearest(scene, &ray, s.cutaway),
                         None => scene.camera_hit(&ray, s.cutaway),
                     }
                 } else {

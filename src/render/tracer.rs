@@ -319,16 +319,22 @@ impl<'a> Tracer<'a> {
         let mut weight = 1.0f32;
         for depth in 1..=s.max_depth {
             // Only the camera ray (depth 1) may cut away planes.
-            let hit = sink.nearest(depth, &ray, || {
-                if depth == 1 {
-                    match camera_objects {
-                        Some(tile) => tile.nearest(scene, &ray, s.cutaway),
-                        None => scene.camera_hit(&ray, s.cutaway),
+            // Inlined, so that it is compiled for the caller's CPU features.
+            let hit = sink.nearest(
+                depth,
+                &ray,
+                #[inline(always)]
+                || {
+                    if depth == 1 {
+                        match camera_objects {
+                            Some(tile) => tile.nearest(scene, &ray, s.cutaway),
+                            None => scene.camera_hit(&ray, s.cutaway),
+                        }
+                    } else {
+                        scene.closest_hit(&ray)
                     }
-                } else {
-                    scene.closest_hit(&ray)
-                }
-            });
+                },
+            );
             let Some((target, t)) = hit else {
                 colour.add(s.background, weight);
                 sink.end(PathEnd::Background);

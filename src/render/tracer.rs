@@ -372,7 +372,13 @@ impl<'a> Tracer<'a> {
                 inside,
                 material,
             };
-            let mut rng = Rng::for_sample(s.seed, x, y, sample, depth);
+            // A fixed pattern draws no random numbers: its hits need no
+            // stream of their own.
+            let mut rng = if self.pattern.is_fixed() {
+                Rng::new(0)
+            } else {
+                Rng::for_sample(s.seed, x, y, sample, depth)
+            };
             if S::RECORD {
                 let buf = &mut scratch.shadow;
                 // Every factor is computed, so that a later edit of any

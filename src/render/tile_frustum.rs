@@ -250,4 +250,52 @@ mod tests {
         );
         assert!(!listed.light);
     }
+
+    /// A tile's camera rays find, bit for bit, the hit of
+    /// [`Scene::camera_hit`] (with and without cut-away): the seed room, a
+    /// camera outside it (cut-away passes walls), and a room of 40
+    /// spheres (found through the BVH).
+    #[test]
+    fn a_tile_s_camera_rays_meet_what_each_ray_meets() {
+        let mut outside = Loaded::seed_room();
+        let mut camera =
+            crate::render::scene_file::SceneDesc::from_json(crate::render::scene::SEED_ROOM_JSON)
+                .unwrap();
+        camera.camera.position = [7.0, 11.0, -20.0];
+        outside.scene = std::sync::Arc::new(outside.scene.with_view(&camera));
+        let spheres = Loaded::new(&crate::render::generate::spheres_in_room(40, 3)).expect("valid");
+        assert!(!spheres.scene.bvh.is_empty());
+        let mut listed = TileTargets::default();
+        for loaded in [Loaded::seed_room(), outside, spheres] {
+            let scene = &loaded.scene;
+            let whole = TileRect {
+                x: 0,
+                y: 0,
+                w: scene.camera.width,
+                h: scene.camera.height,
+            };
+            let mut hits = 0;
+            for rect in tiles_of(whole, 32) {
+                camera_objects(scene, rect, &mut listed);
+                for y in (rect.y..rect.y + rect.h).step_by(5) {
+                    for x in (rect.x..rect.x + rect.w).step_by(5) {
+                        let ray = scene.camera.pixel_ray(x, y);
+                        for cutaway in [false, true] {
+                            let want = scene.camera_hit(&ray, cutaway);
+                            let got = listed.nearest(scene, &ray, cutaway);
+                            let bits =
+                                |h: Option<(HitTarget, f64)>| h.map(|(o, t)| (o, t.to_bits()));
+                            assert_eq!(
+                                bits(got),
+                                bits(want),
+                                "pixel ({x}, {y}), cut-away {cutaway}"
+                            );
+                            hits += want.is_some() as usize;
+                        }
+                    }
+                }
+            }
+            assert!(hits > 1000, "{hits} hits");
+        }
+    }
 }

@@ -333,4 +333,34 @@ mod tests {
             assert!(left_out > 4000, "{left_out} objects left out");
         }
     }
+
+    /// A thread's shadow buffers leave their lists to the next ones made
+    /// on it: the same objects under the same light find their cubes
+    /// listed; under a moved light the lists are made anew, as a fresh
+    /// thread's would be.
+    #[test]
+    fn a_thread_keeps_its_lists_for_its_next_render() {
+        use crate::render::shadow::ShadowBuffers;
+        let scene = Loaded::seed_room().scene;
+        let p = DVec3::new(1.5, 0.0, -3.0);
+        let mut buf = ShadowBuffers::with_capacity(4);
+        let bits = buf.cells.bits_at(&scene, p).expect("lists");
+        drop(buf);
+        let mut kept = ShadowBuffers::with_capacity(4);
+        assert!(kept.cells.made.as_ref().is_some_and(|m| m.is_for(&scene)));
+        assert_eq!(kept.cells.last.bits, bits);
+        let c = (p * kept.cells.per_side).floor();
+        assert_eq!(kept.cells.last.cube, [c.x as i32, c.y as i32, c.z as i32]);
+
+        let mut desc =
+            crate::render::scene_file::SceneDesc::from_json(crate::render::scene::SEED_ROOM_JSON)
+                .unwrap();
+        desc.light.corner = [-4.0, 7.5, 3.0];
+        let moved = scene.with_view(&desc);
+        let mut fresh = OccluderCells::default();
+        let want = fresh.bits_at(&moved, p);
+        assert_ne!(want, Some(bits), "the light's move changes the list");
+        assert_eq!(kept.cells.bits_at(&moved, p), want);
+        assert!(kept.cells.made.as_ref().is_some_and(|m| m.is_for(&moved)));
+    }
 }

@@ -131,7 +131,10 @@ impl SampledLanes {
     }
 
     /// Adds hit `index`, whose light points and their visibility `buf`
-    /// holds (some point visible); true once the batch is full.
+    /// holds (some point visible); true once the batch is full. Inlined
+    /// into the path loop (a call per hit saved and restored most
+    /// registers).
+    #[inline(always)]
     pub fn push(&mut self, index: usize, hit: LaneHit, buf: &ShadowBuffers) -> bool {
         let h = self.index.len();
         self.index.push((index, hit.specular));

@@ -174,9 +174,11 @@ avx2_dispatch!(
     ) -> Lit => light_points_generic
 );
 
+/// [`light_points`] inlined into the caller, compiled for its CPU
+/// features (the same operations, so the same bits).
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
-fn light_points_generic(
+pub(crate) fn light_points_generic(
     scene: &Scene,
     s: &RenderSettings,
     sp: &ShadingPoint,

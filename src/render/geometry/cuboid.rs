@@ -20,6 +20,26 @@ impl Cuboid {
     pub const FLAT: bool = false;
     pub const CONVEX: bool = true;
 
+    /// The faces as indices of [`Self::corners`], each counter-clockwise
+    /// seen from outside.
+    pub const FACES: [[usize; 4]; 6] = [
+        [0, 2, 6, 4],
+        [1, 5, 7, 3],
+        [0, 4, 5, 1],
+        [2, 3, 7, 6],
+        [0, 1, 3, 2],
+        [4, 6, 7, 5],
+    ];
+
+    /// The corners in world space; bits 0, 1, 2 of the index pick the high
+    /// side along the box's x, y, z.
+    pub fn corners(&self) -> [DVec3; 8] {
+        std::array::from_fn(|i| {
+            let side = |bit: usize| if i & bit == 0 { -1.0 } else { 1.0 };
+            self.centre + self.to_world(self.half * DVec3::new(side(1), side(2), side(4)))
+        })
+    }
+
     pub fn new(min: DVec3, max: DVec3, rotate_y_deg: f64, translate: DVec3) -> Self {
         let (sin, cos) = rotate_y_deg.to_radians().sin_cos();
         Cuboid {
@@ -53,10 +73,16 @@ impl Cuboid {
     /// Entry and exit distances of the ray's line through the slabs.
     #[inline]
     fn slabs(&self, ray: &Ray) -> (f64, f64) {
-        let o = self.to_local(ray.origin - self.centre);
-        let inv = self.to_local(ray.dir).recip();
-        let t0 = (-self.half - o) * inv;
-        let t1 = (self.half - o) * inv;
+        self.local_slabs(self.to_local(ray.origin - self.centre), ray.dir)
+    }
+
+    /// [`Self::slabs`] of the line `origin + t·dir`, `origin` in the box's
+    /// frame relative to its centre, `dir` in world space.
+    #[inline]
+    fn local_slabs(&self, origin: DVec3, dir: DVec3) -> (f64, f64) {
+        let inv = self.to_local(dir).recip();
+        let t0 = (-self.half - origin) * inv;
+        let t1 = (self.half - origin) * inv;
         // f64::min/max drop a NaN (0·∞ for a ray in a face's plane).
         (t0.min(t1).max_element(), t0.max(t1).min_element())
     }
@@ -67,11 +93,8 @@ impl Cuboid {
     #[cold]
     #[inline(never)]
     pub fn segment_meets(&self, origin: DVec3, d: DVec3, end: f64) -> bool {
-        let inv = self.to_local(d).recip();
-        let t0 = (-self.half - origin) * inv;
-        let t1 = (self.half - origin) * inv;
-        let near = t0.min(t1).max_element().max(0.0);
-        let far = t0.max(t1).min_element().min(end);
+        let (near, far) = self.local_slabs(origin, d);
+        let (near, far) = (near.max(0.0), far.min(end));
         near <= far && far > 0.0 && near < end
     }
 

@@ -334,12 +334,7 @@ impl LiveRender {
                 &settings,
                 &shading,
                 &plan,
-                TileRect {
-                    x: 0,
-                    y: 0,
-                    w: scene.camera.width,
-                    h: scene.camera.height,
-                },
+                TileRect::whole(&scene.camera),
                 options,
                 cancel,
                 on_tile,

@@ -302,22 +302,11 @@ mod tests {
             20.0,
             DVec3::new(-2.0, 0.0, 1.0),
         );
-        let corner = |k: usize| {
-            let s = |bit: usize| if k & bit == 0 { -1.0 } else { 1.0 };
-            c.centre + c.to_world(c.half * DVec3::new(s(1), s(2), s(4)))
-        };
-        let quads = [
-            [0, 2, 6, 4],
-            [1, 5, 7, 3],
-            [0, 4, 5, 1],
-            [2, 3, 7, 6],
-            [0, 1, 3, 2],
-            [4, 6, 7, 5],
-        ];
-        let triangles: Vec<Triangle> = quads
+        let corner = c.corners();
+        let triangles: Vec<Triangle> = Cuboid::FACES
             .iter()
             .flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]])
-            .map(|t| Triangle::new(corner(t[0]), corner(t[1]), corner(t[2])).unwrap())
+            .map(|t| Triangle::new(corner[t[0]], corner[t[1]], corner[t[2]]).unwrap())
             .collect();
         let shape = Shape::Cuboid(c);
         let mut rng = Rng::new(3);

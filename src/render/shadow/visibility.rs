@@ -366,6 +366,8 @@ impl LazyPyramid {
         if let Some(pyramid) = self.built.get() {
             return pyramid;
         }
+        // Built here, not in `get_or_init`'s closure: that would be a call
+        // of code compiled without the kernel's CPU features.
         let pyramid =
             ShadowPyramid::new(self.p, &self.corners, self.light_normal, self.light_centre);
         self.built.get_or_init(|| pyramid)

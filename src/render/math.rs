@@ -45,6 +45,8 @@ macro_rules! avx512_dispatch {
         $vis fn $name($($arg: $ty),*) -> $ret {
             #[cfg(target_arch = "x86_64")]
             {
+                // The kernel's own signature, however long.
+                #[allow(clippy::too_many_arguments)]
                 #[target_feature(enable = "avx512f,avx512vl,avx512dq,avx512bw")]
                 fn wide($($arg: $ty),*) -> $ret {
                     $body_fn($($arg),*)

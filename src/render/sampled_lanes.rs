@@ -10,6 +10,12 @@
 //! directions are recomputed from the light points as `light_directions`
 //! computes them (the same expression, so the same values), so a waiting
 //! hit keeps only its visibility bits.
+//!
+//! From [`LANE_POINTS`] points on, one hit's points fill the vectors: each
+//! hit's contributions are computed point by point as it arrives (by
+//! `shading::point_terms`, as the tracer does), and only the sums wait, to
+//! run [`LANES`] hits' chains of additions side by side instead of one
+//! hit's alone (each still in its points' order).
 
 use glam::Vec3;
 
@@ -17,7 +23,7 @@ use super::math::{avx2_dispatch, avx512_dispatch, pow_approx};
 use super::rng::Rng;
 use super::sampling::Pattern;
 use super::scene_file::Sampling;
-use super::shading::{LightTerms, blinn_cosine};
+use super::shading::{LightTerms, PointTerms, blinn_cosine, point_terms};
 use super::shadow::{ShadowBuffers, live_rays};
 
 /// Hits computed side by side.
@@ -26,7 +32,8 @@ pub const LANES: usize = 16;
 /// Hits with fewer light points than this are worth shading side by side.
 /// From sixteen on, one hit's own points fill the vectors (the per-hit
 /// kernels' sixteen lanes), and packing the visibility into bits cost more
-/// than the lanes saved (8 % slower at 64 grid rays per hit, 1920×1080).
+/// than the lanes saved (8 % slower at 64 grid rays per hit, 1920×1080):
+/// such hits wait with their contributions computed ([`HitRows`]).
 pub const LANE_POINTS: usize = 16;
 
 /// What a hit's sampled factors depend on besides its visibility.
@@ -111,6 +118,8 @@ pub struct SampledLanes {
     /// 64·k + l of lane h.
     bits: Vec<[u64; LANES]>,
     points: LanePoints,
+    /// From [`LANE_POINTS`] points on, instead of `hits` and `bits`.
+    rows: HitRows,
     /// The pattern the batch is set up for.
     pattern: Option<(Sampling, u32)>,
 }
@@ -125,8 +134,14 @@ impl SampledLanes {
             return;
         }
         self.pattern = Some(key);
+        let count = pattern.count();
+        self.rows
+            .start(if count >= LANE_POINTS { count } else { 0 });
         self.bits.clear();
-        self.bits.resize(pattern.count().div_ceil(64), [0; LANES]);
+        if self.rows.is_used() {
+            return;
+        }
+        self.bits.resize(count.div_ceil(64), [0; LANES]);
         self.points.start(pattern);
     }
 
@@ -138,6 +153,10 @@ impl SampledLanes {
     pub fn push(&mut self, index: usize, hit: LaneHit, buf: &ShadowBuffers) -> bool {
         let h = self.index.len();
         self.index.push((index, hit.specular));
+        if self.rows.is_used() {
+            self.rows.set(h, &hit, buf);
+            return self.index.len() == LANES;
+        }
         self.hits
             .set(h, hit.to_corner, hit.normal, hit.view, hit.shininess);
         let padded = self.points.count().next_multiple_of(8);
@@ -158,10 +177,13 @@ impl SampledLanes {
     }
 
     /// Computes the waiting hits' factors: `store(index, factors)` for each.
+    /// Inlined, so that it is compiled for the caller's CPU features.
+    #[inline(always)]
     pub fn flush(&mut self, edge_u: Vec3, edge_v: Vec3, store: impl FnMut(usize, LightTerms)) {
         self.flush_by(sampled_lanes, edge_u, edge_v, store);
     }
 
+    #[inline(always)]
     fn flush_by(
         &mut self,
         kernel: Kernel,
@@ -172,10 +194,17 @@ impl SampledLanes {
         if self.index.is_empty() {
             return;
         }
-        let points = self.points.with_edges(edge_u, edge_v);
         // Lanes past the waiting hits hold finite leftovers of earlier
         // batches (or zeros) and are not read out.
-        let (diffuse, specular) = kernel(&self.hits, &self.bits, &points);
+        let (diffuse, specular) = if self.rows.is_used() {
+            self.rows.sums()
+        } else {
+            kernel(
+                &self.hits,
+                &self.bits,
+                &self.points.with_edges(edge_u, edge_v),
+            )
+        };
         for (h, &(i, wants_specular)) in self.index.iter().enumerate() {
             store(
                 i,
@@ -186,6 +215,120 @@ impl SampledLanes {
             );
         }
         self.index.clear();
+    }
+}
+
+/// The contributions of hits with many light points, point by point: row
+/// h of `d` (diffuse) and of `s` (specular) is lane h's.
+#[derive(Debug, Default)]
+struct HitRows {
+    count: usize,
+    /// Row length: `count` padded to a multiple of eight.
+    padded: usize,
+    d: Vec<f32>,
+    s: Vec<f32>,
+    /// The unshadowed diffuse contributions (the `sampled` model does not
+    /// use them).
+    unshadowed: Vec<f32>,
+}
+
+/// Lanes whose sums [`HitRows::sums`] runs at once: two chains each, enough
+/// to keep the adders busy without running out of registers.
+const SUMMED_TOGETHER: usize = 4;
+
+impl HitRows {
+    /// Rows of `count` points (0: not used).
+    fn start(&mut self, count: usize) {
+        self.count = count;
+        self.padded = count.next_multiple_of(8);
+        for v in [&mut self.d, &mut self.s] {
+            v.clear();
+            v.resize(LANES * self.padded, 0.0);
+        }
+        self.unshadowed.clear();
+        self.unshadowed.resize(self.padded, 0.0);
+    }
+
+    fn is_used(&self) -> bool {
+        self.count > 0
+    }
+
+    /// Lane h's contributions, from its directions and visibility in `buf`
+    /// (without the specular factor, its specular row keeps finite
+    /// leftovers, not read out).
+    #[inline(always)]
+    fn set(&mut self, h: usize, hit: &LaneHit, buf: &ShadowBuffers) {
+        let row = h * self.padded..(h + 1) * self.padded;
+        let out = PointTerms {
+            f: &mut self.unshadowed,
+            d: &mut self.d[row.clone()],
+            s: &mut self.s[row],
+        };
+        point_terms(
+            hit.normal,
+            hit.view,
+            hit.shininess,
+            hit.specular,
+            &buf.dx,
+            &buf.dy,
+            &buf.dz,
+            &buf.vis,
+            out,
+        );
+    }
+
+    /// Each lane's averages: its row's sums left to right from −0 (as
+    /// `Iterator::sum`), the chains of [`SUMMED_TOGETHER`] lanes side by
+    /// side.
+    #[inline(always)]
+    fn sums(&self) -> ([f32; LANES], [f32; LANES]) {
+        let (count, padded) = (self.count, self.padded);
+        let mut diffuse = [-0.0f32; LANES];
+        let mut specular = [-0.0f32; LANES];
+        for first in (0..LANES).step_by(SUMMED_TOGETHER) {
+            let lanes = first..first + SUMMED_TOGETHER;
+            fn rows(
+                v: &[f32],
+                first: usize,
+                padded: usize,
+                count: usize,
+            ) -> [&[f32]; SUMMED_TOGETHER] {
+                std::array::from_fn(|k| &v[(first + k) * padded..][..count])
+            }
+            let (d, s) = (
+                rows(&self.d, first, padded, count),
+                rows(&self.s, first, padded, count),
+            );
+            let mut sum_d = [-0.0f32; SUMMED_TOGETHER];
+            let mut sum_s = [-0.0f32; SUMMED_TOGETHER];
+            // Eight points at a time, as arrays: no bounds check inside.
+            let whole = count - count % 8;
+            for j in (0..whole).step_by(8) {
+                let d: [&[f32; 8]; SUMMED_TOGETHER] =
+                    std::array::from_fn(|k| d[k][j..j + 8].try_into().unwrap());
+                let s: [&[f32; 8]; SUMMED_TOGETHER] =
+                    std::array::from_fn(|k| s[k][j..j + 8].try_into().unwrap());
+                for l in 0..8 {
+                    for k in 0..SUMMED_TOGETHER {
+                        sum_d[k] += d[k][l];
+                        sum_s[k] += s[k][l];
+                    }
+                }
+            }
+            for j in whole..count {
+                for k in 0..SUMMED_TOGETHER {
+                    sum_d[k] += d[k][j];
+                    sum_s[k] += s[k][j];
+                }
+            }
+            diffuse[lanes.clone()].copy_from_slice(&sum_d);
+            specular[lanes].copy_from_slice(&sum_s);
+        }
+        let inv_count = 1.0 / count as f32;
+        (
+            diffuse.map(|s| s * inv_count),
+            specular.map(|s| s * inv_count),
+        )
     }
 }
 

@@ -382,39 +382,22 @@ fn sampled_terms_generic(
     buf: &mut ShadowBuffers,
 ) -> SampledTerms {
     let padded = count.next_multiple_of(8);
-    let (dx, dy, dz, vis) = (
-        &buf.dx[..padded],
-        &buf.dy[..padded],
-        &buf.dz[..padded],
-        &buf.vis[..padded],
+    let terms = PointTerms {
+        f: &mut buf.term_f[..padded],
+        d: &mut buf.term_d[..padded],
+        s: &mut buf.term_s[..padded],
+    };
+    point_terms_generic(
+        n, v, shininess, need_s, &buf.dx, &buf.dy, &buf.dz, &buf.vis, terms,
     );
-    let (term_d, term_f) = (&mut buf.term_d[..padded], &mut buf.term_f[..padded]);
     let inv_count = 1.0 / count as f32;
     if !need_s {
-        for j in 0..padded {
-            let (x, y, z) = (dx[j], dy[j], dz[j]);
-            let inv = 1.0 / (x * x + y * y + z * z).sqrt();
-            let f = ((n.x * x + n.y * y + n.z * z) * inv).max(0.0);
-            term_f[j] = f;
-            term_d[j] = vis[j] * f;
-        }
         let [d, f] = sequential_sums([&buf.term_d[..count], &buf.term_f[..count]]);
         return SampledTerms {
             diffuse: d * inv_count,
             unshadowed_diffuse: f * inv_count,
             specular: 0.0,
         };
-    }
-    // Both terms in one loop: they share each point's 1 / |L| (a square
-    // root and a division, the loop's slowest operations).
-    let term_s = &mut buf.term_s[..padded];
-    for j in 0..padded {
-        let (x, y, z) = (dx[j], dy[j], dz[j]);
-        let inv = 1.0 / (x * x + y * y + z * z).sqrt();
-        let f = ((n.x * x + n.y * y + n.z * z) * inv).max(0.0);
-        term_f[j] = f;
-        term_d[j] = vis[j] * f;
-        term_s[j] = vis[j] * pow_approx(blinn_cosine(n, v, x, y, z, inv), shininess);
     }
     let [d, f, s] = sequential_sums([
         &buf.term_d[..count],
@@ -428,12 +411,98 @@ fn sampled_terms_generic(
     }
 }
 
+/// Where [`point_terms`] writes each light point's contributions (slices
+/// of one length, a multiple of eight).
+pub(crate) struct PointTerms<'a> {
+    /// max(0, N·L) without visibility.
+    pub(crate) f: &'a mut [f32],
+    /// max(0, N·L) times visibility.
+    pub(crate) d: &'a mut [f32],
+    /// max(0, N·H)^shininess times visibility (left as it was without
+    /// `need_s`).
+    pub(crate) s: &'a mut [f32],
+}
+
+avx512_dispatch!(
+    /// Each light point's contributions of one hit point, from its
+    /// directions and visibility (as [`sampled_terms`] computes them, so
+    /// the same bits), with the widest vectors the CPU has.
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn point_terms(
+        n: Vec3,
+        v: Vec3,
+        shininess: f32,
+        need_s: bool,
+        dx: &[f32],
+        dy: &[f32],
+        dz: &[f32],
+        vis: &[f32],
+        out: PointTerms<'_>,
+    ) => point_terms_generic if out.d.len() >= WIDE_POINTS, else point_terms_avx2
+);
+
+avx2_dispatch!(
+    /// [`point_terms`] on up to eight lanes.
+    #[allow(clippy::too_many_arguments)]
+    fn point_terms_avx2(
+        n: Vec3,
+        v: Vec3,
+        shininess: f32,
+        need_s: bool,
+        dx: &[f32],
+        dy: &[f32],
+        dz: &[f32],
+        vis: &[f32],
+        out: PointTerms<'_>,
+    ) => point_terms_generic
+);
+
+/// Written for the vectorizer: one branch-free loop over the points.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn point_terms_generic(
+    n: Vec3,
+    v: Vec3,
+    shininess: f32,
+    need_s: bool,
+    dx: &[f32],
+    dy: &[f32],
+    dz: &[f32],
+    vis: &[f32],
+    out: PointTerms<'_>,
+) {
+    let padded = out.d.len();
+    let (dx, dy, dz, vis) = (&dx[..padded], &dy[..padded], &dz[..padded], &vis[..padded]);
+    let (term_f, term_d) = (&mut out.f[..padded], &mut out.d[..padded]);
+    if !need_s {
+        for j in 0..padded {
+            let (x, y, z) = (dx[j], dy[j], dz[j]);
+            let inv = 1.0 / (x * x + y * y + z * z).sqrt();
+            let f = ((n.x * x + n.y * y + n.z * z) * inv).max(0.0);
+            term_f[j] = f;
+            term_d[j] = vis[j] * f;
+        }
+        return;
+    }
+    // Both terms in one loop: they share each point's 1 / |L| (a square
+    // root and a division, the loop's slowest operations).
+    let term_s = &mut out.s[..padded];
+    for j in 0..padded {
+        let (x, y, z) = (dx[j], dy[j], dz[j]);
+        let inv = 1.0 / (x * x + y * y + z * z).sqrt();
+        let f = ((n.x * x + n.y * y + n.z * z) * inv).max(0.0);
+        term_f[j] = f;
+        term_d[j] = vis[j] * f;
+        term_s[j] = vis[j] * pow_approx(blinn_cosine(n, v, x, y, z, inv), shininess);
+    }
+}
+
 /// Each slice's sum, left to right from −0 (the order and start of
 /// `Iterator::sum`, so the same bits), all slices (of one length) in one
 /// loop: each sum is a chain of dependent additions, and interleaving the
 /// chains keeps the adder busy where one alone waits on each addition.
 #[inline(always)]
-fn sequential_sums<const K: usize>(slices: [&[f32]; K]) -> [f32; K] {
+pub(crate) fn sequential_sums<const K: usize>(slices: [&[f32]; K]) -> [f32; K] {
     let len = slices[0].len();
     let mut sums = [-0.0f32; K];
     for j in 0..len {

@@ -16,7 +16,7 @@ use super::math::avx2_dispatch;
 use super::pixel_filter::PixelFilter;
 use super::progressive::{CancelToken, TileRect};
 use super::rng::Rng;
-use super::sampled_lanes::{LANE_POINTS, LaneHit, SampledLanes};
+use super::sampled_lanes::{LaneHit, SampledLanes};
 use super::sampling::Pattern;
 use super::scene::{HitTarget, Scene};
 use super::scene_file::AreaLightModel;
@@ -202,10 +202,11 @@ impl<'a> Tracer<'a> {
     }
 
     /// Whether [`Tracer::tile`] shades its hits side by side: under the
-    /// `sampled` model, with fewer light points per hit than
-    /// [`LANE_POINTS`].
+    /// `sampled` model (hits with fewer light points than
+    /// [`LANE_POINTS`](super::sampled_lanes::LANE_POINTS)
+    /// a hit per lane, others with only their sums side by side).
     pub fn shades_in_lanes(&self) -> bool {
-        self.settings.model == AreaLightModel::Sampled && self.pattern.count() < LANE_POINTS
+        self.settings.model == AreaLightModel::Sampled
     }
 
     /// Linear RGB of the pixels of `rect` (rows packed) into `out`, as
@@ -614,6 +615,7 @@ struct Deferred {
 
 impl Deferred {
     /// Computes the waiting hits' factors.
+    #[inline(always)]
     fn flush(&mut self) {
         let factors = &mut self.factors;
         self.lanes
@@ -772,7 +774,7 @@ mod tests {
     use crate::render::scene_file::Sampling;
 
     /// A tile (its camera rays testing the tile's objects, its hits shaded
-    /// side by side below 16 points) has, pixel for pixel, the bits of the
+    /// side by side) has, pixel for pixel, the bits of the
     /// pixels traced one at a time: floor, walls, both boxes and the mirror
     /// sphere (reflected paths), the image's corners, several patterns and
     /// counts, with and without cut-away.
@@ -801,7 +803,7 @@ mod tests {
             settings.cutaway = cutaway;
             let tracer = Tracer::new(&loaded.scene, &settings, &loaded.shading, rays);
             assert!(tracer.traces_tiles());
-            assert_eq!(tracer.shades_in_lanes(), rays < 16);
+            assert!(tracer.shades_in_lanes());
             let mut scratch = tracer.scratch();
             let mut tile = Vec::new();
             // Every fourth pixel, so that the test stays quick.

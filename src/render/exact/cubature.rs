@@ -523,10 +523,16 @@ pub fn specular_factor(
     // A lobe whose bound over the light, times the visible share of the
     // light, is below the skip level: the factor is 0 within that bound.
     let visible: f64 = pieces.iter().map(twice_area).sum::<f64>() * 0.5;
-    let bound_ln = lobe_bound_ln(lobe) + visible.min(1.0).ln();
-    if bound_ln <= SKIP.ln() {
-        report.error = bound_ln.exp();
-        return (0.0, report);
+    let (cos_h, share) = (lobe_bound_cos(lobe), visible.min(1.0));
+    // ln x ≥ 1 − 1/x: a lower bound of the logarithms that settles most
+    // points (a lobe well above the skip) without taking them.
+    let lower = lobe.shininess * (1.0 - 1.0 / cos_h) + (1.0 - 1.0 / share);
+    if !(lower > SKIP.ln() + SKIP_MARGIN) {
+        let bound_ln = bound_ln(cos_h, lobe.shininess) + share.ln();
+        if bound_ln <= SKIP.ln() {
+            report.error = bound_ln.exp();
+            return (0.0, report);
+        }
     }
     if s.levels.len() < MAX_DEPTH as usize + 1 {
         s.levels
@@ -541,15 +547,29 @@ pub fn specular_factor(
 /// below [`TOLERANCE`], so that the skip adds no visible bias).
 const SKIP: f64 = 1e-2 * TOLERANCE;
 
-/// The logarithm of an upper bound of max(0, N·H)^s over the light (a
-/// logarithm is cheaper than the power, and the skip only compares it).
-/// The light's directions
+/// Far above the rounding of the lower bound and of the logarithms (both
+/// of terms within ln [`SKIP`] of 0 where it decides): a lower bound this
+/// far above the skip level leaves the logarithms above it too.
+const SKIP_MARGIN: f64 = 1e-9;
+
+/// The logarithm of the lobe's bound `cos_h`^s (a logarithm is cheaper
+/// than the power, and the skip only compares it).
+fn bound_ln(cos_h: f64, shininess: f64) -> f64 {
+    if cos_h == 0.0 {
+        f64::NEG_INFINITY
+    } else {
+        cos_h.ln() * shininess
+    }
+}
+
+/// An upper bound of max(0, N·H) over the light: 1 where there is none,
+/// 0 where N·H ≤ 0 over all of it. The light's directions
 /// lie in the cone about its centre's direction through its farthest
 /// corner (half-angle α: a convex polygon's farthest point from an axis is
 /// a vertex); over that cone N·L ≤ cos(max(0, θ_N − α)) and
 /// L·V ≥ cos(min(π, θ_V + α)), so N·H = (N·L + N·V)/|L + V| is at most the
 /// largest numerator over the smallest denominator.
-fn lobe_bound_ln(l: &Lobe) -> f64 {
+fn lobe_bound_cos(l: &Lobe) -> f64 {
     let centre = (l.corner + 0.5 * (l.edge_u + l.edge_v)).normalize();
     let mut cos_a: f64 = 1.0;
     for c in [
@@ -562,7 +582,7 @@ fn lobe_bound_ln(l: &Lobe) -> f64 {
     }
     // A light 90° or more wide (or a NaN): no bound.
     if cos_a.is_nan() || cos_a <= 0.0 {
-        return 0.0;
+        return 1.0;
     }
     let sin_a = (1.0 - cos_a * cos_a).max(0.0).sqrt();
     let (cn, cv) = (l.n.dot(centre), l.v.dot(centre));
@@ -578,16 +598,15 @@ fn lobe_bound_ln(l: &Lobe) -> f64 {
     };
     let num = max_nl + l.n.dot(l.v);
     if num <= 0.0 {
-        return f64::NEG_INFINITY;
+        return 0.0;
     }
     let den2 = 2.0 + 2.0 * min_lv;
     // Rounding margin: the bound only decides a skip far below the peak.
-    let cos_h = if den2 > 1e-12 {
+    if den2 > 1e-12 {
         (num / den2.sqrt() * (1.0 + 1e-9)).min(1.0)
     } else {
         1.0
-    };
-    cos_h.ln() * l.shininess
+    }
 }
 
 struct Ctx<'a> {
@@ -884,7 +903,7 @@ fn clip_level(s: &mut CubatureScratch, d: usize, lo: DVec2, size: f64) {
 #[cfg(test)]
 mod tests {
     use super::{
-        CellView, Ctx, Lobe, MAX_DEPTH, NODES, TOLERANCE, lobe_at_nodes, lobe_bound_ln,
+        CellView, Ctx, Lobe, MAX_DEPTH, NODES, TOLERANCE, bound_ln, lobe_at_nodes, lobe_bound_cos,
         pow_one_minus, whole_cell,
     };
     use crate::render::rng::Rng;
@@ -913,7 +932,7 @@ mod tests {
                 edge_u: DVec3::new(2.0, 0.0, 0.0),
                 edge_v: DVec3::new(0.0, 0.3, 2.0),
             };
-            let bound = lobe_bound_ln(&lobe).exp();
+            let bound = bound_ln(lobe_bound_cos(&lobe), lobe.shininess).exp();
             let mut peak: f64 = 0.0;
             for i in 0..=64 {
                 for j in 0..=64 {

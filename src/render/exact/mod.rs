@@ -59,7 +59,7 @@ use conic::{ArcScratch, ConicShadow};
 use cubature::{CubatureScratch, Lobe, specular_factor};
 use diffuse::{Outline, diffuse_over_pieces};
 use polygon::{HalfPlane, Pieces};
-use projection::LightView;
+use projection::{LightFrame, LightView};
 use visible::{RegionScratch, visible_region};
 
 use crate::render::scene::Scene;
@@ -102,6 +102,8 @@ pub struct ExactFactors {
 /// Scratch of the exact model (one per thread, kept warm).
 #[derive(Debug, Default)]
 pub struct ExactScratch {
+    /// The frame of the last light seen.
+    frame: Option<LightFrame>,
     /// The objects that may block a shadow ray from each small cube of
     /// space (the shadow rays' own lists, kept here for the exact model).
     cells: OccluderCells,
@@ -158,10 +160,14 @@ pub fn exact_factors(
     s: &mut ExactScratch,
 ) -> Result<ExactFactors, Fallback> {
     let light = &scene.light.shape;
-    let Some(view) = LightView::new(light, p.shadow_point) else {
+    let frame = match &s.frame {
+        Some(f) if f.is_of(light) => f,
+        _ => s.frame.insert(LightFrame::new(light)),
+    };
+    let Some(view) = LightView::new(light, frame, p.shadow_point) else {
         return Ok(ExactFactors::default());
     };
-    if view.area.sqrt() < TINY_LIGHT * view.h {
+    if frame.side < TINY_LIGHT * view.h {
         return Err(Fallback::TinyLight);
     }
     let query = ShadowQuery {

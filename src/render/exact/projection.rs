@@ -58,13 +58,62 @@ pub struct LightView {
     ray_end: f64,
 }
 
-impl LightView {
-    /// The frame of `light` seen from `q`, or `None` if q is not strictly
-    /// on the lit side.
-    pub fn new(light: &Parallelogram, q: DVec3) -> Option<LightView> {
+/// What of [`LightView`] depends on the light alone: the same from every
+/// point, so a thread keeps it (its square roots and division are a
+/// chain of latencies each point would wait for again).
+#[derive(Debug, Clone)]
+pub struct LightFrame {
+    /// The light's edges and normal (world) it was made from.
+    of: [DVec3; 3],
+    e1: DVec3,
+    e2: DVec3,
+    m: DVec3,
+    /// The light's edges in the frame.
+    edge_u: DVec3,
+    edge_v: DVec3,
+    area: f64,
+    /// √area.
+    pub side: f64,
+}
+
+impl LightFrame {
+    pub fn new(light: &Parallelogram) -> LightFrame {
         let m = light.normal;
         let e1 = light.edge_u.normalize();
         let e2 = m.cross(e1);
+        let local = |d: DVec3| DVec3::new(d.dot(e1), d.dot(e2), d.dot(m));
+        let area = light.edge_u.cross(light.edge_v).length();
+        LightFrame {
+            of: [light.edge_u, light.edge_v, light.normal],
+            e1,
+            e2,
+            m,
+            edge_u: local(light.edge_u),
+            edge_v: local(light.edge_v),
+            area,
+            side: area.sqrt(),
+        }
+    }
+
+    /// Whether this is the frame of `light` (its corner does not enter).
+    pub fn is_of(&self, light: &Parallelogram) -> bool {
+        self.of == [light.edge_u, light.edge_v, light.normal]
+    }
+}
+
+impl LightView {
+    /// The frame of `light` (`frame`: [`LightFrame::new`] of it) seen from
+    /// `q`, or `None` if q is not strictly on the lit side.
+    pub fn new(light: &Parallelogram, frame: &LightFrame, q: DVec3) -> Option<LightView> {
+        let LightFrame {
+            e1,
+            e2,
+            m,
+            edge_u,
+            edge_v,
+            area,
+            ..
+        } = *frame;
         let h = m.dot(q - light.corner);
         // Also refuses a NaN height.
         if h.is_nan() || h <= 0.0 {
@@ -72,7 +121,6 @@ impl LightView {
         }
         let local = |d: DVec3| DVec3::new(d.dot(e1), d.dot(e2), d.dot(m));
         let corner = local(light.corner - q);
-        let (edge_u, edge_v) = (local(light.edge_u), local(light.edge_v));
         let c3 = [
             corner,
             corner + edge_u,
@@ -99,7 +147,7 @@ impl LightView {
             m,
             h,
             rect,
-            area: light.edge_u.cross(light.edge_v).length(),
+            area,
             corner,
             edge_u,
             edge_v,
@@ -514,7 +562,7 @@ fn unit_ring(n: usize) -> std::borrow::Cow<'static, [(f64, f64)]> {
 
 #[cfg(test)]
 mod tests {
-    use super::{CircleFit, LightView, ProjectScratch, box_shadow, sphere_shadow};
+    use super::{CircleFit, LightFrame, LightView, ProjectScratch, box_shadow, sphere_shadow};
     use crate::render::exact::polygon::{Pieces, Work, twice_area};
     use crate::render::geometry::{Cuboid, Parallelogram, Sphere};
     use crate::render::rng::Rng;
@@ -543,6 +591,7 @@ mod tests {
             DVec3::new(2.0, 0.0, 0.0),
             DVec3::new(0.0, 0.0, 2.0),
         );
+        let frame = LightFrame::new(&light);
         let mut rng = Rng::new(21);
         let mut next = || rng.next_f64();
         let mut s = ProjectScratch::default();
@@ -550,7 +599,7 @@ mod tests {
         let (mut hidden, mut seen) = (0, 0);
         for case in 0..4000 {
             let q = DVec3::new(6.0 * next() - 3.0, 2.0 * next(), 6.0 * next() - 3.0);
-            let view = LightView::new(&light, q).expect("below the light");
+            let view = LightView::new(&light, &frame, q).expect("below the light");
             let area = view.area;
             let size = DVec3::new(0.5 + next(), 0.2 + next(), 0.5 + next());
             let centre = DVec3::new(next() - 0.5, 4.0 + next(), next() - 0.5);

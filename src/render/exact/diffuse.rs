@@ -65,7 +65,15 @@ pub fn diffuse_over_pieces(
     if pieces.len() < 2 {
         return pieces
             .iter()
-            .map(|poly| piece_integral(poly, a, b, h))
+            .map(|poly| {
+                // The whole light (the points it lights wholly): the same
+                // test as the light's just above, so it is not small.
+                if poly == rect {
+                    edge_sum(poly, a, b, h)
+                } else {
+                    piece_integral(poly, a, b, h)
+                }
+            })
             .sum();
     }
     outline(pieces, outline_scratch);
@@ -171,6 +179,11 @@ fn piece_integral(poly: &[DVec2], a: DVec2, b: f64, h: f64) -> f64 {
     if radius < SMALL_LIGHT * (centroid.length_squared() + h * h).sqrt() {
         return diffuse_polygon_integral(poly, a, b, h);
     }
+    edge_sum(poly, a, b, h)
+}
+
+/// The edge sum of one counter-clockwise convex piece.
+fn edge_sum(poly: &[DVec2], a: DVec2, b: f64, h: f64) -> f64 {
     let mut angle = AngleSum::default();
     let mut rest = 0.0;
     for (p, q) in edges_of(poly) {

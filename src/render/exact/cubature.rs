@@ -766,12 +766,13 @@ fn cell(
     let half = 0.5 * size;
     let lobe = ctx.lobe;
 
+    // The tensor nodes from the ORDER coordinates of each axis.
+    let xs: [f64; ORDER] = std::array::from_fn(|i| lo.x + (r.x[i] + 1.0) * half);
+    let ys: [f64; ORDER] = std::array::from_fn(|j| lo.y + (r.x[j] + 1.0) * half);
     let (mut na, mut nb, mut nf) = ([0.0; NODES], [0.0; NODES], [0.0; NODES]);
-    for i in 0..ORDER {
-        for j in 0..ORDER {
-            na[i * ORDER + j] = lo.x + (r.x[i] + 1.0) * half;
-            nb[i * ORDER + j] = lo.y + (r.x[j] + 1.0) * half;
-        }
+    for (i, &x) in xs.iter().enumerate() {
+        na[i * ORDER..(i + 1) * ORDER].fill(x);
+        nb[i * ORDER..(i + 1) * ORDER].copy_from_slice(&ys);
     }
     lobe_at_nodes(lobe, &na, &nb, &mut nf);
     report.cells += 1;

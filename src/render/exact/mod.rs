@@ -167,7 +167,7 @@ pub fn exact_factors(
     let Some(view) = LightView::new(light, frame, p.shadow_point) else {
         return Ok(ExactFactors::default());
     };
-    if frame.side < TINY_LIGHT * view.h {
+    if view.side < TINY_LIGHT * view.h {
         return Err(Fallback::TinyLight);
     }
     let query = ShadowQuery {

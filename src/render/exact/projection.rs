@@ -44,8 +44,9 @@ pub struct LightView {
     pub h: f64,
     /// The light's corners in the plane, counter-clockwise.
     pub rect: [DVec2; 4],
-    /// Area of the light.
+    /// Area of the light, and its root.
     pub area: f64,
+    pub side: f64,
     /// The light's corner and edges in the frame (3-D).
     pub corner: DVec3,
     pub edge_u: DVec3,
@@ -73,7 +74,7 @@ pub struct LightFrame {
     edge_v: DVec3,
     area: f64,
     /// √area.
-    pub side: f64,
+    side: f64,
 }
 
 impl LightFrame {
@@ -112,6 +113,7 @@ impl LightView {
             edge_u,
             edge_v,
             area,
+            side,
             ..
         } = *frame;
         let h = m.dot(q - light.corner);
@@ -148,6 +150,7 @@ impl LightView {
             h,
             rect,
             area,
+            side,
             corner,
             edge_u,
             edge_v,

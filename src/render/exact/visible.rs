@@ -82,7 +82,7 @@ pub fn visible_region(
         .iter()
         .map(|p| p.abs().max_element())
         .fold(0.0, f64::max);
-    let min_area = (2e-14 * view.area).max(64.0 * f64::EPSILON * magnitude * view.area.sqrt());
+    let min_area = (2e-14 * view.area).max(64.0 * f64::EPSILON * magnitude * view.side);
     pieces.clear();
     pieces.push(&view.rect, 0.0);
     pieces.clip(front, min_area, &mut s.work);

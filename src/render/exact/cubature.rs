@@ -676,6 +676,22 @@ struct CellView {
     narrow: f64,
 }
 
+/// acos(`cos`) < `limit`, mostly without the arccosine: the chord
+/// r = √(2 − 2 cos) brackets the angle θ as r ≤ θ ≤ π r/2 (2 sin(θ/2) ≥
+/// 2θ/π on [0, π]); only where `limit` falls within the bracket (widened
+/// far beyond the roundings) is the arccosine taken.
+fn angle_below(cos: f64, limit: f64) -> bool {
+    const MARGIN: f64 = 1e-9;
+    let r = (2.0 - 2.0 * cos).sqrt();
+    if std::f64::consts::FRAC_PI_2 * r < limit * (1.0 - MARGIN) {
+        true
+    } else if r > limit * (1.0 + MARGIN) {
+        false
+    } else {
+        cos.acos() < limit
+    }
+}
+
 impl CellView {
     fn new(ctx: &Ctx, lo: DVec2, size: f64) -> CellView {
         let centre = ctx.lobe.direction(lo.x + 0.5 * size, lo.y + 0.5 * size);
@@ -685,7 +701,7 @@ impl CellView {
         // width is never below the peak's).
         let near_mirror = angular / NESTED_ORDERS[1] as f64 > 0.5 * ctx.narrow && {
             let cos = (centre / distance).dot(ctx.mirror).clamp(-1.0, 1.0);
-            cos.acos() < angular + 6.0 * ctx.width
+            angle_below(cos, angular + 6.0 * ctx.width)
         };
         // Across the plane of incidence H turns by the turn of L over
         // |L + V| (2 N·V at the peak, where `Ctx::narrow` takes it). A cell
@@ -950,6 +966,31 @@ mod tests {
         }
         // The bound is tight enough to skip some lobes.
         assert!(skipped > 20, "{skipped}");
+    }
+
+    /// The bracketed angle test decides as the arccosine does: random
+    /// angles and limits, and limits a rounding away from the angle.
+    #[test]
+    fn angle_below_matches_the_arccosine() {
+        let mut rng = Rng::new(5);
+        let mut next = || rng.next_f64();
+        for case in 0..200_000 {
+            let cos = (2.0 * next() - 1.0).powi(1 + 2 * (case % 3) as i32);
+            let theta = cos.acos();
+            let limit = match case % 4 {
+                0 => 4.0 * next(),
+                1 => theta * (1.0 + 1e-12 * (next() - 0.5)),
+                2 => f64::from_bits(theta.to_bits() + (case % 3) as u64),
+                _ => theta * (0.5 + next()),
+            };
+            if limit > 0.0 {
+                assert_eq!(
+                    super::angle_below(cos, limit),
+                    theta < limit,
+                    "{cos}, {limit}"
+                );
+            }
+        }
     }
 
     #[test]

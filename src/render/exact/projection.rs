@@ -235,11 +235,6 @@ impl LightView {
         DVec2::new(x.x, x.y) * (self.h / -x.z)
     }
 
-    #[inline]
-    fn inside_frustum(&self, x: DVec3) -> bool {
-        self.planes.iter().all(|&(n, c)| n.dot(x) + c >= 0.0)
-    }
-
     /// The half-plane of light points in front of a surface of unit normal
     /// `n` (world) through q: n · (y − q) > 0.
     pub fn front_of(&self, n: DVec3) -> HalfPlane {
@@ -304,10 +299,21 @@ pub struct ProjectScratch {
 /// planes only. And whether all of them lie outside one plane (the polygon
 /// clips to nothing).
 fn planes_crossed(view: &LightView, points: &[DVec3]) -> (u8, bool) {
+    crossed_by_sides(points.len(), |i, j| {
+        let (n, c) = view.planes[i];
+        n.dot(points[j]) + c
+    })
+}
+
+/// [`planes_crossed`] from `side(i, j)`: frustum plane i's value at point
+/// j of `count` (a box's faces read them from the values at its corners,
+/// each corner taken once instead of once per face).
+#[inline]
+fn crossed_by_sides(count: usize, side: impl Fn(usize, usize) -> f64) -> (u8, bool) {
     let mut mask = 0;
-    for (i, &(n, c)) in view.planes.iter().enumerate() {
-        let out = points.iter().filter(|&&x| n.dot(x) + c < 0.0).count();
-        if out == points.len() {
+    for i in 0..6 {
+        let out = (0..count).filter(|&j| side(i, j) < 0.0).count();
+        if out == count {
             return (mask, true);
         }
         if out > 0 {
@@ -365,17 +371,19 @@ fn clip_and_project(
 fn faces_shadow(
     view: &LightView,
     faces: &[&[DVec3]],
+    crossed: impl Fn(usize) -> (u8, bool),
     extra: &[DVec2],
     s: &mut ProjectScratch,
     out: &mut Vec<DVec2>,
 ) {
     s.points.clear();
     s.points.extend_from_slice(extra);
-    for f in faces {
-        // Only the planes that cut this face: a face wholly inside a plane
-        // comes out of its clip as it went in, and one wholly outside any
-        // plane adds nothing.
-        let (crossed, outside) = planes_crossed(view, f);
+    for (k, f) in faces.iter().enumerate() {
+        // Only the planes that cut this face (`crossed`, as
+        // [`planes_crossed`]): a face wholly inside a plane comes out of
+        // its clip as it went in, and one wholly outside any plane adds
+        // nothing.
+        let (crossed, outside) = crossed(k);
         if outside {
             continue;
         }
@@ -402,16 +410,14 @@ pub fn box_shadow(
         return Err(Unsupported::Inside);
     }
     let local = corners.map(|x| view.local(x));
+    // Each frustum plane's value at each corner, for every test below.
+    let sides: [[f64; 8]; 6] = view.planes.map(|(n, k)| local.map(|x| n.dot(x) + k));
     out.clear();
     // Wholly beyond one plane of the frustum: no shadow.
-    if view
-        .planes
-        .iter()
-        .any(|&(n, k)| local.iter().all(|&x| n.dot(x) + k < 0.0))
-    {
+    if sides.iter().any(|row| row.iter().all(|&v| v < 0.0)) {
         return Ok(());
     }
-    if local.iter().all(|&x| view.inside_frustum(x)) {
+    if sides.iter().all(|row| row.iter().all(|&v| v >= 0.0)) {
         s.points.clear();
         s.points.extend(local.iter().map(|&x| view.project(x)));
         hull_into(&mut s.points, out);
@@ -428,7 +434,8 @@ pub fn box_shadow(
     }
     let faces: [[DVec3; 4]; 6] = Cuboid::FACES.map(|f| f.map(|i| local[i]));
     let refs: [&[DVec3]; 6] = std::array::from_fn(|i| &faces[i][..]);
-    faces_shadow(view, &refs, &extra[..n_extra], s, out);
+    let crossed = |k: usize| crossed_by_sides(4, |i, j| sides[i][Cuboid::FACES[k][j]]);
+    faces_shadow(view, &refs, crossed, &extra[..n_extra], s, out);
     Ok(())
 }
 
@@ -438,7 +445,8 @@ pub fn rect_shadow(
     s: &mut ProjectScratch,
     out: &mut Vec<DVec2>,
 ) {
-    faces_shadow(view, &[&r.corners().map(|x| view.local(x))], &[], s, out);
+    let face = r.corners().map(|x| view.local(x));
+    faces_shadow(view, &[&face], |_| planes_crossed(view, &face), &[], s, out);
 }
 
 pub fn triangle_shadow(
@@ -447,7 +455,8 @@ pub fn triangle_shadow(
     s: &mut ProjectScratch,
     out: &mut Vec<DVec2>,
 ) {
-    faces_shadow(view, &[&vertices.map(|x| view.local(x))], &[], s, out);
+    let face = vertices.map(|x| view.local(x));
+    faces_shadow(view, &[&face], |_| planes_crossed(view, &face), &[], s, out);
 }
 
 /// The circle where the tangent cone from q (at the origin) touches a

@@ -202,15 +202,22 @@ pub fn exact_factors(
     // shading normal's horizon where N·L ≥ 0.
     let n = view.local_dir(p.normal);
     let (a, b, h) = (DVec2::new(n.x, n.y), -view.h * n.z, -view.h);
-    s.lit.clone_from(&s.pieces);
-    s.lit
-        .clip(HalfPlane { n: a, c: b }, 0.0, &mut s.region.work);
+    let horizon = HalfPlane { n: a, c: b };
+    // Pieces wholly above the horizon (on a flat surface the front's clip
+    // made them so) are lit as they are: no copy to clip (the clip would
+    // keep them).
+    let all_lit = s.pieces.verts.iter().all(|&y| horizon.eval(y) >= 0.0);
+    if !all_lit {
+        s.lit.clone_from(&s.pieces);
+        s.lit.clip(horizon, 0.0, &mut s.region.work);
+    }
     let conic = match sphere {
         CircleFit::SameArea => conic_diffuse(&view, a, b, h, s),
         _ => None,
     };
+    let lit = if all_lit { &s.pieces } else { &s.lit };
     let diffuse =
-        conic.unwrap_or_else(|| diffuse_over_pieces(&s.lit, &view.rect, a, b, h, &mut s.outline));
+        conic.unwrap_or_else(|| diffuse_over_pieces(lit, &view.rect, a, b, h, &mut s.outline));
     out.diffuse = (diffuse / view.area).clamp(0.0, 1.0);
 
     if specular {

@@ -134,12 +134,14 @@ pub fn visible_region(
     let mut first_sphere = true;
     // The conic gives the diffuse factor of one sphere alone (two may
     // overlap) whose silhouette stays below q's plane.
-    let alone = spheres.clone().count() == 1;
+    let alone = || spheres.clone().count() == 1;
     let edges = |sp: &Sphere| match sphere {
-        CircleFit::SameArea if alone && ConicShadow::new(view, sp).is_some() => CONIC_SPHERE_EDGES,
+        CircleFit::SameArea if alone() && ConicShadow::new(view, sp).is_some() => {
+            CONIC_SPHERE_EDGES
+        }
         _ => SPHERE_EDGES,
     };
-    for &(i, _) in others.chain(spheres) {
+    for &(i, _) in others.chain(spheres.clone()) {
         if pieces.is_empty() {
             return Ok(());
         }

@@ -527,7 +527,8 @@ pub fn specular_factor(
     // ln x ≥ 1 − 1/x: a lower bound of the logarithms that settles most
     // points (a lobe well above the skip) without taking them.
     let lower = lobe.shininess * (1.0 - 1.0 / cos_h) + (1.0 - 1.0 / share);
-    if !(lower > SKIP.ln() + SKIP_MARGIN) {
+    let settled = lower > SKIP.ln() + SKIP_MARGIN;
+    if !settled {
         let bound_ln = bound_ln(cos_h, lobe.shininess) + share.ln();
         if bound_ln <= SKIP.ln() {
             report.error = bound_ln.exp();
@@ -975,7 +976,7 @@ mod tests {
         let mut rng = Rng::new(5);
         let mut next = || rng.next_f64();
         for case in 0..200_000 {
-            let cos = (2.0 * next() - 1.0).powi(1 + 2 * (case % 3) as i32);
+            let cos = (2.0 * next() - 1.0).powi(1 + 2 * (case % 3));
             let theta = cos.acos();
             let limit = match case % 4 {
                 0 => 4.0 * next(),

@@ -523,10 +523,17 @@ pub fn specular_factor(
     // A lobe whose bound over the light, times the visible share of the
     // light, is below the skip level: the factor is 0 within that bound.
     let visible: f64 = pieces.iter().map(twice_area).sum::<f64>() * 0.5;
-    let bound_ln = lobe_bound_ln(lobe) + visible.min(1.0).ln();
-    if bound_ln <= SKIP.ln() {
-        report.error = bound_ln.exp();
-        return (0.0, report);
+    let (cos_h, share) = (lobe_bound_cos(lobe), visible.min(1.0));
+    // ln x ≥ 1 − 1/x: a lower bound of the logarithms that settles most
+    // points (a lobe well above the skip) without taking them.
+    let lower = lobe.shininess * (1.0 - 1.0 / cos_h) + (1.0 - 1.0 / share);
+    let settled = lower > SKIP.ln() + SKIP_MARGIN;
+    if !settled {
+        let bound_ln = bound_ln(cos_h, lobe.shininess) + share.ln();
+        if bound_ln <= SKIP.ln() {
+            report.error = bound_ln.exp();
+            return (0.0, report);
+        }
     }
     if s.levels.len() < MAX_DEPTH as usize + 1 {
         s.levels
@@ -541,15 +548,29 @@ pub fn specular_factor(
 /// below [`TOLERANCE`], so that the skip adds no visible bias).
 const SKIP: f64 = 1e-2 * TOLERANCE;
 
-/// The logarithm of an upper bound of max(0, N·H)^s over the light (a
-/// logarithm is cheaper than the power, and the skip only compares it).
-/// The light's directions
+/// Far above the rounding of the lower bound and of the logarithms (both
+/// of terms within ln [`SKIP`] of 0 where it decides): a lower bound this
+/// far above the skip level leaves the logarithms above it too.
+const SKIP_MARGIN: f64 = 1e-9;
+
+/// The logarithm of the lobe's bound `cos_h`^s (a logarithm is cheaper
+/// than the power, and the skip only compares it).
+fn bound_ln(cos_h: f64, shininess: f64) -> f64 {
+    if cos_h == 0.0 {
+        f64::NEG_INFINITY
+    } else {
+        cos_h.ln() * shininess
+    }
+}
+
+/// An upper bound of max(0, N·H) over the light: 1 where there is none,
+/// 0 where N·H ≤ 0 over all of it. The light's directions
 /// lie in the cone about its centre's direction through its farthest
 /// corner (half-angle α: a convex polygon's farthest point from an axis is
 /// a vertex); over that cone N·L ≤ cos(max(0, θ_N − α)) and
 /// L·V ≥ cos(min(π, θ_V + α)), so N·H = (N·L + N·V)/|L + V| is at most the
 /// largest numerator over the smallest denominator.
-fn lobe_bound_ln(l: &Lobe) -> f64 {
+fn lobe_bound_cos(l: &Lobe) -> f64 {
     let centre = (l.corner + 0.5 * (l.edge_u + l.edge_v)).normalize();
     let mut cos_a: f64 = 1.0;
     for c in [
@@ -562,7 +583,7 @@ fn lobe_bound_ln(l: &Lobe) -> f64 {
     }
     // A light 90° or more wide (or a NaN): no bound.
     if cos_a.is_nan() || cos_a <= 0.0 {
-        return 0.0;
+        return 1.0;
     }
     let sin_a = (1.0 - cos_a * cos_a).max(0.0).sqrt();
     let (cn, cv) = (l.n.dot(centre), l.v.dot(centre));
@@ -578,16 +599,15 @@ fn lobe_bound_ln(l: &Lobe) -> f64 {
     };
     let num = max_nl + l.n.dot(l.v);
     if num <= 0.0 {
-        return f64::NEG_INFINITY;
+        return 0.0;
     }
     let den2 = 2.0 + 2.0 * min_lv;
     // Rounding margin: the bound only decides a skip far below the peak.
-    let cos_h = if den2 > 1e-12 {
+    if den2 > 1e-12 {
         (num / den2.sqrt() * (1.0 + 1e-9)).min(1.0)
     } else {
         1.0
-    };
-    cos_h.ln() * l.shininess
+    }
 }
 
 struct Ctx<'a> {
@@ -657,6 +677,22 @@ struct CellView {
     narrow: f64,
 }
 
+/// acos(`cos`) < `limit`, mostly without the arccosine: the chord
+/// r = √(2 − 2 cos) brackets the angle θ as r ≤ θ ≤ π r/2 (2 sin(θ/2) ≥
+/// 2θ/π on [0, π]); only where `limit` falls within the bracket (widened
+/// far beyond the roundings) is the arccosine taken.
+fn angle_below(cos: f64, limit: f64) -> bool {
+    const MARGIN: f64 = 1e-9;
+    let r = (2.0 - 2.0 * cos).sqrt();
+    if std::f64::consts::FRAC_PI_2 * r < limit * (1.0 - MARGIN) {
+        true
+    } else if r > limit * (1.0 + MARGIN) {
+        false
+    } else {
+        cos.acos() < limit
+    }
+}
+
 impl CellView {
     fn new(ctx: &Ctx, lo: DVec2, size: f64) -> CellView {
         let centre = ctx.lobe.direction(lo.x + 0.5 * size, lo.y + 0.5 * size);
@@ -666,7 +702,7 @@ impl CellView {
         // width is never below the peak's).
         let near_mirror = angular / NESTED_ORDERS[1] as f64 > 0.5 * ctx.narrow && {
             let cos = (centre / distance).dot(ctx.mirror).clamp(-1.0, 1.0);
-            cos.acos() < angular + 6.0 * ctx.width
+            angle_below(cos, angular + 6.0 * ctx.width)
         };
         // Across the plane of incidence H turns by the turn of L over
         // |L + V| (2 N·V at the peak, where `Ctx::narrow` takes it). A cell
@@ -747,12 +783,13 @@ fn cell(
     let half = 0.5 * size;
     let lobe = ctx.lobe;
 
+    // The tensor nodes from the ORDER coordinates of each axis.
+    let xs: [f64; ORDER] = std::array::from_fn(|i| lo.x + (r.x[i] + 1.0) * half);
+    let ys: [f64; ORDER] = std::array::from_fn(|j| lo.y + (r.x[j] + 1.0) * half);
     let (mut na, mut nb, mut nf) = ([0.0; NODES], [0.0; NODES], [0.0; NODES]);
-    for i in 0..ORDER {
-        for j in 0..ORDER {
-            na[i * ORDER + j] = lo.x + (r.x[i] + 1.0) * half;
-            nb[i * ORDER + j] = lo.y + (r.x[j] + 1.0) * half;
-        }
+    for (i, &x) in xs.iter().enumerate() {
+        na[i * ORDER..(i + 1) * ORDER].fill(x);
+        nb[i * ORDER..(i + 1) * ORDER].copy_from_slice(&ys);
     }
     lobe_at_nodes(lobe, &na, &nb, &mut nf);
     report.cells += 1;
@@ -884,7 +921,7 @@ fn clip_level(s: &mut CubatureScratch, d: usize, lo: DVec2, size: f64) {
 #[cfg(test)]
 mod tests {
     use super::{
-        CellView, Ctx, Lobe, MAX_DEPTH, NODES, TOLERANCE, lobe_at_nodes, lobe_bound_ln,
+        CellView, Ctx, Lobe, MAX_DEPTH, NODES, TOLERANCE, bound_ln, lobe_at_nodes, lobe_bound_cos,
         pow_one_minus, whole_cell,
     };
     use crate::render::rng::Rng;
@@ -913,7 +950,7 @@ mod tests {
                 edge_u: DVec3::new(2.0, 0.0, 0.0),
                 edge_v: DVec3::new(0.0, 0.3, 2.0),
             };
-            let bound = lobe_bound_ln(&lobe).exp();
+            let bound = bound_ln(lobe_bound_cos(&lobe), lobe.shininess).exp();
             let mut peak: f64 = 0.0;
             for i in 0..=64 {
                 for j in 0..=64 {
@@ -930,6 +967,31 @@ mod tests {
         }
         // The bound is tight enough to skip some lobes.
         assert!(skipped > 20, "{skipped}");
+    }
+
+    /// The bracketed angle test decides as the arccosine does: random
+    /// angles and limits, and limits a rounding away from the angle.
+    #[test]
+    fn angle_below_matches_the_arccosine() {
+        let mut rng = Rng::new(5);
+        let mut next = || rng.next_f64();
+        for case in 0..200_000 {
+            let cos = (2.0 * next() - 1.0).powi(1 + 2 * (case % 3));
+            let theta = cos.acos();
+            let limit = match case % 4 {
+                0 => 4.0 * next(),
+                1 => theta * (1.0 + 1e-12 * (next() - 0.5)),
+                2 => f64::from_bits(theta.to_bits() + (case % 3) as u64),
+                _ => theta * (0.5 + next()),
+            };
+            if limit > 0.0 {
+                assert_eq!(
+                    super::angle_below(cos, limit),
+                    theta < limit,
+                    "{cos}, {limit}"
+                );
+            }
+        }
     }
 
     #[test]

@@ -59,7 +59,7 @@ use conic::{ArcScratch, ConicShadow};
 use cubature::{CubatureScratch, Lobe, specular_factor};
 use diffuse::{Outline, diffuse_over_pieces};
 use polygon::{HalfPlane, Pieces};
-use projection::LightView;
+use projection::{LightFrame, LightView};
 use visible::{RegionScratch, visible_region};
 
 use crate::render::scene::Scene;
@@ -102,6 +102,8 @@ pub struct ExactFactors {
 /// Scratch of the exact model (one per thread, kept warm).
 #[derive(Debug, Default)]
 pub struct ExactScratch {
+    /// The frame of the last light seen.
+    frame: Option<LightFrame>,
     /// The objects that may block a shadow ray from each small cube of
     /// space (the shadow rays' own lists, kept here for the exact model).
     cells: OccluderCells,
@@ -158,10 +160,14 @@ pub fn exact_factors(
     s: &mut ExactScratch,
 ) -> Result<ExactFactors, Fallback> {
     let light = &scene.light.shape;
-    let Some(view) = LightView::new(light, p.shadow_point) else {
+    let frame = match &s.frame {
+        Some(f) if f.is_of(light) => f,
+        _ => s.frame.insert(LightFrame::new(light)),
+    };
+    let Some(view) = LightView::new(light, frame, p.shadow_point) else {
         return Ok(ExactFactors::default());
     };
-    if view.area.sqrt() < TINY_LIGHT * view.h {
+    if view.side < TINY_LIGHT * view.h {
         return Err(Fallback::TinyLight);
     }
     let query = ShadowQuery {
@@ -196,15 +202,22 @@ pub fn exact_factors(
     // shading normal's horizon where N·L ≥ 0.
     let n = view.local_dir(p.normal);
     let (a, b, h) = (DVec2::new(n.x, n.y), -view.h * n.z, -view.h);
-    s.lit.clone_from(&s.pieces);
-    s.lit
-        .clip(HalfPlane { n: a, c: b }, 0.0, &mut s.region.work);
+    let horizon = HalfPlane { n: a, c: b };
+    // Pieces wholly above the horizon (on a flat surface the front's clip
+    // made them so) are lit as they are: no copy to clip (the clip would
+    // keep them).
+    let all_lit = s.pieces.verts.iter().all(|&y| horizon.eval(y) >= 0.0);
+    if !all_lit {
+        s.lit.clone_from(&s.pieces);
+        s.lit.clip(horizon, 0.0, &mut s.region.work);
+    }
     let conic = match sphere {
         CircleFit::SameArea => conic_diffuse(&view, a, b, h, s),
         _ => None,
     };
+    let lit = if all_lit { &s.pieces } else { &s.lit };
     let diffuse =
-        conic.unwrap_or_else(|| diffuse_over_pieces(&s.lit, &view.rect, a, b, h, &mut s.outline));
+        conic.unwrap_or_else(|| diffuse_over_pieces(lit, &view.rect, a, b, h, &mut s.outline));
     out.diffuse = (diffuse / view.area).clamp(0.0, 1.0);
 
     if specular {

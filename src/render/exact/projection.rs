@@ -44,8 +44,9 @@ pub struct LightView {
     pub h: f64,
     /// The light's corners in the plane, counter-clockwise.
     pub rect: [DVec2; 4],
-    /// Area of the light.
+    /// Area of the light, and its root.
     pub area: f64,
+    pub side: f64,
     /// The light's corner and edges in the frame (3-D).
     pub corner: DVec3,
     pub edge_u: DVec3,
@@ -58,13 +59,63 @@ pub struct LightView {
     ray_end: f64,
 }
 
-impl LightView {
-    /// The frame of `light` seen from `q`, or `None` if q is not strictly
-    /// on the lit side.
-    pub fn new(light: &Parallelogram, q: DVec3) -> Option<LightView> {
+/// What of [`LightView`] depends on the light alone: the same from every
+/// point, so a thread keeps it (its square roots and division are a
+/// chain of latencies each point would wait for again).
+#[derive(Debug, Clone)]
+pub struct LightFrame {
+    /// The light's edges and normal (world) it was made from.
+    of: [DVec3; 3],
+    e1: DVec3,
+    e2: DVec3,
+    m: DVec3,
+    /// The light's edges in the frame.
+    edge_u: DVec3,
+    edge_v: DVec3,
+    area: f64,
+    /// √area.
+    side: f64,
+}
+
+impl LightFrame {
+    pub fn new(light: &Parallelogram) -> LightFrame {
         let m = light.normal;
         let e1 = light.edge_u.normalize();
         let e2 = m.cross(e1);
+        let local = |d: DVec3| DVec3::new(d.dot(e1), d.dot(e2), d.dot(m));
+        let area = light.edge_u.cross(light.edge_v).length();
+        LightFrame {
+            of: [light.edge_u, light.edge_v, light.normal],
+            e1,
+            e2,
+            m,
+            edge_u: local(light.edge_u),
+            edge_v: local(light.edge_v),
+            area,
+            side: area.sqrt(),
+        }
+    }
+
+    /// Whether this is the frame of `light` (its corner does not enter).
+    pub fn is_of(&self, light: &Parallelogram) -> bool {
+        self.of == [light.edge_u, light.edge_v, light.normal]
+    }
+}
+
+impl LightView {
+    /// The frame of `light` (`frame`: [`LightFrame::new`] of it) seen from
+    /// `q`, or `None` if q is not strictly on the lit side.
+    pub fn new(light: &Parallelogram, frame: &LightFrame, q: DVec3) -> Option<LightView> {
+        let LightFrame {
+            e1,
+            e2,
+            m,
+            edge_u,
+            edge_v,
+            area,
+            side,
+            ..
+        } = *frame;
         let h = m.dot(q - light.corner);
         // Also refuses a NaN height.
         if h.is_nan() || h <= 0.0 {
@@ -72,7 +123,6 @@ impl LightView {
         }
         let local = |d: DVec3| DVec3::new(d.dot(e1), d.dot(e2), d.dot(m));
         let corner = local(light.corner - q);
-        let (edge_u, edge_v) = (local(light.edge_u), local(light.edge_v));
         let c3 = [
             corner,
             corner + edge_u,
@@ -99,7 +149,8 @@ impl LightView {
             m,
             h,
             rect,
-            area: light.edge_u.cross(light.edge_v).length(),
+            area,
+            side,
             corner,
             edge_u,
             edge_v,
@@ -184,11 +235,6 @@ impl LightView {
         DVec2::new(x.x, x.y) * (self.h / -x.z)
     }
 
-    #[inline]
-    fn inside_frustum(&self, x: DVec3) -> bool {
-        self.planes.iter().all(|&(n, c)| n.dot(x) + c >= 0.0)
-    }
-
     /// The half-plane of light points in front of a surface of unit normal
     /// `n` (world) through q: n · (y − q) > 0.
     pub fn front_of(&self, n: DVec3) -> HalfPlane {
@@ -253,10 +299,21 @@ pub struct ProjectScratch {
 /// planes only. And whether all of them lie outside one plane (the polygon
 /// clips to nothing).
 fn planes_crossed(view: &LightView, points: &[DVec3]) -> (u8, bool) {
+    crossed_by_sides(points.len(), |i, j| {
+        let (n, c) = view.planes[i];
+        n.dot(points[j]) + c
+    })
+}
+
+/// [`planes_crossed`] from `side(i, j)`: frustum plane i's value at point
+/// j of `count` (a box's faces read them from the values at its corners,
+/// each corner taken once instead of once per face).
+#[inline]
+fn crossed_by_sides(count: usize, side: impl Fn(usize, usize) -> f64) -> (u8, bool) {
     let mut mask = 0;
-    for (i, &(n, c)) in view.planes.iter().enumerate() {
-        let out = points.iter().filter(|&&x| n.dot(x) + c < 0.0).count();
-        if out == points.len() {
+    for i in 0..6 {
+        let out = (0..count).filter(|&j| side(i, j) < 0.0).count();
+        if out == count {
             return (mask, true);
         }
         if out > 0 {
@@ -314,17 +371,19 @@ fn clip_and_project(
 fn faces_shadow(
     view: &LightView,
     faces: &[&[DVec3]],
+    crossed: impl Fn(usize) -> (u8, bool),
     extra: &[DVec2],
     s: &mut ProjectScratch,
     out: &mut Vec<DVec2>,
 ) {
     s.points.clear();
     s.points.extend_from_slice(extra);
-    for f in faces {
-        // Only the planes that cut this face: a face wholly inside a plane
-        // comes out of its clip as it went in, and one wholly outside any
-        // plane adds nothing.
-        let (crossed, outside) = planes_crossed(view, f);
+    for (k, f) in faces.iter().enumerate() {
+        // Only the planes that cut this face (`crossed`, as
+        // [`planes_crossed`]): a face wholly inside a plane comes out of
+        // its clip as it went in, and one wholly outside any plane adds
+        // nothing.
+        let (crossed, outside) = crossed(k);
         if outside {
             continue;
         }
@@ -351,16 +410,14 @@ pub fn box_shadow(
         return Err(Unsupported::Inside);
     }
     let local = corners.map(|x| view.local(x));
+    // Each frustum plane's value at each corner, for every test below.
+    let sides: [[f64; 8]; 6] = view.planes.map(|(n, k)| local.map(|x| n.dot(x) + k));
     out.clear();
     // Wholly beyond one plane of the frustum: no shadow.
-    if view
-        .planes
-        .iter()
-        .any(|&(n, k)| local.iter().all(|&x| n.dot(x) + k < 0.0))
-    {
+    if sides.iter().any(|row| row.iter().all(|&v| v < 0.0)) {
         return Ok(());
     }
-    if local.iter().all(|&x| view.inside_frustum(x)) {
+    if sides.iter().all(|row| row.iter().all(|&v| v >= 0.0)) {
         s.points.clear();
         s.points.extend(local.iter().map(|&x| view.project(x)));
         hull_into(&mut s.points, out);
@@ -377,7 +434,8 @@ pub fn box_shadow(
     }
     let faces: [[DVec3; 4]; 6] = Cuboid::FACES.map(|f| f.map(|i| local[i]));
     let refs: [&[DVec3]; 6] = std::array::from_fn(|i| &faces[i][..]);
-    faces_shadow(view, &refs, &extra[..n_extra], s, out);
+    let crossed = |k: usize| crossed_by_sides(4, |i, j| sides[i][Cuboid::FACES[k][j]]);
+    faces_shadow(view, &refs, crossed, &extra[..n_extra], s, out);
     Ok(())
 }
 
@@ -387,7 +445,8 @@ pub fn rect_shadow(
     s: &mut ProjectScratch,
     out: &mut Vec<DVec2>,
 ) {
-    faces_shadow(view, &[&r.corners().map(|x| view.local(x))], &[], s, out);
+    let face = r.corners().map(|x| view.local(x));
+    faces_shadow(view, &[&face], |_| planes_crossed(view, &face), &[], s, out);
 }
 
 pub fn triangle_shadow(
@@ -396,7 +455,8 @@ pub fn triangle_shadow(
     s: &mut ProjectScratch,
     out: &mut Vec<DVec2>,
 ) {
-    faces_shadow(view, &[&vertices.map(|x| view.local(x))], &[], s, out);
+    let face = vertices.map(|x| view.local(x));
+    faces_shadow(view, &[&face], |_| planes_crossed(view, &face), &[], s, out);
 }
 
 /// The circle where the tangent cone from q (at the origin) touches a
@@ -514,7 +574,7 @@ fn unit_ring(n: usize) -> std::borrow::Cow<'static, [(f64, f64)]> {
 
 #[cfg(test)]
 mod tests {
-    use super::{CircleFit, LightView, ProjectScratch, box_shadow, sphere_shadow};
+    use super::{CircleFit, LightFrame, LightView, ProjectScratch, box_shadow, sphere_shadow};
     use crate::render::exact::polygon::{Pieces, Work, twice_area};
     use crate::render::geometry::{Cuboid, Parallelogram, Sphere};
     use crate::render::rng::Rng;
@@ -543,6 +603,7 @@ mod tests {
             DVec3::new(2.0, 0.0, 0.0),
             DVec3::new(0.0, 0.0, 2.0),
         );
+        let frame = LightFrame::new(&light);
         let mut rng = Rng::new(21);
         let mut next = || rng.next_f64();
         let mut s = ProjectScratch::default();
@@ -550,7 +611,7 @@ mod tests {
         let (mut hidden, mut seen) = (0, 0);
         for case in 0..4000 {
             let q = DVec3::new(6.0 * next() - 3.0, 2.0 * next(), 6.0 * next() - 3.0);
-            let view = LightView::new(&light, q).expect("below the light");
+            let view = LightView::new(&light, &frame, q).expect("below the light");
             let area = view.area;
             let size = DVec3::new(0.5 + next(), 0.2 + next(), 0.5 + next());
             let centre = DVec3::new(next() - 0.5, 4.0 + next(), next() - 0.5);

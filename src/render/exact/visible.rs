@@ -82,7 +82,7 @@ pub fn visible_region(
         .iter()
         .map(|p| p.abs().max_element())
         .fold(0.0, f64::max);
-    let min_area = (2e-14 * view.area).max(64.0 * f64::EPSILON * magnitude * view.area.sqrt());
+    let min_area = (2e-14 * view.area).max(64.0 * f64::EPSILON * magnitude * view.side);
     pieces.clear();
     pieces.push(&view.rect, 0.0);
     pieces.clip(front, min_area, &mut s.work);
@@ -134,12 +134,14 @@ pub fn visible_region(
     let mut first_sphere = true;
     // The conic gives the diffuse factor of one sphere alone (two may
     // overlap) whose silhouette stays below q's plane.
-    let alone = spheres.clone().count() == 1;
+    let alone = || spheres.clone().count() == 1;
     let edges = |sp: &Sphere| match sphere {
-        CircleFit::SameArea if alone && ConicShadow::new(view, sp).is_some() => CONIC_SPHERE_EDGES,
+        CircleFit::SameArea if alone() && ConicShadow::new(view, sp).is_some() => {
+            CONIC_SPHERE_EDGES
+        }
         _ => SPHERE_EDGES,
     };
-    for &(i, _) in others.chain(spheres) {
+    for &(i, _) in others.chain(spheres.clone()) {
         if pieces.is_empty() {
             return Ok(());
         }

@@ -7,7 +7,10 @@
 //! (as the shadow packets' margin, `visibility.rs`), so none of those rays
 //! could find it blocking: the same visibility bits. A plane is left out
 //! only where the per-hit-point test would leave it out at every point of
-//! the cube (the whole light on the point's side).
+//! the cube (the whole light on the point's side). The objects of the BVH
+//! (meshes, many objects) are listed as one: whether any of them may block,
+//! found by walking the BVH with the same test (a triangle by its vertices):
+//! hit points whose cube no mesh can shadow skip the BVH altogether.
 //!
 //! The lists are made lazily, cube by cube, into a small direct-mapped
 //! cache per thread: neighbouring pixels' hit points share a cube. A
@@ -20,7 +23,7 @@ use std::sync::Arc;
 
 use glam::DVec3;
 
-use crate::render::geometry::{Primitive, Shape};
+use crate::render::geometry::{Aabb, Primitive, Shape};
 use crate::render::scene::{Object, Scene};
 
 /// Cubes per side of the scene's finite part ([`Scene::scale`]): small
@@ -38,6 +41,16 @@ const MARGIN: f64 = 1e-4;
 /// [`Scene::bounded`]) as bits, in this order; the lists serve up to 64 of
 /// them.
 pub(super) type ObjectBits = u64;
+
+/// The objects that may block a shadow ray from a cube.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct CubeList {
+    /// Those tested one by one, as bits of [`OccluderCells::objects`].
+    pub(super) objects: ObjectBits,
+    /// Whether any object of the BVH may (the packets and the BVH walk
+    /// are left out where none can).
+    pub(super) bvh: bool,
+}
 
 /// What the lists were made for: they hold only for the same objects
 /// under the same light.
@@ -70,7 +83,7 @@ impl Made {
 #[derive(Debug, Clone, Copy)]
 struct Slot {
     cube: [i32; 3],
-    bits: ObjectBits,
+    list: CubeList,
 }
 
 /// Per-thread occluder lists of the cubes met so far.
@@ -97,7 +110,10 @@ impl Default for Slot {
 /// A slot of a cube no point maps to.
 const EMPTY_SLOT: Slot = Slot {
     cube: [i32::MIN; 3],
-    bits: 0,
+    list: CubeList {
+        objects: 0,
+        bvh: false,
+    },
 };
 
 thread_local! {
@@ -118,18 +134,18 @@ impl OccluderCells {
         let _ = KEPT.try_with(|k| *k.borrow_mut() = self);
     }
 
-    /// The object ids the bits stand for (valid after [`Self::bits_at`]
+    /// The object ids the bits stand for (valid after [`Self::list_at`]
     /// returned `Some`).
     #[inline(always)]
     pub(super) fn objects(&self) -> &[u32] {
         &self.objects
     }
 
-    /// The objects (as bits of [`Self::objects`]) that may block a shadow
-    /// ray from `p`; `None` where the lists do not serve (more than 64
-    /// objects, a BVH, or `p` far outside the scene).
+    /// The objects that may block a shadow ray from `p`; `None` where the
+    /// lists do not serve (more than 64 objects tested one by one, or `p`
+    /// far outside the scene).
     #[inline(always)]
-    pub(super) fn bits_at(&mut self, scene: &Scene, p: DVec3) -> Option<ObjectBits> {
+    pub(super) fn list_at(&mut self, scene: &Scene, p: DVec3) -> Option<CubeList> {
         if !self.made.as_ref().is_some_and(|m| m.is_for(scene)) {
             self.start(scene);
         }
@@ -143,7 +159,7 @@ impl OccluderCells {
         }
         let cube = [c.x as i32, c.y as i32, c.z as i32];
         if self.last.cube == cube {
-            return Some(self.last.bits);
+            return Some(self.last.list);
         }
         let hash = (cube[0] as u32).wrapping_mul(0x9E37_79B1)
             ^ (cube[1] as u32).wrapping_mul(0x85EB_CA77)
@@ -153,11 +169,11 @@ impl OccluderCells {
             let lo = c * self.side;
             *slot = Slot {
                 cube,
-                bits: cube_bits(scene, &self.objects, lo, lo + self.side, self.margin),
+                list: cube_list(scene, &self.objects, lo, lo + self.side, self.margin),
             };
         }
         self.last = *slot;
-        Some(slot.bits)
+        Some(slot.list)
     }
 
     /// Forgets every list: they are made anew for `made`'s scene.
@@ -175,7 +191,7 @@ impl OccluderCells {
         self.objects
             .extend(scene.unbounded.iter().chain(scene.bounded.iter()));
         self.slots.clear();
-        if !scene.bvh.is_empty() || self.objects.len() > ObjectBits::BITS as usize {
+        if self.objects.len() > ObjectBits::BITS as usize {
             return;
         }
         self.side = scene.scale / CUBES_PER_SCALE;
@@ -186,81 +202,145 @@ impl OccluderCells {
     }
 }
 
-/// The bits of the objects that may block a shadow ray from a point of the
-/// box `lo..hi`.
-fn cube_bits(scene: &Scene, objects: &[u32], lo: DVec3, hi: DVec3, margin: f64) -> ObjectBits {
-    // The cube grown by the margin: a point rounds into its cube's index
-    // from as far as a few ulps outside it.
-    let (lo, hi) = (lo - margin, hi + margin);
-    let light = &scene.light.shape;
-    let corners = light.corners();
-    let mut hull = [DVec3::ZERO; 12];
-    for (k, h) in hull.iter_mut().enumerate().take(8) {
-        *h = DVec3::new(
-            if k & 1 == 0 { lo.x } else { hi.x },
-            if k & 2 == 0 { lo.y } else { hi.y },
-            if k & 4 == 0 { lo.z } else { hi.z },
-        );
-    }
-    hull[8..].copy_from_slice(&corners);
-    // Directions that may separate an object from the hull: the axes, the
-    // light's normal, the way from the light to the cube, and the sides of
-    // the pyramid from the cube's centre to the light.
-    let centre = (lo + hi) * 0.5;
-    let light_centre = light.centre();
-    let mut axes = [
-        DVec3::X,
-        DVec3::NEG_X,
-        DVec3::Y,
-        DVec3::NEG_Y,
-        DVec3::Z,
-        DVec3::NEG_Z,
-        -light.normal,
-        (centre - light_centre).normalize_or_zero(),
-        DVec3::ZERO,
-        DVec3::ZERO,
-        DVec3::ZERO,
-        DVec3::ZERO,
-    ];
-    for i in 0..4 {
-        let n = (corners[i] - centre)
-            .cross(corners[(i + 1) % 4] - centre)
-            .normalize_or_zero();
-        axes[8 + i] = if n.dot(light_centre - centre) > 0.0 {
-            -n
-        } else {
-            n
-        };
-    }
-    // The hull's extent along each direction.
-    let reach = axes.map(|n| hull.iter().map(|h| n.dot(*h)).fold(f64::MIN, f64::max));
+/// The objects that may block a shadow ray from a point of the box
+/// `lo..hi`: those tested one by one (`objects`) as bits, and whether any
+/// of the BVH's may.
+fn cube_list(scene: &Scene, objects: &[u32], lo: DVec3, hi: DVec3, margin: f64) -> CubeList {
+    let hull = Hull::new(scene, lo, hi, margin);
     let mut bits = 0;
     for (k, &i) in objects.iter().enumerate() {
-        let may_block = match (scene.primitive(i), scene.bounds_of(i)) {
+        if hull.may_meet(scene, i) {
+            bits |= 1 << k;
+        }
+    }
+    // The first BVH object the hull may meet settles it.
+    let mut bvh = false;
+    scene.bvh.visit_near_first(
+        (lo + hi) * 0.5,
+        |b| hull.may_meet_box(b),
+        |i| {
+            bvh = hull.may_meet(scene, i);
+            !bvh
+        },
+    );
+    CubeList { objects: bits, bvh }
+}
+
+/// The convex hull of a box of points (grown by the margin) and the light,
+/// by its reach along directions that may separate an object from it.
+struct Hull {
+    /// The box's corners, then the light's.
+    points: [DVec3; 12],
+    axes: [DVec3; 12],
+    /// The hull's extent along each axis.
+    reach: [f64; 12],
+    margin: f64,
+}
+
+impl Hull {
+    fn new(scene: &Scene, lo: DVec3, hi: DVec3, margin: f64) -> Hull {
+        // The cube grown by the margin: a point rounds into its cube's index
+        // from as far as a few ulps outside it.
+        let (lo, hi) = (lo - margin, hi + margin);
+        let light = &scene.light.shape;
+        let corners = light.corners();
+        let mut points = [DVec3::ZERO; 12];
+        for (k, h) in points.iter_mut().enumerate().take(8) {
+            *h = DVec3::new(
+                if k & 1 == 0 { lo.x } else { hi.x },
+                if k & 2 == 0 { lo.y } else { hi.y },
+                if k & 4 == 0 { lo.z } else { hi.z },
+            );
+        }
+        points[8..].copy_from_slice(&corners);
+        // Directions that may separate an object from the hull: the axes,
+        // the light's normal, the way from the light to the cube, and the
+        // sides of the pyramid from the cube's centre to the light.
+        let centre = (lo + hi) * 0.5;
+        let light_centre = light.centre();
+        let mut axes = [
+            DVec3::X,
+            DVec3::NEG_X,
+            DVec3::Y,
+            DVec3::NEG_Y,
+            DVec3::Z,
+            DVec3::NEG_Z,
+            -light.normal,
+            (centre - light_centre).normalize_or_zero(),
+            DVec3::ZERO,
+            DVec3::ZERO,
+            DVec3::ZERO,
+            DVec3::ZERO,
+        ];
+        for i in 0..4 {
+            let n = (corners[i] - centre)
+                .cross(corners[(i + 1) % 4] - centre)
+                .normalize_or_zero();
+            axes[8 + i] = if n.dot(light_centre - centre) > 0.0 {
+                -n
+            } else {
+                n
+            };
+        }
+        let reach = axes.map(|n| Self::extent(&points, n));
+        Hull {
+            points,
+            axes,
+            reach,
+            margin,
+        }
+    }
+
+    /// The largest `n · x` over `points`.
+    fn extent(points: &[DVec3], n: DVec3) -> f64 {
+        points.iter().map(|h| n.dot(*h)).fold(f64::MIN, f64::max)
+    }
+
+    /// Whether no axis separates the box `b` from the hull by the margin.
+    fn may_meet_box(&self, b: &Aabb) -> bool {
+        self.axes.iter().zip(&self.reach).all(|(n, r)| {
+            // The box's corner furthest along −n.
+            let x = DVec3::select(n.cmpge(DVec3::ZERO), b.min, b.max);
+            n.dot(x) <= r + self.margin
+        })
+    }
+
+    /// Whether the triangle `v` may meet the hull: no axis, nor the
+    /// triangle's normal either way, separates them by the margin.
+    fn may_meet_triangle(&self, v: [DVec3; 3]) -> bool {
+        let normal = (v[1] - v[0]).cross(v[2] - v[0]).normalize_or_zero();
+        let apart = |n: DVec3, r: f64| v.iter().all(|x| n.dot(*x) > r + self.margin);
+        !self
+            .axes
+            .iter()
+            .zip(&self.reach)
+            .any(|(n, r)| apart(*n, *r))
+            && !apart(normal, Self::extent(&self.points, normal))
+            && !apart(-normal, Self::extent(&self.points, -normal))
+    }
+
+    /// Whether object `i` may block a shadow ray from a point of the box.
+    fn may_meet(&self, scene: &Scene, i: u32) -> bool {
+        match (scene.primitive(i), scene.bounds_of(i)) {
             (Primitive::Shape(Shape::Plane(pl)), _) => {
-                let d = hull[..8].iter().map(|h| pl.signed_distance(*h));
+                let d = self.points[..8].iter().map(|h| pl.signed_distance(*h));
                 let range = (
                     d.clone().fold(f64::MAX, f64::min),
                     d.fold(f64::MIN, f64::max),
                 );
                 plane_may_block(range, &scene.light_sides_of(i))
             }
-            (Primitive::Shape(Shape::Sphere(s)), _) => axes
+            (Primitive::Shape(Shape::Sphere(s)), _) => self
+                .axes
                 .iter()
-                .zip(&reach)
-                .all(|(n, r)| n.dot(s.centre) - s.radius <= r + margin),
-            (_, Some(b)) => axes.iter().zip(&reach).all(|(n, r)| {
-                // The box's corner furthest along −n.
-                let x = DVec3::select(n.cmpge(DVec3::ZERO), b.min, b.max);
-                n.dot(x) <= r + margin
-            }),
+                .zip(&self.reach)
+                .all(|(n, r)| n.dot(s.centre) - s.radius <= r + self.margin),
+            (Primitive::Shape(Shape::Triangle(t)), _) => self.may_meet_triangle(t.vertices()),
+            (Primitive::Face { meshes, face }, _) => self.may_meet_triangle(meshes.vertices(face)),
+            (_, Some(b)) => self.may_meet_box(&b),
             (_, None) => true,
-        };
-        if may_block {
-            bits |= 1 << k;
         }
     }
-    bits
 }
 
 /// Whether a plane may block a shadow ray from some point whose signed
@@ -283,12 +363,13 @@ mod tests {
     use crate::render::geometry::Ray;
     use crate::render::rng::Rng;
     use crate::render::scene::Loaded;
-    use crate::render::scene_file::{ObjectDesc, RectDesc};
+    use crate::render::scene_file::{ObjectDesc, RectDesc, TriangleDesc};
 
     /// At random points of the room, no object left out of the point's
     /// list meets a segment to any of 256 light points (f64 intersection,
     /// planes included), and the lists do leave objects out: the seed room,
-    /// and spheres with a tilted rect under a tilted light.
+    /// spheres with a tilted rect under a tilted light, and spheres and
+    /// triangles in a BVH (left out as a whole where none may block).
     #[test]
     fn a_cube_leaves_out_only_objects_that_block_no_shadow_ray() {
         let mut tilted = spheres_in_room(6, 5);
@@ -301,9 +382,25 @@ mod tests {
             edge_v: [0.1, 0.2, 1.3],
             material: "green".into(),
         }));
+        let mut in_bvh = spheres_in_room(6, 9);
+        for k in 0..12 {
+            let (x, z) = (k as f64 * 0.7 - 4.0, (k % 5) as f64 - 2.0);
+            in_bvh.objects.push(ObjectDesc::Triangle(TriangleDesc {
+                vertices: [
+                    [x, 2.0, z],
+                    [x + 0.6, 2.5, z + 0.3],
+                    [x + 0.2, 3.0, z - 0.5],
+                ],
+                material: "green".into(),
+            }));
+        }
+        let in_bvh = Loaded::new(&in_bvh).unwrap().scene;
+        assert!(!in_bvh.bvh.is_empty());
+        let mut bvh_left_out = 0;
         for scene in [
             Loaded::seed_room().scene,
             Loaded::new(&tilted).unwrap().scene,
+            in_bvh,
         ] {
             let light = &scene.light.shape;
             let mut cells = OccluderCells::default();
@@ -313,11 +410,25 @@ mod tests {
             let mut left_out = 0;
             for _ in 0..4000 {
                 let p = DVec3::new(u(-5.0, 5.0), u(0.0, 8.0), u(-5.0, 5.0));
-                let bits = cells.bits_at(&scene, p).expect("a small scene has lists");
+                let list = cells.list_at(&scene, p).expect("a small scene has lists");
+                let mut left_out_here: Vec<u32> = Vec::new();
+                if !list.bvh && !scene.bvh.is_empty() {
+                    bvh_left_out += 1;
+                    scene.bvh.visit_near_first(
+                        p,
+                        |_| true,
+                        |i| {
+                            left_out_here.push(i);
+                            true
+                        },
+                    );
+                }
                 for (k, &i) in cells.objects().iter().enumerate() {
-                    if bits >> k & 1 == 1 {
-                        continue;
+                    if list.objects >> k & 1 == 0 {
+                        left_out_here.push(i);
                     }
+                }
+                for i in left_out_here {
                     left_out += 1;
                     for j in 0..256 {
                         let y =
@@ -332,6 +443,10 @@ mod tests {
             }
             assert!(left_out > 4000, "{left_out} objects left out");
         }
+        assert!(
+            bvh_left_out > 400,
+            "the BVH left out at {bvh_left_out} points"
+        );
     }
 
     /// A thread's shadow buffers leave their lists to the next ones made
@@ -344,11 +459,11 @@ mod tests {
         let scene = Loaded::seed_room().scene;
         let p = DVec3::new(1.5, 0.0, -3.0);
         let mut buf = ShadowBuffers::with_capacity(4);
-        let bits = buf.cells.bits_at(&scene, p).expect("lists");
+        let list = buf.cells.list_at(&scene, p).expect("lists");
         drop(buf);
         let mut kept = ShadowBuffers::with_capacity(4);
         assert!(kept.cells.made.as_ref().is_some_and(|m| m.is_for(&scene)));
-        assert_eq!(kept.cells.last.bits, bits);
+        assert_eq!(kept.cells.last.list, list);
         let c = (p * kept.cells.per_side).floor();
         assert_eq!(kept.cells.last.cube, [c.x as i32, c.y as i32, c.z as i32]);
 
@@ -358,9 +473,9 @@ mod tests {
         desc.light.corner = [-4.0, 7.5, 3.0];
         let moved = scene.with_view(&desc);
         let mut fresh = OccluderCells::default();
-        let want = fresh.bits_at(&moved, p);
-        assert_ne!(want, Some(bits), "the light's move changes the list");
-        assert_eq!(kept.cells.bits_at(&moved, p), want);
+        let want = fresh.list_at(&moved, p);
+        assert_ne!(want, Some(list), "the light's move changes the list");
+        assert_eq!(kept.cells.list_at(&moved, p), want);
         assert!(kept.cells.made.as_ref().is_some_and(|m| m.is_for(&moved)));
     }
 }

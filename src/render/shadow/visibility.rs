@@ -98,17 +98,19 @@ pub(crate) fn visibility_inline(
     let skip = settings.skip;
     // The objects that may block a ray from p's cube of space (all of
     // them when not skipping).
-    let listed = match skip.then(|| buf.cells.bits_at(scene, q.point)).flatten() {
-        Some(bits) => {
+    let (listed, bvh_may_block) = match skip.then(|| buf.cells.list_at(scene, q.point)).flatten() {
+        Some(list) => {
             let own = |i: u32| i == q.object && scene.primitive(i).skips_itself(q.inside);
-            if each_bit(bits, buf.cells.objects()).all(own) {
+            if !list.bvh && each_bit(list.objects, buf.cells.objects()).all(own) {
                 stats.shadow_unoccluded += facing;
                 return;
             }
-            bits
+            (list.objects, list.bvh)
         }
-        None => ObjectBits::MAX,
+        None => (ObjectBits::MAX, true),
     };
+    // The BVH's objects, unless the cube's list leaves them all out.
+    let bvh = (bvh_may_block && !scene.bvh.is_empty()).then_some(&*scene.bvh);
     let umbra_tested = skip && count >= UMBRA_TEST_RAYS;
     let corners = light.corners();
     let pyramid = LazyPyramid::new(q.point, corners, scene);
@@ -136,7 +138,7 @@ pub(crate) fn visibility_inline(
             }
         }
     }
-    if buf.occluders.is_empty() && scene.bvh.is_empty() {
+    if buf.occluders.is_empty() && bvh.is_none() {
         stats.shadow_unoccluded += facing;
         return;
     }
@@ -156,19 +158,24 @@ pub(crate) fn visibility_inline(
     }
     // With many objects, shadow rays walk the light-frame BVH as packets
     // whose nodes keep only the rays that can meet them.
-    let packets = scene.shadow_bvh.as_ref().filter(|_| skip).map(|sb| {
-        let p = sb.frame.local(q.point);
-        // Wider than the rounding of the f32 ray tests by orders of
-        // magnitude (their decisions move by ~1e-6 of the distances), so
-        // no ray the full test would find blocked is left out.
-        let margin = 1e-4 * (p.abs().max_element() + light.edge_u.length() + light.edge_v.length());
-        Packets {
-            sb,
-            eye: Eye::new(p, margin),
-            q,
-            reach: culling.reach,
-        }
-    });
+    let packets = scene
+        .shadow_bvh
+        .as_ref()
+        .filter(|_| skip && bvh.is_some())
+        .map(|sb| {
+            let p = sb.frame.local(q.point);
+            // Wider than the rounding of the f32 ray tests by orders of
+            // magnitude (their decisions move by ~1e-6 of the distances), so
+            // no ray the full test would find blocked is left out.
+            let margin =
+                1e-4 * (p.abs().max_element() + light.edge_u.length() + light.edge_v.length());
+            Packets {
+                sb,
+                eye: Eye::new(p, margin),
+                q,
+                reach: culling.reach,
+            }
+        });
 
     // Traces rays (directions and visibility as parallel slices) against the
     // candidates; returns how many facing rays met a candidate test.
@@ -219,8 +226,10 @@ pub(crate) fn visibility_inline(
         // once, until no ray is left (an any-hit traversal for the whole
         // packet; the result does not depend on the order).
         let (d, vis) = (d.range(0..count), &mut vis[..count]);
-        if !scene.bvh.is_empty() && (!skip || vis.iter().any(|&v| v != 0.0)) {
-            scene.bvh.visit_near_first(
+        if let Some(bvh) = bvh
+            && (!skip || vis.iter().any(|&v| v != 0.0))
+        {
+            bvh.visit_near_first(
                 q.point,
                 |b| !skip || pyramid.get().may_overlap(b),
                 |i| {
@@ -479,9 +488,11 @@ pub(crate) fn possible_occluders(
     out: &mut Vec<(u32, bool)>,
 ) {
     out.clear();
-    let listed = cells.bits_at(scene, q.point);
+    // The cube's list of the objects tested one by one; the BVH is walked
+    // as before (its pyramid test keeps the same occluders).
+    let listed = cells.list_at(scene, q.point).map(|list| list.objects);
     let own = |i: u32| i == q.object && scene.primitive(i).skips_itself(q.inside);
-    if listed.is_some_and(|bits| each_bit(bits, cells.objects()).all(own)) {
+    if scene.bvh.is_empty() && listed.is_some_and(|bits| each_bit(bits, cells.objects()).all(own)) {
         return;
     }
     let light = &scene.light.shape;
@@ -501,13 +512,13 @@ pub(crate) fn possible_occluders(
             out.push((i, i == q.object && q.inside));
         }
     };
-    // The lists serve only scenes without a BVH.
-    if let Some(bits) = listed {
-        each_bit(bits, cells.objects()).for_each(consider);
-        return;
-    }
-    for &i in scene.unbounded.iter().chain(scene.bounded.iter()) {
-        consider(i);
+    match listed {
+        Some(bits) => each_bit(bits, cells.objects()).for_each(&mut consider),
+        None => scene
+            .unbounded
+            .iter()
+            .chain(scene.bounded.iter())
+            .for_each(|&i| consider(i)),
     }
     scene.bvh.visit_near_first(
         q.point,

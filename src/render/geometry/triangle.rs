@@ -282,14 +282,21 @@ impl TriangleOccluder {
 
     /// The edges decided in f64, for a ray that [`blocks_f32`]
     /// (Self::blocks_f32) found unsure.
-    #[cold]
-    #[inline(never)]
+    #[inline(always)]
     pub fn blocks_exact(&self, x: f32, y: f32, z: f32) -> bool {
-        let d = DVec3::new(x as f64, y as f64, z as f64);
-        let [a, b, c] = self.exact;
-        let (e0, e1, e2) = (a.cross(b).dot(d), b.cross(c).dot(d), c.cross(a).dot(d));
-        (e0 >= 0.0 && e1 >= 0.0 && e2 >= 0.0) || (e0 <= 0.0 && e1 <= 0.0 && e2 <= 0.0)
+        exact_edges(&self.exact, x, y, z)
     }
+}
+
+/// [`TriangleOccluder::blocks_exact`] out of line, given the vertices
+/// alone: only they are then kept in memory for the call, and the f32
+/// fields of the caller's occluder stay in registers.
+#[cold]
+#[inline(never)]
+fn exact_edges(&[a, b, c]: &[DVec3; 3], x: f32, y: f32, z: f32) -> bool {
+    let d = DVec3::new(x as f64, y as f64, z as f64);
+    let (e0, e1, e2) = (a.cross(b).dot(d), b.cross(c).dot(d), c.cross(a).dot(d));
+    (e0 >= 0.0 && e1 >= 0.0 && e2 >= 0.0) || (e0 <= 0.0 && e1 <= 0.0 && e2 <= 0.0)
 }
 
 #[cfg(test)]

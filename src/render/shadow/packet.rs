@@ -275,17 +275,18 @@ const FEW: u32 = 4;
 
 /// An occluder whose lane test, run on one ray, is cheap enough to beat
 /// a vector call for a few rays.
+/// (Borrowing the triangle: a copy of its f64 vertices per test costs.)
 #[derive(Clone, Copy)]
-enum LoneRayTest {
+enum LoneRayTest<'o> {
     Sphere { oc: Vec3, r2: f32, inside: bool },
-    Triangle(TriangleOccluder),
+    Triangle(&'o TriangleOccluder),
 }
 
-impl LoneRayTest {
+impl<'o> LoneRayTest<'o> {
     #[inline(always)]
-    fn of(occ: &Occluder) -> Option<LoneRayTest> {
-        match *occ {
-            Occluder::Sphere { oc, r2, inside } => Some(LoneRayTest::Sphere { oc, r2, inside }),
+    fn of(occ: &'o Occluder) -> Option<LoneRayTest<'o>> {
+        match occ {
+            &Occluder::Sphere { oc, r2, inside } => Some(LoneRayTest::Sphere { oc, r2, inside }),
             Occluder::Triangle(t) => Some(LoneRayTest::Triangle(t)),
             _ => None,
         }

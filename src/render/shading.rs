@@ -189,6 +189,15 @@ pub(crate) fn light_points_generic(
     stats: &mut RayStats,
 ) -> Lit {
     let m = sp.material;
+    // Written first: read back right after its stores, the point's z and
+    // the normal's x came in one load spanning two of them, which waits for
+    // both to reach the cache.
+    let query = ShadowQuery {
+        point: sp.shadow_point,
+        normal: sp.geometric,
+        object: sp.object,
+        inside: sp.inside,
+    };
     if !scene.light.illuminates(sp.point) {
         return Lit::Known(LightTerms::default());
     }
@@ -224,12 +233,6 @@ pub(crate) fn light_points_generic(
     }
 
     fill_light_points(pattern, rng, buf);
-    let query = ShadowQuery {
-        point: sp.shadow_point,
-        normal: sp.geometric,
-        object: sp.object,
-        inside: sp.inside,
-    };
     shadow::visibility_inline(scene, s, &query, count, buf, stats);
     Lit::Points
 }

@@ -158,9 +158,8 @@ avx2_dispatch!(
     /// The first part of [`light_terms`]: the light points of one hit point
     /// and their visibility, unless the factors are known without them.
     /// Compiled for AVX2 as a whole where the CPU has it, the shadow culling
-    /// inlined: one feature check per hit point, and the shadow query stays
-    /// in registers (handed to a separate kernel, its point was read back
-    /// across two of the stores that wrote it, which stalls the load).
+    /// inlined: one feature check per hit point, and no separate kernel to
+    /// hand the shadow query to.
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn light_points(
         scene: &Scene,

@@ -158,9 +158,8 @@ avx2_dispatch!(
     /// The first part of [`light_terms`]: the light points of one hit point
     /// and their visibility, unless the factors are known without them.
     /// Compiled for AVX2 as a whole where the CPU has it, the shadow culling
-    /// inlined: one feature check per hit point, and the shadow query stays
-    /// in registers (handed to a separate kernel, its point was read back
-    /// across two of the stores that wrote it, which stalls the load).
+    /// inlined: one feature check per hit point, and no separate kernel to
+    /// hand the shadow query to.
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn light_points(
         scene: &Scene,
@@ -189,6 +188,15 @@ pub(crate) fn light_points_generic(
     stats: &mut RayStats,
 ) -> Lit {
     let m = sp.material;
+    // Written first: read back right after its stores, the point's z and
+    // the normal's x came in one load spanning two of them, which waits for
+    // both to reach the cache.
+    let query = ShadowQuery {
+        point: sp.shadow_point,
+        normal: sp.geometric,
+        object: sp.object,
+        inside: sp.inside,
+    };
     if !scene.light.illuminates(sp.point) {
         return Lit::Known(LightTerms::default());
     }
@@ -224,12 +232,6 @@ pub(crate) fn light_points_generic(
     }
 
     fill_light_points(pattern, rng, buf);
-    let query = ShadowQuery {
-        point: sp.shadow_point,
-        normal: sp.geometric,
-        object: sp.object,
-        inside: sp.inside,
-    };
     shadow::visibility_inline(scene, s, &query, count, buf, stats);
     Lit::Points
 }

@@ -779,8 +779,13 @@ fn cell(
         report.error += estimate;
         return value;
     }
-    let r = rule();
     let half = 0.5 * size;
+    // A cell too coarse for the lobe splits whatever its fit's estimate:
+    // no fit to take.
+    if view.as_ref().is_some_and(|v| v.lobe_unresolved(ORDER)) {
+        return split_cell(ctx, s, depth, lo, half, report);
+    }
+    let r = rule();
     let lobe = ctx.lobe;
 
     // The tensor nodes from the ORDER coordinates of each axis.
@@ -797,15 +802,8 @@ fn cell(
     fit_rows(r, &nf, &mut t);
     let tail = tail_estimate(r, &t);
 
-    let split = view.is_some_and(|v| tail > TOLERANCE || v.lobe_unresolved(ORDER));
-    if split {
-        let mut total = 0.0;
-        for (dx, dy) in [(0.0, 0.0), (half, 0.0), (0.0, half), (half, half)] {
-            let child = lo + DVec2::new(dx, dy);
-            clip_level(s, d, child, half);
-            total += cell(ctx, s, depth + 1, child, half, report);
-        }
-        return total;
+    if view.is_some() && tail > TOLERANCE {
+        return split_cell(ctx, s, depth, lo, half, report);
     }
     let jac = half * half;
     if full {
@@ -869,6 +867,25 @@ fn cell(
             .sum::<f64>();
     }
     total * jac
+}
+
+/// ∫ over the visible part of the cell at `lo` as the sum of its four
+/// quarters (side `half`).
+fn split_cell(
+    ctx: &Ctx,
+    s: &mut CubatureScratch,
+    depth: u32,
+    lo: DVec2,
+    half: f64,
+    report: &mut CubatureReport,
+) -> f64 {
+    let mut total = 0.0;
+    for (dx, dy) in [(0.0, 0.0), (half, 0.0), (0.0, half), (half, half)] {
+        let child = lo + DVec2::new(dx, dy);
+        clip_level(s, depth as usize, child, half);
+        total += cell(ctx, s, depth + 1, child, half, report);
+    }
+    total
 }
 
 /// The pieces of level `d` clipped to the cell [lo, lo + size]², into

@@ -509,10 +509,36 @@ pub struct CubatureReport {
     pub error: f64,
 }
 
+/// What the cubature's gates take of the light's shape alone: the same
+/// from every point, so kept with the light's frame.
+#[derive(Debug, Clone, Copy)]
+pub struct LightSpan {
+    /// The longer edge.
+    side: f64,
+    /// The half-sum of the edges (see [`Ctx`]).
+    reach: f64,
+    /// The unit normal of the light's plane (the point's height along it).
+    normal: DVec3,
+}
+
+impl LightSpan {
+    /// The span of the light with edges `edge_u`, `edge_v` (those of the
+    /// [`Lobe`]s it is used with).
+    pub fn new(edge_u: DVec3, edge_v: DVec3) -> LightSpan {
+        LightSpan {
+            side: edge_u.length().max(edge_v.length()),
+            reach: 0.5 * (edge_u.length() + edge_v.length()),
+            normal: edge_u.cross(edge_v).normalize_or_zero(),
+        }
+    }
+}
+
 /// ∫ f da db over the pieces (in the light's (a, b) coordinates, inside
-/// the unit square): the specular factor of the visible region.
+/// the unit square): the specular factor of the visible region. `span`:
+/// [`LightSpan::new`] of the lobe's light.
 pub fn specular_factor(
     lobe: &Lobe,
+    span: &LightSpan,
     pieces: &Pieces,
     s: &mut CubatureScratch,
 ) -> (f64, CubatureReport) {
@@ -540,7 +566,7 @@ pub fn specular_factor(
             .resize_with(MAX_DEPTH as usize + 1, Pieces::default);
     }
     s.levels[0].clone_from(pieces);
-    let total = cell(&Ctx::new(lobe), s, 0, DVec2::ZERO, 1.0, &mut report);
+    let total = cell(&Ctx::new(lobe, span), s, 0, DVec2::ZERO, 1.0, &mut report);
     (total, report)
 }
 
@@ -628,7 +654,7 @@ struct Ctx<'a> {
 }
 
 impl Ctx<'_> {
-    fn new(lobe: &Lobe) -> Ctx<'_> {
+    fn new<'a>(lobe: &'a Lobe, span: &LightSpan) -> Ctx<'a> {
         // The lobe's width in L (cos^s θ_H ≈ exp(−s θ_H²/2), θ_L ≈ 2 θ_H)
         // and the mirror direction, where it peaks.
         let mirror = lobe.n * (2.0 * lobe.n.dot(lobe.v)) - lobe.v;
@@ -643,12 +669,9 @@ impl Ctx<'_> {
             width,
             narrow: width * lobe.n.dot(lobe.v).clamp(NARROWEST, 1.0),
             mirror: mirror.normalize_or_zero(),
-            side: lobe.edge_u.length().max(lobe.edge_v.length()),
-            reach: 0.5 * (lobe.edge_u.length() + lobe.edge_v.length()),
-            height: lobe
-                .corner
-                .dot(lobe.edge_u.cross(lobe.edge_v).normalize_or_zero())
-                .abs(),
+            side: span.side,
+            reach: span.reach,
+            height: lobe.corner.dot(span.normal).abs(),
         }
     }
 }
@@ -938,8 +961,8 @@ fn clip_level(s: &mut CubatureScratch, d: usize, lo: DVec2, size: f64) {
 #[cfg(test)]
 mod tests {
     use super::{
-        CellView, Ctx, Lobe, MAX_DEPTH, NODES, TOLERANCE, bound_ln, lobe_at_nodes, lobe_bound_cos,
-        pow_one_minus, whole_cell,
+        CellView, Ctx, LightSpan, Lobe, MAX_DEPTH, NODES, TOLERANCE, bound_ln, lobe_at_nodes,
+        lobe_bound_cos, pow_one_minus, whole_cell,
     };
     use crate::render::rng::Rng;
     use glam::{DVec2, DVec3};
@@ -1146,7 +1169,7 @@ mod tests {
                 continue;
             }
             tried += 1;
-            let ctx = Ctx::new(&lobe);
+            let ctx = Ctx::new(&lobe, &LightSpan::new(lobe.edge_u, lobe.edge_v));
             let view = (depth < MAX_DEPTH).then(|| CellView::new(&ctx, lo, size));
             let Some((value, estimate)) = whole_cell(&ctx, lo, size, view.as_ref()) else {
                 continue;
@@ -1244,7 +1267,12 @@ mod tests {
             }
             let mut pieces = Pieces::default();
             pieces.push(&poly, 0.0);
-            let (value, report) = specular_factor(&lobe, &pieces, &mut scratch);
+            let (value, report) = specular_factor(
+                &lobe,
+                &LightSpan::new(lobe.edge_u, lobe.edge_v),
+                &pieces,
+                &mut scratch,
+            );
             // Dense: each fan triangle split in 4⁵ by its midpoints, 12²
             // collapsed-square Gauss points on each.
             let f = |p: DVec2| {

@@ -96,6 +96,11 @@ impl LightFrame {
         }
     }
 
+    /// The light's edges in the frame (a [`LightView`]'s `edge_u`, `edge_v`).
+    pub fn edges(&self) -> (DVec3, DVec3) {
+        (self.edge_u, self.edge_v)
+    }
+
     /// Whether this is the frame of `light` (its corner does not enter).
     pub fn is_of(&self, light: &Parallelogram) -> bool {
         self.of == [light.edge_u, light.edge_v, light.normal]

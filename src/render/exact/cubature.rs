@@ -302,7 +302,7 @@ fn rule() -> &'static Rule {
         let mut pw = [[0.0; ORDER]; ORDER];
         let mut pwt = [[0.0; ORDER]; ORDER];
         for i in 0..n {
-            let p = legendre(x[i]);
+            let p = legendre(x[i], ORDER - 1);
             for k in 0..n {
                 pw[k][i] = p[k] * w[i];
                 pwt[i][k] = p[k] * w[i];
@@ -407,8 +407,8 @@ avx2_dispatch!(
     /// coordinates) for k, l ≤ `degree`: Green's theorem's moments of one
     /// straight edge, by the (degree + 1)-point rule (exact: the integrand
     /// is a polynomial of degree 2·degree + 1 along the edge). Entries with
-    /// k > degree are left alone, those with l > degree are not exact: the
-    /// fit is zero there, and they are not read.
+    /// k > degree are left alone, those with l > degree are not taken (the
+    /// fit is zero there, and they are not read).
     fn edge_moments(r: &Rule, degree: usize, p0: DVec2, p1: DVec2, m: &mut [[f64; ORDER]; ORDER]) => edge_moments_generic
 );
 
@@ -430,8 +430,8 @@ fn edge_moments_generic(
     for g in 0..=degree {
         let wg = ws[g] * dy;
         let p = p0 + (p1 - p0) * ts[g];
-        let rk = legendre_integrals(p.x);
-        let pl = legendre(p.y);
+        let rk = legendre_integrals(p.x, degree);
+        let pl = legendre(p.y, degree);
         for k in 0..=degree {
             let s = wg * rk[k];
             // The whole row, a fixed length that vectorizes without a
@@ -458,29 +458,32 @@ const fn recurrence() -> ([f64; ORDER], [f64; ORDER], [f64; ORDER]) {
 }
 const RECURRENCE: ([f64; ORDER], [f64; ORDER], [f64; ORDER]) = recurrence();
 
-/// P_0 … P_ORDER at x.
+/// P_0 … P_top at x (1 ≤ top ≤ ORDER), zeros after: a fit cut to a low
+/// degree needs only the first few of the recurrence's chain.
 #[inline]
-fn legendre_plus(x: f64) -> [f64; ORDER + 1] {
+fn legendre_plus(x: f64, top: usize) -> [f64; ORDER + 1] {
     let (a, b, _) = &RECURRENCE;
     let mut p = [0.0; ORDER + 1];
     p[0] = 1.0;
     p[1] = x;
-    for k in 1..ORDER {
+    for k in 1..top {
         p[k + 1] = a[k] * x * p[k] - b[k] * p[k - 1];
     }
     p
 }
 
+/// P_0 … P_top at x (top < ORDER), zeros after.
 #[inline]
-fn legendre(x: f64) -> [f64; ORDER] {
-    let p = legendre_plus(x);
+fn legendre(x: f64, top: usize) -> [f64; ORDER] {
+    let p = legendre_plus(x, top.max(1));
     std::array::from_fn(|k| p[k])
 }
 
-/// R_k(x) = ∫_{−1}^x P_k for k < ORDER.
+/// R_k(x) = ∫_{−1}^x P_k for k ≤ top (top < ORDER); the entries after
+/// are not.
 #[inline]
-fn legendre_integrals(x: f64) -> [f64; ORDER] {
-    let p = legendre_plus(x);
+fn legendre_integrals(x: f64, top: usize) -> [f64; ORDER] {
+    let p = legendre_plus(x, top + 1);
     std::array::from_fn(|k| {
         if k == 0 {
             x + 1.0

@@ -36,7 +36,7 @@ use std::sync::OnceLock;
 use glam::{DVec2, DVec3};
 
 use super::diffuse::{Outline, outline};
-use super::polygon::{HalfPlane, Pieces, clip_into, edges_of, twice_area};
+use super::polygon::{HalfPlane, Pieces, clip_into, edges_of};
 use crate::render::math::avx2_dispatch;
 
 /// Nodes per axis of a cell (the fit has degree `ORDER − 1`).
@@ -551,7 +551,7 @@ pub fn specular_factor(
     }
     // A lobe whose bound over the light, times the visible share of the
     // light, is below the skip level: the factor is 0 within that bound.
-    let visible: f64 = pieces.iter().map(twice_area).sum::<f64>() * 0.5;
+    let visible = pieces.area();
     let (cos_h, share) = (lobe_bound_cos(lobe), visible.min(1.0));
     // ln x ≥ 1 − 1/x: a lower bound of the logarithms that settles most
     // points (a lobe well above the skip) without taking them.
@@ -569,7 +569,8 @@ pub fn specular_factor(
             .resize_with(MAX_DEPTH as usize + 1, Pieces::default);
     }
     s.levels[0].clone_from(pieces);
-    let total = cell(&Ctx::new(lobe, span), s, 0, DVec2::ZERO, 1.0, &mut report);
+    let ctx = Ctx::new(lobe, span);
+    let total = cell(&ctx, s, 0, DVec2::ZERO, 1.0, visible, &mut report);
     (total, report)
 }
 
@@ -783,17 +784,17 @@ fn whole_cell(ctx: &Ctx, lo: DVec2, size: f64, view: Option<&CellView>) -> Optio
 }
 
 /// ∫ over the visible part of the cell [lo, lo + size]² (its pieces in
-/// `s.levels[depth]`).
+/// `s.levels[depth]`, of area `covered`: the caller has it).
 fn cell(
     ctx: &Ctx,
     s: &mut CubatureScratch,
     depth: u32,
     lo: DVec2,
     size: f64,
+    covered: f64,
     report: &mut CubatureReport,
 ) -> f64 {
     let d = depth as usize;
-    let covered: f64 = s.levels[d].iter().map(twice_area).sum::<f64>() * 0.5;
     if covered <= 0.0 {
         return 0.0;
     }
@@ -909,7 +910,8 @@ fn split_cell(
     for (dx, dy) in [(0.0, 0.0), (half, 0.0), (0.0, half), (half, half)] {
         let child = lo + DVec2::new(dx, dy);
         clip_level(s, depth as usize, child, half);
-        total += cell(ctx, s, depth + 1, child, half, report);
+        let covered = s.levels[depth as usize + 1].area();
+        total += cell(ctx, s, depth + 1, child, half, covered, report);
     }
     total
 }

@@ -580,7 +580,7 @@ fn unit_ring(n: usize) -> std::borrow::Cow<'static, [(f64, f64)]> {
 #[cfg(test)]
 mod tests {
     use super::{CircleFit, LightFrame, LightView, ProjectScratch, box_shadow, sphere_shadow};
-    use crate::render::exact::polygon::{Pieces, Work, twice_area};
+    use crate::render::exact::polygon::{Pieces, Work};
     use crate::render::geometry::{Cuboid, Parallelogram, Sphere};
     use crate::render::rng::Rng;
     use glam::{DVec2, DVec3};
@@ -592,7 +592,7 @@ mod tests {
         if shadow.len() >= 3 {
             p.subtract(shadow, 0.0, &mut Work::default());
         }
-        p.iter().map(twice_area).sum::<f64>() * 0.5
+        p.area()
     }
 
     /// The umbra shortcut agrees with the projected shadows: from points

@@ -36,7 +36,7 @@ use std::sync::OnceLock;
 use glam::{DVec2, DVec3};
 
 use super::diffuse::{Outline, outline};
-use super::polygon::{HalfPlane, Pieces, clip_into, edges_of, twice_area};
+use super::polygon::{HalfPlane, Pieces, clip_into, edges_of};
 use crate::render::math::avx2_dispatch;
 
 /// Nodes per axis of a cell (the fit has degree `ORDER − 1`).
@@ -302,7 +302,7 @@ fn rule() -> &'static Rule {
         let mut pw = [[0.0; ORDER]; ORDER];
         let mut pwt = [[0.0; ORDER]; ORDER];
         for i in 0..n {
-            let p = legendre(x[i]);
+            let p = legendre(x[i], ORDER - 1);
             for k in 0..n {
                 pw[k][i] = p[k] * w[i];
                 pwt[i][k] = p[k] * w[i];
@@ -407,8 +407,8 @@ avx2_dispatch!(
     /// coordinates) for k, l ≤ `degree`: Green's theorem's moments of one
     /// straight edge, by the (degree + 1)-point rule (exact: the integrand
     /// is a polynomial of degree 2·degree + 1 along the edge). Entries with
-    /// k > degree are left alone, those with l > degree are not exact: the
-    /// fit is zero there, and they are not read.
+    /// k > degree are left alone, those with l > degree are not taken (the
+    /// fit is zero there, and they are not read).
     fn edge_moments(r: &Rule, degree: usize, p0: DVec2, p1: DVec2, m: &mut [[f64; ORDER]; ORDER]) => edge_moments_generic
 );
 
@@ -430,8 +430,8 @@ fn edge_moments_generic(
     for g in 0..=degree {
         let wg = ws[g] * dy;
         let p = p0 + (p1 - p0) * ts[g];
-        let rk = legendre_integrals(p.x);
-        let pl = legendre(p.y);
+        let rk = legendre_integrals(p.x, degree);
+        let pl = legendre(p.y, degree);
         for k in 0..=degree {
             let s = wg * rk[k];
             // The whole row, a fixed length that vectorizes without a
@@ -458,29 +458,32 @@ const fn recurrence() -> ([f64; ORDER], [f64; ORDER], [f64; ORDER]) {
 }
 const RECURRENCE: ([f64; ORDER], [f64; ORDER], [f64; ORDER]) = recurrence();
 
-/// P_0 … P_ORDER at x.
+/// P_0 … P_top at x (1 ≤ top ≤ ORDER), zeros after: a fit cut to a low
+/// degree needs only the first few of the recurrence's chain.
 #[inline]
-fn legendre_plus(x: f64) -> [f64; ORDER + 1] {
+fn legendre_plus(x: f64, top: usize) -> [f64; ORDER + 1] {
     let (a, b, _) = &RECURRENCE;
     let mut p = [0.0; ORDER + 1];
     p[0] = 1.0;
     p[1] = x;
-    for k in 1..ORDER {
+    for k in 1..top {
         p[k + 1] = a[k] * x * p[k] - b[k] * p[k - 1];
     }
     p
 }
 
+/// P_0 … P_top at x (top < ORDER), zeros after.
 #[inline]
-fn legendre(x: f64) -> [f64; ORDER] {
-    let p = legendre_plus(x);
+fn legendre(x: f64, top: usize) -> [f64; ORDER] {
+    let p = legendre_plus(x, top.max(1));
     std::array::from_fn(|k| p[k])
 }
 
-/// R_k(x) = ∫_{−1}^x P_k for k < ORDER.
+/// R_k(x) = ∫_{−1}^x P_k for k ≤ top (top < ORDER); the entries after
+/// are not.
 #[inline]
-fn legendre_integrals(x: f64) -> [f64; ORDER] {
-    let p = legendre_plus(x);
+fn legendre_integrals(x: f64, top: usize) -> [f64; ORDER] {
+    let p = legendre_plus(x, top + 1);
     std::array::from_fn(|k| {
         if k == 0 {
             x + 1.0
@@ -509,10 +512,36 @@ pub struct CubatureReport {
     pub error: f64,
 }
 
+/// What the cubature's gates take of the light's shape alone: the same
+/// from every point, so kept with the light's frame.
+#[derive(Debug, Clone, Copy)]
+pub struct LightSpan {
+    /// The longer edge.
+    side: f64,
+    /// The half-sum of the edges (see [`Ctx`]).
+    reach: f64,
+    /// The unit normal of the light's plane (the point's height along it).
+    normal: DVec3,
+}
+
+impl LightSpan {
+    /// The span of the light with edges `edge_u`, `edge_v` (those of the
+    /// [`Lobe`]s it is used with).
+    pub fn new(edge_u: DVec3, edge_v: DVec3) -> LightSpan {
+        LightSpan {
+            side: edge_u.length().max(edge_v.length()),
+            reach: 0.5 * (edge_u.length() + edge_v.length()),
+            normal: edge_u.cross(edge_v).normalize_or_zero(),
+        }
+    }
+}
+
 /// ∫ f da db over the pieces (in the light's (a, b) coordinates, inside
-/// the unit square): the specular factor of the visible region.
+/// the unit square): the specular factor of the visible region. `span`:
+/// [`LightSpan::new`] of the lobe's light.
 pub fn specular_factor(
     lobe: &Lobe,
+    span: &LightSpan,
     pieces: &Pieces,
     s: &mut CubatureScratch,
 ) -> (f64, CubatureReport) {
@@ -522,7 +551,7 @@ pub fn specular_factor(
     }
     // A lobe whose bound over the light, times the visible share of the
     // light, is below the skip level: the factor is 0 within that bound.
-    let visible: f64 = pieces.iter().map(twice_area).sum::<f64>() * 0.5;
+    let visible = pieces.area();
     let (cos_h, share) = (lobe_bound_cos(lobe), visible.min(1.0));
     // ln x ≥ 1 − 1/x: a lower bound of the logarithms that settles most
     // points (a lobe well above the skip) without taking them.
@@ -540,7 +569,8 @@ pub fn specular_factor(
             .resize_with(MAX_DEPTH as usize + 1, Pieces::default);
     }
     s.levels[0].clone_from(pieces);
-    let total = cell(&Ctx::new(lobe), s, 0, DVec2::ZERO, 1.0, &mut report);
+    let ctx = Ctx::new(lobe, span);
+    let total = cell(&ctx, s, 0, DVec2::ZERO, 1.0, visible, &mut report);
     (total, report)
 }
 
@@ -628,7 +658,7 @@ struct Ctx<'a> {
 }
 
 impl Ctx<'_> {
-    fn new(lobe: &Lobe) -> Ctx<'_> {
+    fn new<'a>(lobe: &'a Lobe, span: &LightSpan) -> Ctx<'a> {
         // The lobe's width in L (cos^s θ_H ≈ exp(−s θ_H²/2), θ_L ≈ 2 θ_H)
         // and the mirror direction, where it peaks.
         let mirror = lobe.n * (2.0 * lobe.n.dot(lobe.v)) - lobe.v;
@@ -643,12 +673,9 @@ impl Ctx<'_> {
             width,
             narrow: width * lobe.n.dot(lobe.v).clamp(NARROWEST, 1.0),
             mirror: mirror.normalize_or_zero(),
-            side: lobe.edge_u.length().max(lobe.edge_v.length()),
-            reach: 0.5 * (lobe.edge_u.length() + lobe.edge_v.length()),
-            height: lobe
-                .corner
-                .dot(lobe.edge_u.cross(lobe.edge_v).normalize_or_zero())
-                .abs(),
+            side: span.side,
+            reach: span.reach,
+            height: lobe.corner.dot(span.normal).abs(),
         }
     }
 }
@@ -757,17 +784,17 @@ fn whole_cell(ctx: &Ctx, lo: DVec2, size: f64, view: Option<&CellView>) -> Optio
 }
 
 /// ∫ over the visible part of the cell [lo, lo + size]² (its pieces in
-/// `s.levels[depth]`).
+/// `s.levels[depth]`, of area `covered`: the caller has it).
 fn cell(
     ctx: &Ctx,
     s: &mut CubatureScratch,
     depth: u32,
     lo: DVec2,
     size: f64,
+    covered: f64,
     report: &mut CubatureReport,
 ) -> f64 {
     let d = depth as usize;
-    let covered: f64 = s.levels[d].iter().map(twice_area).sum::<f64>() * 0.5;
     if covered <= 0.0 {
         return 0.0;
     }
@@ -779,8 +806,13 @@ fn cell(
         report.error += estimate;
         return value;
     }
-    let r = rule();
     let half = 0.5 * size;
+    // A cell too coarse for the lobe splits whatever its fit's estimate:
+    // no fit to take.
+    if view.as_ref().is_some_and(|v| v.lobe_unresolved(ORDER)) {
+        return split_cell(ctx, s, depth, lo, half, report);
+    }
+    let r = rule();
     let lobe = ctx.lobe;
 
     // The tensor nodes from the ORDER coordinates of each axis.
@@ -797,15 +829,8 @@ fn cell(
     fit_rows(r, &nf, &mut t);
     let tail = tail_estimate(r, &t);
 
-    let split = view.is_some_and(|v| tail > TOLERANCE || v.lobe_unresolved(ORDER));
-    if split {
-        let mut total = 0.0;
-        for (dx, dy) in [(0.0, 0.0), (half, 0.0), (0.0, half), (half, half)] {
-            let child = lo + DVec2::new(dx, dy);
-            clip_level(s, d, child, half);
-            total += cell(ctx, s, depth + 1, child, half, report);
-        }
-        return total;
+    if view.is_some() && tail > TOLERANCE {
+        return split_cell(ctx, s, depth, lo, half, report);
     }
     let jac = half * half;
     if full {
@@ -871,6 +896,26 @@ fn cell(
     total * jac
 }
 
+/// ∫ over the visible part of the cell at `lo` as the sum of its four
+/// quarters (side `half`).
+fn split_cell(
+    ctx: &Ctx,
+    s: &mut CubatureScratch,
+    depth: u32,
+    lo: DVec2,
+    half: f64,
+    report: &mut CubatureReport,
+) -> f64 {
+    let mut total = 0.0;
+    for (dx, dy) in [(0.0, 0.0), (half, 0.0), (0.0, half), (half, half)] {
+        let child = lo + DVec2::new(dx, dy);
+        clip_level(s, depth as usize, child, half);
+        let covered = s.levels[depth as usize + 1].area();
+        total += cell(ctx, s, depth + 1, child, half, covered, report);
+    }
+    total
+}
+
 /// The pieces of level `d` clipped to the cell [lo, lo + size]², into
 /// level d + 1.
 fn clip_level(s: &mut CubatureScratch, d: usize, lo: DVec2, size: f64) {
@@ -921,8 +966,8 @@ fn clip_level(s: &mut CubatureScratch, d: usize, lo: DVec2, size: f64) {
 #[cfg(test)]
 mod tests {
     use super::{
-        CellView, Ctx, Lobe, MAX_DEPTH, NODES, TOLERANCE, bound_ln, lobe_at_nodes, lobe_bound_cos,
-        pow_one_minus, whole_cell,
+        CellView, Ctx, LightSpan, Lobe, MAX_DEPTH, NODES, TOLERANCE, bound_ln, lobe_at_nodes,
+        lobe_bound_cos, pow_one_minus, whole_cell,
     };
     use crate::render::rng::Rng;
     use glam::{DVec2, DVec3};
@@ -1129,7 +1174,7 @@ mod tests {
                 continue;
             }
             tried += 1;
-            let ctx = Ctx::new(&lobe);
+            let ctx = Ctx::new(&lobe, &LightSpan::new(lobe.edge_u, lobe.edge_v));
             let view = (depth < MAX_DEPTH).then(|| CellView::new(&ctx, lo, size));
             let Some((value, estimate)) = whole_cell(&ctx, lo, size, view.as_ref()) else {
                 continue;
@@ -1227,7 +1272,12 @@ mod tests {
             }
             let mut pieces = Pieces::default();
             pieces.push(&poly, 0.0);
-            let (value, report) = specular_factor(&lobe, &pieces, &mut scratch);
+            let (value, report) = specular_factor(
+                &lobe,
+                &LightSpan::new(lobe.edge_u, lobe.edge_v),
+                &pieces,
+                &mut scratch,
+            );
             // Dense: each fan triangle split in 4⁵ by its midpoints, 12²
             // collapsed-square Gauss points on each.
             let f = |p: DVec2| {

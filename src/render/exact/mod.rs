@@ -56,7 +56,7 @@ pub use visible::{
 };
 
 use conic::{ArcScratch, ConicShadow};
-use cubature::{CubatureScratch, Lobe, specular_factor};
+use cubature::{CubatureScratch, LightSpan, Lobe, specular_factor};
 use diffuse::{Outline, diffuse_over_pieces};
 use polygon::{HalfPlane, Pieces};
 use projection::{LightFrame, LightView};
@@ -102,8 +102,8 @@ pub struct ExactFactors {
 /// Scratch of the exact model (one per thread, kept warm).
 #[derive(Debug, Default)]
 pub struct ExactScratch {
-    /// The frame of the last light seen.
-    frame: Option<LightFrame>,
+    /// The frame of the last light seen, and its span for the cubature.
+    frame: Option<(LightFrame, LightSpan)>,
     /// The objects that may block a shadow ray from each small cube of
     /// space (the shadow rays' own lists, kept here for the exact model).
     cells: OccluderCells,
@@ -160,9 +160,14 @@ pub fn exact_factors(
     s: &mut ExactScratch,
 ) -> Result<ExactFactors, Fallback> {
     let light = &scene.light.shape;
-    let frame = match &s.frame {
-        Some(f) if f.is_of(light) => f,
-        _ => s.frame.insert(LightFrame::new(light)),
+    let (frame, span) = match &s.frame {
+        Some((f, span)) if f.is_of(light) => (f, *span),
+        _ => {
+            let f = LightFrame::new(light);
+            let (edge_u, edge_v) = f.edges();
+            let (f, span) = s.frame.insert((f, LightSpan::new(edge_u, edge_v)));
+            (&*f, *span)
+        }
     };
     let Some(view) = LightView::new(light, frame, p.shadow_point) else {
         return Ok(ExactFactors::default());
@@ -242,7 +247,7 @@ pub fn exact_factors(
             edge_u: view.edge_u,
             edge_v: view.edge_v,
         };
-        let (value, report) = specular_factor(&lobe, &s.ab, &mut s.cubature);
+        let (value, report) = specular_factor(&lobe, &span, &s.ab, &mut s.cubature);
         out.specular = value.clamp(0.0, 1.0);
         out.cubature = report;
     }

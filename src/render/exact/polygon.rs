@@ -144,6 +144,11 @@ impl Pieces {
         (0..self.len()).map(|i| self.piece(i))
     }
 
+    /// The pieces' total area.
+    pub fn area(&self) -> f64 {
+        self.iter().map(twice_area).sum::<f64>() * 0.5
+    }
+
     /// Adds a piece, unless it is too thin to matter (`min_area`: twice
     /// the area below which a sliver of rounding is dropped).
     pub fn push(&mut self, poly: &[DVec2], min_area: f64) {

@@ -96,6 +96,11 @@ impl LightFrame {
         }
     }
 
+    /// The light's edges in the frame (a [`LightView`]'s `edge_u`, `edge_v`).
+    pub fn edges(&self) -> (DVec3, DVec3) {
+        (self.edge_u, self.edge_v)
+    }
+
     /// Whether this is the frame of `light` (its corner does not enter).
     pub fn is_of(&self, light: &Parallelogram) -> bool {
         self.of == [light.edge_u, light.edge_v, light.normal]
@@ -575,7 +580,7 @@ fn unit_ring(n: usize) -> std::borrow::Cow<'static, [(f64, f64)]> {
 #[cfg(test)]
 mod tests {
     use super::{CircleFit, LightFrame, LightView, ProjectScratch, box_shadow, sphere_shadow};
-    use crate::render::exact::polygon::{Pieces, Work, twice_area};
+    use crate::render::exact::polygon::{Pieces, Work};
     use crate::render::geometry::{Cuboid, Parallelogram, Sphere};
     use crate::render::rng::Rng;
     use glam::{DVec2, DVec3};
@@ -587,7 +592,7 @@ mod tests {
         if shadow.len() >= 3 {
             p.subtract(shadow, 0.0, &mut Work::default());
         }
-        p.iter().map(twice_area).sum::<f64>() * 0.5
+        p.area()
     }
 
     /// The umbra shortcut agrees with the projected shadows: from points

@@ -184,7 +184,9 @@ impl Occluder {
                     vis[j] = if dist * end < 0.0 { 0.0 } else { vis[j] };
                 }
             }
-            Occluder::Triangle(t) => {
+            // Borrowed: a copy would put the vertices the f64 recheck reads
+            // on the stack, and the f32 fields read back from that copy.
+            Occluder::Triangle(ref t) => {
                 // Unsure rays (within rounding of an edge) are left to a
                 // second, scalar pass: rare, and kept out of the vector loop.
                 let mut unsure = false;

@@ -5,7 +5,7 @@ use std::sync::OnceLock;
 
 use glam::Vec3;
 
-use super::math::srgb_to_linear;
+use super::math::{map_in_large_pages, srgb_to_linear};
 
 /// A linear RGB image, row-major from the top-left pixel.
 #[derive(Debug, Clone, PartialEq)]
@@ -17,10 +17,16 @@ pub struct Film {
 
 impl Film {
     pub fn new(width: u32, height: u32) -> Film {
+        let n = width as usize * height as usize;
+        let mut pixels = Vec::with_capacity(n);
+        // Advised before the zeros are written: their writes are the
+        // pages' first touch.
+        map_in_large_pages(pixels.spare_capacity_mut());
+        pixels.resize(n, Vec3::ZERO);
         Film {
             width,
             height,
-            pixels: vec![Vec3::ZERO; width as usize * height as usize],
+            pixels,
         }
     }
 

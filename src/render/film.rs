@@ -261,6 +261,20 @@ pub fn decode_channel(c: u8) -> f32 {
 mod tests {
     use super::*;
 
+    /// A film large enough to be mapped in large pages starts black, every
+    /// pixel of it, and keeps what a block writes: the advice changes how
+    /// its memory is mapped, not what it holds.
+    #[test]
+    fn a_full_hd_film_starts_black_and_keeps_its_blocks() {
+        let mut film = Film::new(1920, 1080);
+        assert_eq!(film.pixels.len(), 1920 * 1080);
+        assert!(film.pixels.iter().all(|&p| p == Vec3::ZERO));
+        let block = vec![Vec3::new(0.25, 0.5, 1.0); 32 * 32];
+        film.write_block(1888, 1048, 32, &block);
+        assert_eq!(film.get(1919, 1079), Vec3::new(0.25, 0.5, 1.0));
+        assert_eq!(film.get(1887, 1079), Vec3::ZERO);
+    }
+
     /// The code by a binary search over the thresholds (the definition).
     fn by_search(x: f32) -> u8 {
         encoder().thresholds.partition_point(|&v| v <= x) as u8

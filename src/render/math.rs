@@ -264,6 +264,8 @@ pub fn gauss_legendre(n: usize) -> Vec<(f64, f64)> {
 /// advised, 0.9 ms and 3.5 ms. Advice only: a kernel without either leaves
 /// the pages to be faulted in as before.
 pub fn map_in_large_pages<T>(block: &mut [T]) {
+    #[cfg(not(target_os = "linux"))]
+    let _ = block;
     #[cfg(target_os = "linux")]
     {
         const PAGE: usize = 4096;

@@ -5,7 +5,7 @@ use std::sync::OnceLock;
 
 use glam::Vec3;
 
-use super::math::srgb_to_linear;
+use super::math::{map_in_large_pages, srgb_to_linear};
 
 /// A linear RGB image, row-major from the top-left pixel.
 #[derive(Debug, Clone, PartialEq)]
@@ -17,10 +17,16 @@ pub struct Film {
 
 impl Film {
     pub fn new(width: u32, height: u32) -> Film {
+        let n = width as usize * height as usize;
+        let mut pixels = Vec::with_capacity(n);
+        // Advised before the zeros are written: their writes are the
+        // pages' first touch.
+        map_in_large_pages(pixels.spare_capacity_mut());
+        pixels.resize(n, Vec3::ZERO);
         Film {
             width,
             height,
-            pixels: vec![Vec3::ZERO; width as usize * height as usize],
+            pixels,
         }
     }
 
@@ -254,6 +260,20 @@ pub fn decode_channel(c: u8) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A film large enough to be mapped in large pages starts black, every
+    /// pixel of it, and keeps what a block writes: the advice changes how
+    /// its memory is mapped, not what it holds.
+    #[test]
+    fn a_full_hd_film_starts_black_and_keeps_its_blocks() {
+        let mut film = Film::new(1920, 1080);
+        assert_eq!(film.pixels.len(), 1920 * 1080);
+        assert!(film.pixels.iter().all(|&p| p == Vec3::ZERO));
+        let block = vec![Vec3::new(0.25, 0.5, 1.0); 32 * 32];
+        film.write_block(1888, 1048, 32, &block);
+        assert_eq!(film.get(1919, 1079), Vec3::new(0.25, 0.5, 1.0));
+        assert_eq!(film.get(1887, 1079), Vec3::ZERO);
+    }
 
     /// The code by a binary search over the thresholds (the definition).
     fn by_search(x: f32) -> u8 {

@@ -256,6 +256,38 @@ pub fn gauss_legendre(n: usize) -> Vec<(f64, f64)> {
         .collect()
 }
 
+/// Maps in `block` (a fresh allocation, not yet written) in one go, with
+/// 2 MiB pages where it spans them. Page by page, each 4 KiB page's first
+/// write is a fault, several microseconds in a virtual machine: a film's
+/// block is mapped anew for every render (see [`release_free_memory`]),
+/// and its faults took 3.9 ms of every 960×540 render, 15 ms at 1920×1080;
+/// advised, 0.9 ms and 3.5 ms. Advice only: a kernel without either leaves
+/// the pages to be faulted in as before.
+pub fn map_in_large_pages<T>(block: &mut [T]) {
+    #[cfg(not(target_os = "linux"))]
+    let _ = block;
+    #[cfg(target_os = "linux")]
+    {
+        const PAGE: usize = 4096;
+        const HUGE_PAGE: usize = 2 << 20;
+        let bytes = std::mem::size_of_val(block);
+        if bytes < HUGE_PAGE {
+            return;
+        }
+        // madvise takes whole pages: those inside the block.
+        let start = (block.as_mut_ptr() as usize).next_multiple_of(PAGE);
+        let end = (block.as_mut_ptr() as usize + bytes) / PAGE * PAGE;
+        for advice in [libc::MADV_HUGEPAGE, libc::MADV_POPULATE_WRITE] {
+            // SAFETY: the range lies inside `block`, which this borrow
+            // owns; both advices change how its pages are backed and when
+            // they are mapped, never what they hold (not yet written).
+            unsafe {
+                libc::madvise(start as *mut libc::c_void, end - start, advice);
+            }
+        }
+    }
+}
+
 /// Hands memory freed by a large build back to the system. glibc raises
 /// its threshold for mapping blocks of their own after each large block is
 /// freed, up to 32 MiB, and keeps what is freed below it in its per-thread

@@ -71,35 +71,62 @@ impl Lobe {
 const NODES: usize = ORDER * ORDER;
 
 avx2_dispatch!(
-    /// The integrand at the light points (a\[j\], b\[j\]), in f32 lanes
-    /// (twice as many per instruction as f64), written for the vectorizer
-    /// like the `sampled` model's loops. The rounding that matters is kept
-    /// small: cos²θ_H is taken as 1 − sin²θ_H with sin²θ_H = |N × H|²/|H|²,
-    /// accurate relative to itself where the lobe peaks (1 − cos² in f32
-    /// would lose its digits there), and raised to s/2 by
-    /// [`pow_one_minus`]. What remains is the f32 direction's rounding,
-    /// amplified by the shininess: values within 5e-6 of the f64 lobe up to
-    /// shininess 2000 (tested), below the cubature's tolerance.
-    fn lobe_at_nodes(l: &Lobe, a: &[f64; NODES], b: &[f64; NODES], out: &mut [f64; NODES])
-        => lobe_at_nodes_generic
-);
-
-avx2_dispatch!(
-    /// [`lobe_at_nodes`] at the nodes of the nested rules of a whole cell.
-    fn lobe_at_nested_nodes(l: &Lobe, a: &[f64; CHUNK], b: &[f64; CHUNK], out: &mut [f64; CHUNK])
-        => lobe_at_nodes_generic
+    /// The integrand at a fitted cell's tensor nodes (xs\[i\], ys\[j\])
+    /// into `out[i * ORDER + j]`, the nodes spread inside the kernel (no
+    /// 64-node coordinate arrays built and zeroed outside it).
+    fn lobe_at_tensor_nodes(l: &Lobe, xs: &[f64; ORDER], ys: &[f64; ORDER], out: &mut [f64; NODES])
+        => lobe_at_tensor_nodes_generic
 );
 
 #[inline(always)]
-fn lobe_at_nodes_generic<const M: usize>(l: &Lobe, a: &[f64; M], b: &[f64; M], out: &mut [f64; M]) {
+fn lobe_at_tensor_nodes_generic(
+    l: &Lobe,
+    xs: &[f64; ORDER],
+    ys: &[f64; ORDER],
+    out: &mut [f64; NODES],
+) {
+    let a: [f32; NODES] = std::array::from_fn(|k| xs[k / ORDER] as f32);
+    let b: [f32; NODES] = std::array::from_fn(|k| ys[k % ORDER] as f32);
+    lobe_f32(l, &a, &b, out);
+}
+
+avx2_dispatch!(
+    /// The integrand at `CHUNK` nodes of the nested rules of the cell
+    /// [lo, lo + size]², at (lo.x + x\[j\] size, lo.y + y\[j\] size): the
+    /// coordinates in the kernel's lanes too.
+    fn lobe_at_nested_nodes(l: &Lobe, lo: DVec2, size: f64, x: &[f64; CHUNK], y: &[f64; CHUNK], out: &mut [f64; CHUNK])
+        => lobe_at_nested_nodes_generic
+);
+
+#[inline(always)]
+fn lobe_at_nested_nodes_generic(
+    l: &Lobe,
+    lo: DVec2,
+    size: f64,
+    x: &[f64; CHUNK],
+    y: &[f64; CHUNK],
+    out: &mut [f64; CHUNK],
+) {
+    let a: [f32; CHUNK] = std::array::from_fn(|j| (lo.x + x[j] * size) as f32);
+    let b: [f32; CHUNK] = std::array::from_fn(|j| (lo.y + y[j] * size) as f32);
+    lobe_f32(l, &a, &b, out);
+}
+
+/// The integrand at the light points (a\[j\], b\[j\]), in f32 lanes
+/// (twice as many per instruction as f64), written for the vectorizer
+/// like the `sampled` model's loops. The rounding that matters is kept
+/// small: cos²θ_H is taken as 1 − sin²θ_H with sin²θ_H = |N × H|²/|H|²,
+/// accurate relative to itself where the lobe peaks (1 − cos² in f32
+/// would lose its digits there), and raised to s/2 by
+/// [`pow_one_minus`]. What remains is the f32 direction's rounding,
+/// amplified by the shininess: values within 5e-6 of the f64 lobe up to
+/// shininess 2000 (tested), below the cubature's tolerance.
+#[inline(always)]
+fn lobe_f32<const M: usize>(l: &Lobe, af: &[f32; M], bf: &[f32; M], out: &mut [f64; M]) {
     let (c, u, w) = (l.corner.as_vec3(), l.edge_u.as_vec3(), l.edge_v.as_vec3());
     let (n, v) = (l.n.as_vec3(), l.v.as_vec3());
     let half_s = (0.5 * l.shininess) as f32;
-    let (mut af, mut bf, mut of) = ([0f32; M], [0f32; M], [0f32; M]);
-    for j in 0..M {
-        af[j] = a[j] as f32;
-        bf[j] = b[j] as f32;
-    }
+    let mut of = [0f32; M];
     for j in 0..M {
         let x = c.x + u.x * af[j] + w.x * bf[j];
         let y = c.y + u.y * af[j] + w.y * bf[j];
@@ -239,10 +266,10 @@ fn nested_cell(lobe: &Lobe, lo: DVec2, size: f64, coarse: bool) -> Option<(f64, 
     for (k, &end) in r.ends.iter().enumerate() {
         while evaluated < end {
             let chunk = evaluated..evaluated + CHUNK;
-            let a: [f64; CHUNK] = std::array::from_fn(|i| lo.x + r.x[chunk.start + i] * size);
-            let b: [f64; CHUNK] = std::array::from_fn(|i| lo.y + r.y[chunk.start + i] * size);
-            let out: &mut [f64; CHUNK] = (&mut f[chunk]).try_into().expect("a chunk");
-            lobe_at_nested_nodes(lobe, &a, &b, out);
+            let x = r.x[chunk.clone()].try_into().expect("a chunk");
+            let y = r.y[chunk.clone()].try_into().expect("a chunk");
+            let out = (&mut f[chunk]).try_into().expect("a chunk");
+            lobe_at_nested_nodes(lobe, lo, size, x, y, out);
             evaluated += CHUNK;
         }
         let q: f64 = (start..end).map(|i| r.w[i] * f[i]).sum();
@@ -818,12 +845,8 @@ fn cell(
     // The tensor nodes from the ORDER coordinates of each axis.
     let xs: [f64; ORDER] = std::array::from_fn(|i| lo.x + (r.x[i] + 1.0) * half);
     let ys: [f64; ORDER] = std::array::from_fn(|j| lo.y + (r.x[j] + 1.0) * half);
-    let (mut na, mut nb, mut nf) = ([0.0; NODES], [0.0; NODES], [0.0; NODES]);
-    for (i, &x) in xs.iter().enumerate() {
-        na[i * ORDER..(i + 1) * ORDER].fill(x);
-        nb[i * ORDER..(i + 1) * ORDER].copy_from_slice(&ys);
-    }
-    lobe_at_nodes(lobe, &na, &nb, &mut nf);
+    let mut nf = [0.0; NODES];
+    lobe_at_tensor_nodes(lobe, &xs, &ys, &mut nf);
     report.cells += 1;
     let mut t = [[0.0; ORDER]; ORDER];
     fit_rows(r, &nf, &mut t);
@@ -966,7 +989,7 @@ fn clip_level(s: &mut CubatureScratch, d: usize, lo: DVec2, size: f64) {
 #[cfg(test)]
 mod tests {
     use super::{
-        CellView, Ctx, LightSpan, Lobe, MAX_DEPTH, NODES, TOLERANCE, bound_ln, lobe_at_nodes,
+        CHUNK, CellView, Ctx, LightSpan, Lobe, MAX_DEPTH, TOLERANCE, bound_ln, lobe_at_nested_nodes,
         lobe_bound_cos, pow_one_minus, whole_cell,
     };
     use crate::render::rng::Rng;
@@ -1077,7 +1100,7 @@ mod tests {
         let mut rng = Rng::new(2);
         let mut next = || rng.next_f64();
         let mut worst: f64 = 0.0;
-        for case in 0..300 {
+        for case in 0..1200 {
             let n = DVec3::new(next() - 0.5, 1.0, next() - 0.5).normalize();
             // Views near the mirror direction of the light's centre too, so
             // that narrow lobes peak on it.
@@ -1095,11 +1118,12 @@ mod tests {
                 edge_u: DVec3::new(2.0, 0.0, 0.0),
                 edge_v: DVec3::new(0.0, 0.0, 2.0),
             };
-            let a: [f64; NODES] = std::array::from_fn(|_| next());
-            let b: [f64; NODES] = std::array::from_fn(|_| next());
-            let mut got = [0.0; NODES];
-            lobe_at_nodes(&lobe, &a, &b, &mut got);
-            for j in 0..NODES {
+            let a: [f64; CHUNK] = std::array::from_fn(|_| next());
+            let b: [f64; CHUNK] = std::array::from_fn(|_| next());
+            let mut got = [0.0; CHUNK];
+            // The unit cell: the nodes are (a, b) themselves.
+            lobe_at_nested_nodes(&lobe, DVec2::ZERO, 1.0, &a, &b, &mut got);
+            for j in 0..CHUNK {
                 let l = lobe.direction(a[j], b[j]).normalize();
                 let h = (l + v).normalize_or_zero();
                 let want = n.dot(h).max(0.0).powf(shininess);

@@ -37,7 +37,7 @@ use glam::{DVec2, DVec3};
 
 use super::diffuse::{Outline, outline};
 use super::polygon::{HalfPlane, Pieces, clip_into, edges_of};
-use crate::render::math::avx2_dispatch;
+use crate::render::math::{avx2_dispatch, avx512_dispatch};
 
 /// Nodes per axis of a cell (the fit has degree `ORDER − 1`).
 const ORDER: usize = 8;
@@ -70,11 +70,19 @@ impl Lobe {
 /// Nodes of a cell.
 const NODES: usize = ORDER * ORDER;
 
-avx2_dispatch!(
+avx512_dispatch!(
     /// The integrand at a fitted cell's tensor nodes (xs\[i\], ys\[j\])
     /// into `out[i * ORDER + j]`, the nodes spread inside the kernel (no
-    /// 64-node coordinate arrays built and zeroed outside it).
+    /// 64-node coordinate arrays built and zeroed outside it). Sixteen
+    /// lanes where the CPU has them (the same operations lane by lane, so
+    /// the same bits).
     fn lobe_at_tensor_nodes(l: &Lobe, xs: &[f64; ORDER], ys: &[f64; ORDER], out: &mut [f64; NODES])
+        => lobe_at_tensor_nodes_generic if true, else lobe_at_tensor_nodes_avx2
+);
+
+avx2_dispatch!(
+    /// [`lobe_at_tensor_nodes`] on eight lanes.
+    fn lobe_at_tensor_nodes_avx2(l: &Lobe, xs: &[f64; ORDER], ys: &[f64; ORDER], out: &mut [f64; NODES])
         => lobe_at_tensor_nodes_generic
 );
 
@@ -90,11 +98,18 @@ fn lobe_at_tensor_nodes_generic(
     lobe_f32(l, &a, &b, out);
 }
 
-avx2_dispatch!(
+avx512_dispatch!(
     /// The integrand at `CHUNK` nodes of the nested rules of the cell
     /// [lo, lo + size]², at (lo.x + x\[j\] size, lo.y + y\[j\] size): the
-    /// coordinates in the kernel's lanes too.
+    /// coordinates in the kernel's lanes too. Sixteen lanes where the CPU
+    /// has them, as [`lobe_at_tensor_nodes`].
     fn lobe_at_nested_nodes(l: &Lobe, lo: DVec2, size: f64, x: &[f64; CHUNK], y: &[f64; CHUNK], out: &mut [f64; CHUNK])
+        => lobe_at_nested_nodes_generic if true, else lobe_at_nested_nodes_avx2
+);
+
+avx2_dispatch!(
+    /// [`lobe_at_nested_nodes`] on eight lanes.
+    fn lobe_at_nested_nodes_avx2(l: &Lobe, lo: DVec2, size: f64, x: &[f64; CHUNK], y: &[f64; CHUNK], out: &mut [f64; CHUNK])
         => lobe_at_nested_nodes_generic
 );
 

@@ -364,12 +364,17 @@ fn rule() -> &'static Rule {
     })
 }
 
-avx2_dispatch!(
+avx512_dispatch!(
     /// The first half of the fit: `t[i][l] = Σ_j f[i][j] P_l(x_j) w_j`
     /// (x along a, y along b), an 8×8 matrix product written row by row so
     /// that it vectorizes. [`coefficients`], [`tail_estimate`] and
     /// [`node_sum`] finish what each cell needs of it.
-    fn fit_rows(r: &Rule, f: &[f64; NODES], t: &mut [[f64; ORDER]; ORDER]) => fit_rows_generic
+    fn fit_rows(r: &Rule, f: &[f64; NODES], t: &mut [[f64; ORDER]; ORDER]) => fit_rows_generic if true, else fit_rows_avx2
+);
+
+avx2_dispatch!(
+    /// [`fit_rows`] on AVX2.
+    fn fit_rows_avx2(r: &Rule, f: &[f64; NODES], t: &mut [[f64; ORDER]; ORDER]) => fit_rows_generic
 );
 
 // Tensor nodes and coefficients: index loops read best.
@@ -387,9 +392,14 @@ fn fit_rows_generic(r: &Rule, f: &[f64; NODES], t: &mut [[f64; ORDER]; ORDER]) {
     }
 }
 
-avx2_dispatch!(
+avx512_dispatch!(
     /// The fit's coefficients `c[k][l] = norm Σ_i P_k(x_i) w_i t[i][l]`.
-    fn coefficients(r: &Rule, t: &[[f64; ORDER]; ORDER], c: &mut [[f64; ORDER]; ORDER]) => coefficients_generic
+    fn coefficients(r: &Rule, t: &[[f64; ORDER]; ORDER], c: &mut [[f64; ORDER]; ORDER]) => coefficients_generic if true, else coefficients_avx2
+);
+
+avx2_dispatch!(
+    /// [`coefficients`] on AVX2.
+    fn coefficients_avx2(r: &Rule, t: &[[f64; ORDER]; ORDER], c: &mut [[f64; ORDER]; ORDER]) => coefficients_generic
 );
 
 #[allow(clippy::needless_range_loop)]
@@ -444,14 +454,19 @@ fn node_sum(r: &Rule, t: &[[f64; ORDER]; ORDER]) -> f64 {
     s * r.norm[0][0]
 }
 
-avx2_dispatch!(
+avx512_dispatch!(
     /// m\[k\]\[l\] += ∮ R_k(x) P_l(y) dy along the edge p0 → p1 (cell
     /// coordinates) for k, l ≤ `degree`: Green's theorem's moments of one
     /// straight edge, by the (degree + 1)-point rule (exact: the integrand
     /// is a polynomial of degree 2·degree + 1 along the edge). Entries with
     /// k > degree are left alone, those with l > degree are not taken (the
     /// fit is zero there, and they are not read).
-    fn edge_moments(r: &Rule, degree: usize, p0: DVec2, p1: DVec2, m: &mut [[f64; ORDER]; ORDER]) => edge_moments_generic
+    fn edge_moments(r: &Rule, degree: usize, p0: DVec2, p1: DVec2, m: &mut [[f64; ORDER]; ORDER]) => edge_moments_generic if true, else edge_moments_avx2
+);
+
+avx2_dispatch!(
+    /// [`edge_moments`] on AVX2.
+    fn edge_moments_avx2(r: &Rule, degree: usize, p0: DVec2, p1: DVec2, m: &mut [[f64; ORDER]; ORDER]) => edge_moments_generic
 );
 
 #[allow(clippy::needless_range_loop)]

@@ -419,11 +419,23 @@ fn coefficients_generic(r: &Rule, t: &[[f64; ORDER]; ORDER], c: &mut [[f64; ORDE
     }
 }
 
-/// The fit's error estimate, Σ |c_kl| over its highest degree (k or l =
-/// ORDER − 1), from the row and column of coefficients alone (the same
-/// sums, so the same bits, as from all of them).
+avx512_dispatch!(
+    /// The fit's error estimate, Σ |c_kl| over its highest degree (k or l =
+    /// ORDER − 1), from the row and column of coefficients alone (the same
+    /// sums, so the same bits, as from all of them); the row and column
+    /// summed in vector lanes as [`coefficients`] does.
+    fn tail_estimate(r: &Rule, t: &[[f64; ORDER]; ORDER]) -> f64
+        => tail_estimate_generic if true, else tail_estimate_avx2
+);
+
+avx2_dispatch!(
+    /// [`tail_estimate`] on AVX2.
+    fn tail_estimate_avx2(r: &Rule, t: &[[f64; ORDER]; ORDER]) -> f64 => tail_estimate_generic
+);
+
 #[allow(clippy::needless_range_loop)]
-fn tail_estimate(r: &Rule, t: &[[f64; ORDER]; ORDER]) -> f64 {
+#[inline(always)]
+fn tail_estimate_generic(r: &Rule, t: &[[f64; ORDER]; ORDER]) -> f64 {
     let last = ORDER - 1;
     let (mut row, mut col) = ([0.0; ORDER], [0.0; ORDER]);
     for i in 0..ORDER {
@@ -1019,8 +1031,8 @@ fn clip_level(s: &mut CubatureScratch, d: usize, lo: DVec2, size: f64) {
 #[cfg(test)]
 mod tests {
     use super::{
-        CHUNK, CellView, Ctx, LightSpan, Lobe, MAX_DEPTH, TOLERANCE, bound_ln, lobe_at_nested_nodes,
-        lobe_bound_cos, pow_one_minus, whole_cell,
+        CHUNK, CellView, Ctx, LightSpan, Lobe, MAX_DEPTH, TOLERANCE, bound_ln,
+        lobe_at_nested_nodes, lobe_bound_cos, pow_one_minus, whole_cell,
     };
     use crate::render::rng::Rng;
     use glam::{DVec2, DVec3};

@@ -39,7 +39,7 @@ fn avx2_and_portable_kernels_render_the_same_bits() {
 
 /// The sixteen-lane (AVX-512) kernels, the eight-lane ones
 /// (`PENUMBRA_KERNELS=avx2`) and the portable build write the same EXR
-/// bytes, with skipping on and off and with few and many shadow rays (the
+/// bytes (the exact model too), with skipping on and off and with few and many shadow rays (the
 /// wide kernels take hit points of 16 light points on). The choice is made
 /// once per process, so each variant is a run of the binary.
 #[test]
@@ -49,11 +49,13 @@ fn wide_narrow_and_portable_kernels_write_the_same_files() {
     let scratch = tempfile::tempdir().unwrap();
     let dir = scratch.path();
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
-    let cases: [(&str, &[&str]); 5] = [
+    let cases: [(&str, &[&str]); 6] = [
         ("scenes/seed-room.json", &[]),
         ("scenes/seed-room.json", &["--no-skip"]),
         ("scenes/seed-room.json", &["--shadow-rays", "1"]),
         ("scenes/mirrors.json", &["--model", "analytic"]),
+        // The exact model's specular lobe kernels.
+        ("scenes/seed-room.json", &["--model", "exact"]),
         (
             "scenes/stress/shininess-high.json",
             &["--shadow-rays", "20"],

@@ -37,7 +37,7 @@ use glam::{DVec2, DVec3};
 
 use super::diffuse::{Outline, outline};
 use super::polygon::{HalfPlane, Pieces, clip_into, edges_of};
-use crate::render::math::avx2_dispatch;
+use crate::render::math::{avx2_dispatch, avx512_dispatch};
 
 /// Nodes per axis of a cell (the fit has degree `ORDER − 1`).
 const ORDER: usize = 8;
@@ -70,36 +70,78 @@ impl Lobe {
 /// Nodes of a cell.
 const NODES: usize = ORDER * ORDER;
 
-avx2_dispatch!(
-    /// The integrand at the light points (a\[j\], b\[j\]), in f32 lanes
-    /// (twice as many per instruction as f64), written for the vectorizer
-    /// like the `sampled` model's loops. The rounding that matters is kept
-    /// small: cos²θ_H is taken as 1 − sin²θ_H with sin²θ_H = |N × H|²/|H|²,
-    /// accurate relative to itself where the lobe peaks (1 − cos² in f32
-    /// would lose its digits there), and raised to s/2 by
-    /// [`pow_one_minus`]. What remains is the f32 direction's rounding,
-    /// amplified by the shininess: values within 5e-6 of the f64 lobe up to
-    /// shininess 2000 (tested), below the cubature's tolerance.
-    fn lobe_at_nodes(l: &Lobe, a: &[f64; NODES], b: &[f64; NODES], out: &mut [f64; NODES])
-        => lobe_at_nodes_generic
+avx512_dispatch!(
+    /// The integrand at a fitted cell's tensor nodes (xs\[i\], ys\[j\])
+    /// into `out[i * ORDER + j]`, the nodes spread inside the kernel (no
+    /// 64-node coordinate arrays built and zeroed outside it). Sixteen
+    /// lanes where the CPU has them (the same operations lane by lane, so
+    /// the same bits).
+    fn lobe_at_tensor_nodes(l: &Lobe, xs: &[f64; ORDER], ys: &[f64; ORDER], out: &mut [f64; NODES])
+        => lobe_at_tensor_nodes_generic if true, else lobe_at_tensor_nodes_avx2
 );
 
 avx2_dispatch!(
-    /// [`lobe_at_nodes`] at the nodes of the nested rules of a whole cell.
-    fn lobe_at_nested_nodes(l: &Lobe, a: &[f64; CHUNK], b: &[f64; CHUNK], out: &mut [f64; CHUNK])
-        => lobe_at_nodes_generic
+    /// [`lobe_at_tensor_nodes`] on eight lanes.
+    fn lobe_at_tensor_nodes_avx2(l: &Lobe, xs: &[f64; ORDER], ys: &[f64; ORDER], out: &mut [f64; NODES])
+        => lobe_at_tensor_nodes_generic
 );
 
 #[inline(always)]
-fn lobe_at_nodes_generic<const M: usize>(l: &Lobe, a: &[f64; M], b: &[f64; M], out: &mut [f64; M]) {
+fn lobe_at_tensor_nodes_generic(
+    l: &Lobe,
+    xs: &[f64; ORDER],
+    ys: &[f64; ORDER],
+    out: &mut [f64; NODES],
+) {
+    let a: [f32; NODES] = std::array::from_fn(|k| xs[k / ORDER] as f32);
+    let b: [f32; NODES] = std::array::from_fn(|k| ys[k % ORDER] as f32);
+    lobe_f32(l, &a, &b, out);
+}
+
+avx512_dispatch!(
+    /// The integrand at `CHUNK` nodes of the nested rules of the cell
+    /// [lo, lo + size]², at (lo.x + x\[j\] size, lo.y + y\[j\] size): the
+    /// coordinates in the kernel's lanes too. Sixteen lanes where the CPU
+    /// has them, as [`lobe_at_tensor_nodes`].
+    fn lobe_at_nested_nodes(l: &Lobe, lo: DVec2, size: f64, x: &[f64; CHUNK], y: &[f64; CHUNK], out: &mut [f64; CHUNK])
+        => lobe_at_nested_nodes_generic if true, else lobe_at_nested_nodes_avx2
+);
+
+avx2_dispatch!(
+    /// [`lobe_at_nested_nodes`] on eight lanes.
+    fn lobe_at_nested_nodes_avx2(l: &Lobe, lo: DVec2, size: f64, x: &[f64; CHUNK], y: &[f64; CHUNK], out: &mut [f64; CHUNK])
+        => lobe_at_nested_nodes_generic
+);
+
+#[inline(always)]
+fn lobe_at_nested_nodes_generic(
+    l: &Lobe,
+    lo: DVec2,
+    size: f64,
+    x: &[f64; CHUNK],
+    y: &[f64; CHUNK],
+    out: &mut [f64; CHUNK],
+) {
+    let a: [f32; CHUNK] = std::array::from_fn(|j| (lo.x + x[j] * size) as f32);
+    let b: [f32; CHUNK] = std::array::from_fn(|j| (lo.y + y[j] * size) as f32);
+    lobe_f32(l, &a, &b, out);
+}
+
+/// The integrand at the light points (a\[j\], b\[j\]), in f32 lanes
+/// (twice as many per instruction as f64), written for the vectorizer
+/// like the `sampled` model's loops. The rounding that matters is kept
+/// small: cos²θ_H is taken as 1 − sin²θ_H with sin²θ_H = |N × H|²/|H|²,
+/// accurate relative to itself where the lobe peaks (1 − cos² in f32
+/// would lose its digits there), and raised to s/2 by
+/// [`pow_one_minus`]. What remains is the f32 direction's rounding,
+/// amplified by the shininess: values within 5e-6 of the f64 lobe up to
+/// shininess 2000 (tested), below the cubature's tolerance.
+#[inline(always)]
+fn lobe_f32<const M: usize>(l: &Lobe, af: &[f32; M], bf: &[f32; M], out: &mut [f64; M]) {
     let (c, u, w) = (l.corner.as_vec3(), l.edge_u.as_vec3(), l.edge_v.as_vec3());
     let (n, v) = (l.n.as_vec3(), l.v.as_vec3());
     let half_s = (0.5 * l.shininess) as f32;
-    let (mut af, mut bf, mut of) = ([0f32; M], [0f32; M], [0f32; M]);
-    for j in 0..M {
-        af[j] = a[j] as f32;
-        bf[j] = b[j] as f32;
-    }
+    let mut of = [0f32; M];
     for j in 0..M {
         let x = c.x + u.x * af[j] + w.x * bf[j];
         let y = c.y + u.y * af[j] + w.y * bf[j];
@@ -239,10 +281,10 @@ fn nested_cell(lobe: &Lobe, lo: DVec2, size: f64, coarse: bool) -> Option<(f64, 
     for (k, &end) in r.ends.iter().enumerate() {
         while evaluated < end {
             let chunk = evaluated..evaluated + CHUNK;
-            let a: [f64; CHUNK] = std::array::from_fn(|i| lo.x + r.x[chunk.start + i] * size);
-            let b: [f64; CHUNK] = std::array::from_fn(|i| lo.y + r.y[chunk.start + i] * size);
-            let out: &mut [f64; CHUNK] = (&mut f[chunk]).try_into().expect("a chunk");
-            lobe_at_nested_nodes(lobe, &a, &b, out);
+            let x = r.x[chunk.clone()].try_into().expect("a chunk");
+            let y = r.y[chunk.clone()].try_into().expect("a chunk");
+            let out = (&mut f[chunk]).try_into().expect("a chunk");
+            lobe_at_nested_nodes(lobe, lo, size, x, y, out);
             evaluated += CHUNK;
         }
         let q: f64 = (start..end).map(|i| r.w[i] * f[i]).sum();
@@ -322,12 +364,17 @@ fn rule() -> &'static Rule {
     })
 }
 
-avx2_dispatch!(
+avx512_dispatch!(
     /// The first half of the fit: `t[i][l] = Σ_j f[i][j] P_l(x_j) w_j`
     /// (x along a, y along b), an 8×8 matrix product written row by row so
     /// that it vectorizes. [`coefficients`], [`tail_estimate`] and
     /// [`node_sum`] finish what each cell needs of it.
-    fn fit_rows(r: &Rule, f: &[f64; NODES], t: &mut [[f64; ORDER]; ORDER]) => fit_rows_generic
+    fn fit_rows(r: &Rule, f: &[f64; NODES], t: &mut [[f64; ORDER]; ORDER]) => fit_rows_generic if true, else fit_rows_avx2
+);
+
+avx2_dispatch!(
+    /// [`fit_rows`] on AVX2.
+    fn fit_rows_avx2(r: &Rule, f: &[f64; NODES], t: &mut [[f64; ORDER]; ORDER]) => fit_rows_generic
 );
 
 // Tensor nodes and coefficients: index loops read best.
@@ -345,9 +392,14 @@ fn fit_rows_generic(r: &Rule, f: &[f64; NODES], t: &mut [[f64; ORDER]; ORDER]) {
     }
 }
 
-avx2_dispatch!(
+avx512_dispatch!(
     /// The fit's coefficients `c[k][l] = norm Σ_i P_k(x_i) w_i t[i][l]`.
-    fn coefficients(r: &Rule, t: &[[f64; ORDER]; ORDER], c: &mut [[f64; ORDER]; ORDER]) => coefficients_generic
+    fn coefficients(r: &Rule, t: &[[f64; ORDER]; ORDER], c: &mut [[f64; ORDER]; ORDER]) => coefficients_generic if true, else coefficients_avx2
+);
+
+avx2_dispatch!(
+    /// [`coefficients`] on AVX2.
+    fn coefficients_avx2(r: &Rule, t: &[[f64; ORDER]; ORDER], c: &mut [[f64; ORDER]; ORDER]) => coefficients_generic
 );
 
 #[allow(clippy::needless_range_loop)]
@@ -367,11 +419,23 @@ fn coefficients_generic(r: &Rule, t: &[[f64; ORDER]; ORDER], c: &mut [[f64; ORDE
     }
 }
 
-/// The fit's error estimate, Σ |c_kl| over its highest degree (k or l =
-/// ORDER − 1), from the row and column of coefficients alone (the same
-/// sums, so the same bits, as from all of them).
+avx512_dispatch!(
+    /// The fit's error estimate, Σ |c_kl| over its highest degree (k or l =
+    /// ORDER − 1), from the row and column of coefficients alone (the same
+    /// sums, so the same bits, as from all of them); the row and column
+    /// summed in vector lanes as [`coefficients`] does.
+    fn tail_estimate(r: &Rule, t: &[[f64; ORDER]; ORDER]) -> f64
+        => tail_estimate_generic if true, else tail_estimate_avx2
+);
+
+avx2_dispatch!(
+    /// [`tail_estimate`] on AVX2.
+    fn tail_estimate_avx2(r: &Rule, t: &[[f64; ORDER]; ORDER]) -> f64 => tail_estimate_generic
+);
+
 #[allow(clippy::needless_range_loop)]
-fn tail_estimate(r: &Rule, t: &[[f64; ORDER]; ORDER]) -> f64 {
+#[inline(always)]
+fn tail_estimate_generic(r: &Rule, t: &[[f64; ORDER]; ORDER]) -> f64 {
     let last = ORDER - 1;
     let (mut row, mut col) = ([0.0; ORDER], [0.0; ORDER]);
     for i in 0..ORDER {
@@ -402,14 +466,19 @@ fn node_sum(r: &Rule, t: &[[f64; ORDER]; ORDER]) -> f64 {
     s * r.norm[0][0]
 }
 
-avx2_dispatch!(
+avx512_dispatch!(
     /// m\[k\]\[l\] += ∮ R_k(x) P_l(y) dy along the edge p0 → p1 (cell
     /// coordinates) for k, l ≤ `degree`: Green's theorem's moments of one
     /// straight edge, by the (degree + 1)-point rule (exact: the integrand
     /// is a polynomial of degree 2·degree + 1 along the edge). Entries with
     /// k > degree are left alone, those with l > degree are not taken (the
     /// fit is zero there, and they are not read).
-    fn edge_moments(r: &Rule, degree: usize, p0: DVec2, p1: DVec2, m: &mut [[f64; ORDER]; ORDER]) => edge_moments_generic
+    fn edge_moments(r: &Rule, degree: usize, p0: DVec2, p1: DVec2, m: &mut [[f64; ORDER]; ORDER]) => edge_moments_generic if true, else edge_moments_avx2
+);
+
+avx2_dispatch!(
+    /// [`edge_moments`] on AVX2.
+    fn edge_moments_avx2(r: &Rule, degree: usize, p0: DVec2, p1: DVec2, m: &mut [[f64; ORDER]; ORDER]) => edge_moments_generic
 );
 
 #[allow(clippy::needless_range_loop)]
@@ -818,12 +887,8 @@ fn cell(
     // The tensor nodes from the ORDER coordinates of each axis.
     let xs: [f64; ORDER] = std::array::from_fn(|i| lo.x + (r.x[i] + 1.0) * half);
     let ys: [f64; ORDER] = std::array::from_fn(|j| lo.y + (r.x[j] + 1.0) * half);
-    let (mut na, mut nb, mut nf) = ([0.0; NODES], [0.0; NODES], [0.0; NODES]);
-    for (i, &x) in xs.iter().enumerate() {
-        na[i * ORDER..(i + 1) * ORDER].fill(x);
-        nb[i * ORDER..(i + 1) * ORDER].copy_from_slice(&ys);
-    }
-    lobe_at_nodes(lobe, &na, &nb, &mut nf);
+    let mut nf = [0.0; NODES];
+    lobe_at_tensor_nodes(lobe, &xs, &ys, &mut nf);
     report.cells += 1;
     let mut t = [[0.0; ORDER]; ORDER];
     fit_rows(r, &nf, &mut t);
@@ -966,8 +1031,8 @@ fn clip_level(s: &mut CubatureScratch, d: usize, lo: DVec2, size: f64) {
 #[cfg(test)]
 mod tests {
     use super::{
-        CellView, Ctx, LightSpan, Lobe, MAX_DEPTH, NODES, TOLERANCE, bound_ln, lobe_at_nodes,
-        lobe_bound_cos, pow_one_minus, whole_cell,
+        CHUNK, CellView, Ctx, LightSpan, Lobe, MAX_DEPTH, TOLERANCE, bound_ln,
+        lobe_at_nested_nodes, lobe_bound_cos, pow_one_minus, whole_cell,
     };
     use crate::render::rng::Rng;
     use glam::{DVec2, DVec3};
@@ -1077,7 +1142,7 @@ mod tests {
         let mut rng = Rng::new(2);
         let mut next = || rng.next_f64();
         let mut worst: f64 = 0.0;
-        for case in 0..300 {
+        for case in 0..1200 {
             let n = DVec3::new(next() - 0.5, 1.0, next() - 0.5).normalize();
             // Views near the mirror direction of the light's centre too, so
             // that narrow lobes peak on it.
@@ -1095,11 +1160,12 @@ mod tests {
                 edge_u: DVec3::new(2.0, 0.0, 0.0),
                 edge_v: DVec3::new(0.0, 0.0, 2.0),
             };
-            let a: [f64; NODES] = std::array::from_fn(|_| next());
-            let b: [f64; NODES] = std::array::from_fn(|_| next());
-            let mut got = [0.0; NODES];
-            lobe_at_nodes(&lobe, &a, &b, &mut got);
-            for j in 0..NODES {
+            let a: [f64; CHUNK] = std::array::from_fn(|_| next());
+            let b: [f64; CHUNK] = std::array::from_fn(|_| next());
+            let mut got = [0.0; CHUNK];
+            // The unit cell: the nodes are (a, b) themselves.
+            lobe_at_nested_nodes(&lobe, DVec2::ZERO, 1.0, &a, &b, &mut got);
+            for j in 0..CHUNK {
                 let l = lobe.direction(a[j], b[j]).normalize();
                 let h = (l + v).normalize_or_zero();
                 let want = n.dot(h).max(0.0).powf(shininess);

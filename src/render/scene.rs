@@ -282,7 +282,8 @@ impl Scene {
     }
 
     /// Nearest intersection of primitive `id` with `t` in (0, t_max).
-    #[inline]
+    /// Inlined: the BVH walks call it per object from the tile kernel.
+    #[inline(always)]
     pub fn intersect(&self, id: u32, ray: &Ray, t_max: f64) -> Option<f64> {
         match self.objects.get(id as usize) {
             Some(o) => o.shape.intersect(ray, t_max),

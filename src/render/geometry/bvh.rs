@@ -1040,6 +1040,7 @@ impl Bvh {
 
     /// Closest hit: `hit(object, t_max)` returns the object's nearest t below
     /// t_max; nodes are visited near child first and pruned by the best t.
+    #[inline(always)]
     pub fn closest(
         &self,
         ray: &Ray,

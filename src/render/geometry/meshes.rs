@@ -156,7 +156,7 @@ impl Meshes {
     }
 
     /// See [`Triangle::intersect`].
-    #[inline]
+    #[inline(always)]
     pub fn intersect(&self, f: u32, ray: &Ray, t_max: f64) -> Option<f64> {
         triangle::intersect(&self.vertices(f), ray, t_max)
     }

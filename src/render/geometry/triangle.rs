@@ -112,7 +112,7 @@ impl Triangle {
 
 /// Möller–Trumbore in f64 on the vertices `v`, edges inclusive, both sides
 /// (for `triangle` objects and mesh faces alike).
-#[inline]
+#[inline(always)]
 pub fn intersect(v: &[DVec3; 3], ray: &Ray, t_max: f64) -> Option<f64> {
     let e1 = v[1] - v[0];
     let e2 = v[2] - v[0];

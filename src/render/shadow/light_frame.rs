@@ -104,6 +104,51 @@ impl LightFrame {
         Aabb::new(b.min - pad, b.max + pad)
     }
 
+    /// The rectangle `[x0, x1, y0, y1]` of the light's plane that the
+    /// segments from the eye through the triangle `v` (world space) can
+    /// end in, grown by the eye's margin; `None` unless every vertex lies
+    /// nearer to the light's plane than the eye (the rays through it then
+    /// spread without bound). A triangle's rays end inside its own shadow
+    /// on the light, far smaller than its leaf's footprint.
+    ///
+    /// Seen from the eye, a point at height z projects to
+    /// x_L = p.x + (x − p.x)·p.z / (p.z − z); the projection keeps straight
+    /// lines (every point in front of the eye), so the triangle's shadow is
+    /// the triangle of its vertices' shadows. The vertices are lanes (the
+    /// fourth repeats the first), which vectorizes.
+    // Lanes of parallel arrays: index loops are what vectorizes.
+    #[allow(clippy::needless_range_loop)]
+    #[inline(always)]
+    pub fn triangle_footprint(&self, eye: &Eye, v: [DVec3; 3]) -> Option<[f64; 4]> {
+        let p = eye.p;
+        let max = |a: f64, b: f64| if a > b { a } else { b };
+        let min = |a: f64, b: f64| if a < b { a } else { b };
+        let mut w = [[0.0; 4]; 3];
+        for lane in 0..4 {
+            let d = v[lane % 3] - self.origin;
+            for axis in 0..3 {
+                w[axis][lane] = d.dot(self.axes[axis]);
+            }
+        }
+        let (mut x, mut y, mut near) = ([0.0; 4], [0.0; 4], [false; 4]);
+        for lane in 0..4 {
+            let depth = p.z - w[2][lane];
+            near[lane] = depth > eye.guard;
+            let s = p.z / depth;
+            x[lane] = p.x + (w[0][lane] - p.x) * s;
+            y[lane] = p.y + (w[1][lane] - p.y) * s;
+        }
+        if near != [true; 4] {
+            return None;
+        }
+        Some([
+            min(min(x[0], x[1]), x[2]) - eye.margin,
+            max(max(x[0], x[1]), x[2]) + eye.margin,
+            min(min(y[0], y[1]), y[2]) - eye.margin,
+            max(max(y[0], y[1]), y[2]) + eye.margin,
+        ])
+    }
+
     /// For each of a node's four boxes, the rectangle of the light's plane
     /// (z = 0) that the segments from the eye (`p.z > 0`) through the box
     /// can end in, grown by the eye's margin; the empty rectangle (+∞ … −∞)
@@ -341,6 +386,56 @@ mod tests {
             }
         }
         assert!(inside > 1000, "the boxes are seen at all: {inside}");
+    }
+
+    /// Brute force under a tilted light: the segments from p to light
+    /// points on a fine grid that meet the triangle all end inside its
+    /// footprint (a small one's a fifth of the light at most); a triangle with a
+    /// vertex level with p or behind it has none.
+    #[test]
+    fn triangle_footprint_holds_every_segment_through_the_triangle() {
+        let light = AreaLight::new(&crate::render::scene_file::LightDesc {
+            corner: [-1.5, 7.0, -1.0],
+            edge_u: [2.5, 0.6, 0.3],
+            edge_v: [0.8, 0.2, 2.0],
+            ..crate::render::SceneDesc::from_json(crate::render::scene::SEED_ROOM_JSON)
+                .unwrap()
+                .light
+        });
+        let frame = LightFrame::new(&light);
+        let p = DVec3::new(0.5, 0.2, -0.3);
+        let eye = Eye::new(frame.local(p), 0.0);
+        let triangles = [
+            [[0.0, 3.0, 0.0], [0.3, 3.2, 0.1], [0.1, 3.4, -0.2]],
+            [[-1.0, 1.0, -1.0], [0.2, 6.5, 0.1], [0.9, 2.0, 0.4]],
+            [[0.4, 0.6, -0.2], [0.6, 0.8, -0.4], [0.5, 0.5, -0.1]],
+        ]
+        .map(|t| t.map(DVec3::from_array));
+        let mut inside = 0;
+        let mut areas = Vec::new();
+        for v in triangles {
+            let [x0, x1, y0, y1] = frame.triangle_footprint(&eye, v).expect("in front of p");
+            let tri = crate::render::geometry::Triangle::new(v[0], v[1], v[2]).unwrap();
+            for i in 0..=200 {
+                for j in 0..=200 {
+                    let end = light
+                        .shape
+                        .point(glam::DVec2::new(i as f64, j as f64) / 200.0);
+                    let ray = crate::render::geometry::Ray::new(p, end - p);
+                    if tri.intersect(&ray, 1.0).is_some() {
+                        let [x, y] = frame.light_point(i as f64 / 200.0, j as f64 / 200.0);
+                        assert!(x0 <= x && x <= x1 && y0 <= y && y <= y1, "{v:?} {end}");
+                        inside += 1;
+                    }
+                }
+            }
+            areas.push((x1 - x0) * (y1 - y0));
+        }
+        assert!(areas[0] < 0.2 * light.shape.edge_u.cross(light.shape.edge_v).length());
+        assert!(inside > 1000, "the triangles are seen at all: {inside}");
+        let level = [p + DVec3::X, p + DVec3::new(0.0, 2.0, 0.0), p - DVec3::Y];
+        let level = level.map(|v| v + light.shape.normal * light.shape.normal.dot(p - v));
+        assert_eq!(frame.triangle_footprint(&eye, level), None);
     }
 
     #[test]

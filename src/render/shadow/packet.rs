@@ -7,7 +7,7 @@ use super::ray_packet::RayBins;
 use super::visibility::ShadowQuery;
 use glam::Vec3;
 
-use crate::render::geometry::{Slot, TriangleOccluder};
+use crate::render::geometry::{Primitive, Slot, TriangleOccluder};
 use crate::render::math::avx2_dispatch;
 use crate::render::scene::Scene;
 
@@ -75,6 +75,7 @@ fn packet_generic(
     let mut tests = Tests {
         pk,
         scene,
+        bins,
         d,
         vis,
         tested: 0,
@@ -195,6 +196,7 @@ fn packet_generic(
 struct Tests<'p, 'a> {
     pk: &'p Packets<'a>,
     scene: &'p Scene,
+    bins: &'p RayBins,
     d: Dirs<'p>,
     vis: &'p mut [f32],
     /// The rays tested against at least one object.
@@ -214,6 +216,24 @@ impl Tests<'_, '_> {
         let prim = self.scene.primitive(i);
         let inside = i == pk.q.object && pk.q.inside;
         if i == pk.q.object && prim.skips_itself(pk.q.inside) {
+            return live;
+        }
+        // A face meets only the rays ending inside its own shadow on the
+        // light: most rays of its leaf's footprint miss it.
+        let m = match prim {
+            Primitive::Face { meshes, face } => {
+                match pk
+                    .sb
+                    .frame
+                    .triangle_footprint(&pk.eye, meshes.vertices(face))
+                {
+                    Some(rect) => m & self.bins.rays_in_rect(rect),
+                    None => m,
+                }
+            }
+            _ => m,
+        };
+        if m & live == 0 {
             return live;
         }
         self.tested |= m;

@@ -72,6 +72,27 @@ impl RayBins {
         clamp_cell((v - self.min[axis]) * self.scale[axis]) as usize
     }
 
+    /// The rays whose light point may lie inside the rectangle
+    /// `[x0, x1, y0, y1]`: [`rays_in4`](Self::rays_in4) for one, its
+    /// four ends as lanes.
+    // Lanes of parallel arrays: index loops are what vectorizes.
+    #[allow(clippy::needless_range_loop)]
+    #[inline(always)]
+    pub fn rays_in_rect(&self, rect: [f64; 4]) -> u64 {
+        let min = [self.min[0], self.min[0], self.min[1], self.min[1]];
+        let scale = [self.scale[0], self.scale[0], self.scale[1], self.scale[1]];
+        let mut cell = [0i32; 4];
+        for k in 0..4 {
+            cell[k] = clamp_cell((rect[k] - min[k]) * scale[k] + (k % 2) as f64);
+        }
+        let [bx, by] = &self.below;
+        let at = |table: &[u64; CELLS + 1], cell: i32| {
+            // SAFETY: a clamped cell lies in 0..=CELLS, the table's indices.
+            unsafe { *table.get_unchecked(cell as usize) }
+        };
+        at(bx, cell[1]) & !at(bx, cell[0]) & at(by, cell[3]) & !at(by, cell[2])
+    }
+
     /// For each of four rectangles, the rays whose light point may lie
     /// inside it (all that do, and possibly some near it; none for an empty
     /// one). The cell arithmetic vectorizes; the table lookups stay scalar. A

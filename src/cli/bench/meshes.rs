@@ -8,7 +8,7 @@
 use std::path::Path;
 use std::time::{Duration, Instant};
 
-use super::{BenchArgs, CliError, build, median, scenes, timed};
+use super::{BenchArgs, CliError, build, median, render_once, scenes};
 use crate::render::generate_mesh::{TORUS_HALF_HEIGHT, write_torus_obj};
 use crate::render::scene_file::{MeshDesc, MeshScale, MeshShading, ObjectDesc, SceneDesc};
 
@@ -69,7 +69,7 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
     }
     let r = &base.render;
     println!(
-        "{}×{}, {} {} shadow rays, depth {}; median of {runs} runs (load: reading the files and building the scene)",
+        "{}×{}, {} {} shadow rays, depth {}; medians of {runs} rounds, each rendering every room in turn; ratios are the median of the rounds' own (load: reading the files and building the scene)",
         base.camera.width,
         base.camera.height,
         r.shadow_rays,
@@ -80,9 +80,12 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
         "{:<16} {:>10} {:>10} {:>11} {:>12}",
         "scene", "triangles", "load ms", "render ms", "vs seed room"
     );
-    let mut seed_s = f64::NAN;
-    let mut torus: Vec<(usize, f64)> = Vec::new();
-    for (name, desc, triangles) in &rooms {
+    // Every room is built before any is timed, and the timed renders go
+    // round the rooms in turn: a change in the machine's speed (other work
+    // on it) then falls on all rooms alike, and each ratio is the median
+    // of the rounds' own ratios, not of medians taken minutes apart.
+    let mut built = Vec::with_capacity(rooms.len());
+    for (_, desc, _) in &rooms {
         let mut loads: Vec<Duration> = Vec::new();
         let mut loaded = None;
         for _ in 0..runs.max(1) {
@@ -92,31 +95,46 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
             loads.push(start.elapsed());
         }
         loads.sort();
-        let t = timed(loaded.as_ref().expect("built"), runs);
-        let render_s = t.median().as_secs_f64();
-        if seed_s.is_nan() {
-            seed_s = render_s;
+        built.push((loaded.expect("built at least once"), median(&loads)));
+    }
+    let mut rounds: Vec<Vec<f64>> = Vec::new();
+    for _ in 0..runs.max(1) {
+        let round = built
+            .iter()
+            .map(|(loaded, _)| render_once(loaded).elapsed.as_secs_f64())
+            .collect();
+        rounds.push(round);
+    }
+    let median_over_rounds = |of: &dyn Fn(&[f64]) -> f64| -> f64 {
+        let mut values: Vec<f64> = rounds.iter().map(|r| of(r)).collect();
+        values.sort_by(f64::total_cmp);
+        let n = values.len();
+        if n % 2 == 1 {
+            values[n / 2]
+        } else {
+            0.5 * (values[n / 2 - 1] + values[n / 2])
         }
+    };
+    let mut torus_rooms: Vec<(usize, usize)> = Vec::new();
+    for (room, ((name, _, triangles), (_, load))) in rooms.iter().zip(&built).enumerate() {
         if name.starts_with("torus") {
-            torus.push((*triangles, render_s));
+            torus_rooms.push((room, *triangles));
         }
         println!(
             "{:<16} {:>10} {:>10.1} {:>11.1} {:>11.2}×",
             name,
             triangles,
-            median(&loads).as_secs_f64() * 1e3,
-            render_s * 1e3,
-            render_s / seed_s
+            load.as_secs_f64() * 1e3,
+            median_over_rounds(&|r| r[room]) * 1e3,
+            median_over_rounds(&|r| r[room] / r[0])
         );
     }
-    if let (Some(first), Some(last)) = (torus.first(), torus.last())
-        && torus.len() > 1
+    if let (Some(&(first, fewest)), Some(&(last, most))) = (torus_rooms.first(), torus_rooms.last())
+        && torus_rooms.len() > 1
     {
         println!(
-            "render time from {} to {} triangles: {:.2}×",
-            first.0,
-            last.0,
-            last.1 / first.1
+            "render time from {fewest} to {most} triangles: {:.2}×",
+            median_over_rounds(&|r| r[last] / r[first])
         );
     }
     Ok(())

@@ -212,36 +212,45 @@ impl Tests<'_, '_> {
     #[allow(clippy::needless_range_loop)]
     #[inline(always)]
     fn test(&mut self, i: u32, m: u64, live: u64) -> u64 {
-        let (pk, d) = (self.pk, self.d);
+        let pk = self.pk;
         let prim = self.scene.primitive(i);
         let inside = i == pk.q.object && pk.q.inside;
         if i == pk.q.object && prim.skips_itself(pk.q.inside) {
             return live;
         }
-        // A face meets only the rays ending inside its own shadow on the
-        // light: most rays of its leaf's footprint miss it.
-        let m = match prim {
+        match prim {
             Primitive::Face { meshes, face } => {
-                match pk
-                    .sb
-                    .frame
-                    .triangle_footprint(&pk.eye, meshes.vertices(face))
-                {
+                // Its vertices read once, for the cull and the occluder.
+                let v = meshes.vertices(face);
+                // A face meets only the rays ending inside its own shadow on
+                // the light: most rays of its leaf's footprint miss it.
+                let m = match pk.sb.frame.triangle_footprint(&pk.eye, v) {
                     Some(rect) => m & self.bins.rays_in_rect(rect),
                     None => m,
+                };
+                if m & live == 0 {
+                    return live;
                 }
+                let occ = TriangleOccluder::new(&v, pk.q.point, pk.reach);
+                self.block(&Occluder::Triangle(occ), m, live)
             }
-            _ => m,
-        };
-        if m & live == 0 {
-            return live;
+            _ => self.block(&Occluder::new(prim, pk.q.point, inside, pk.reach), m, live),
         }
+    }
+
+    /// Clears the rays `m` (and possibly others of their chunks of 8) that
+    /// `occ` blocks; returns the rays still live. Inlined into each kind
+    /// of object's test, so that a face's knows its occluder's kind.
+    // Lanes of parallel arrays: index loops are what vectorizes.
+    #[allow(clippy::needless_range_loop)]
+    #[inline(always)]
+    fn block(&mut self, occ: &Occluder, m: u64, live: u64) -> u64 {
+        let d = self.d;
         self.tested |= m;
-        let occ = Occluder::new(prim, pk.q.point, inside, pk.reach);
         let few = at_most(m, FEW);
         let vis = &mut *self.vis;
         let mut live = live;
-        if few && let Some(blocks) = LoneRayTest::of(&occ) {
+        if few && let Some(blocks) = LoneRayTest::of(occ) {
             // A few rays: the lane test alone, without a vector call.
             let mut rays = m;
             while rays != 0 {

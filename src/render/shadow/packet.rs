@@ -80,6 +80,7 @@ fn packet_generic(
         vis,
         tested: 0,
     };
+    let mut lone = [0];
     // Depth-first; each entry holds the rays that may meet the node.
     stack.clear();
     stack.push((0, live));
@@ -118,17 +119,8 @@ fn packet_generic(
                                 next[n_next] = (near[s], c);
                                 n_next += 1;
                             }
-                            Slot::Object(i) => {
-                                live = tests.test(i, 1 << j, live);
-                                if live == 0 {
-                                    return tests.tested;
-                                }
-                                if live & (1 << j) == 0 {
-                                    break 'walk;
-                                }
-                            }
-                            Slot::Leaf { first, count } => {
-                                for &i in &tree.items[first as usize..(first + count) as usize] {
+                            objects => {
+                                for &i in slot_objects(objects, &tree.items, &mut lone) {
                                     live = tests.test(i, 1 << j, live);
                                     if live == 0 {
                                         return tests.tested;
@@ -163,14 +155,8 @@ fn packet_generic(
                     next[n_next] = (feet.near[s], (c, m));
                     n_next += 1;
                 }
-                Slot::Object(i) => {
-                    live = tests.test(i, m, live);
-                    if live == 0 {
-                        return tests.tested;
-                    }
-                }
-                Slot::Leaf { first, count } => {
-                    for &i in &tree.items[first as usize..(first + count) as usize] {
+                objects => {
+                    for &i in slot_objects(objects, &tree.items, &mut lone) {
                         live = tests.test(i, m & live, live);
                         if live == 0 {
                             return tests.tested;
@@ -188,6 +174,20 @@ fn packet_generic(
         stack.extend(next.iter().map(|&(_, c)| c));
     }
     tests.tested
+}
+
+/// The objects of an object or leaf slot (a lone object is put in `lone`):
+/// one loop, so one inlined copy of the object test per walk.
+#[inline(always)]
+fn slot_objects<'s>(slot: Slot, items: &'s [u32], lone: &'s mut [u32; 1]) -> &'s [u32] {
+    match slot {
+        Slot::Leaf { first, count } => &items[first as usize..(first + count) as usize],
+        Slot::Object(i) => {
+            lone[0] = i;
+            lone
+        }
+        Slot::Empty | Slot::Node(_) => &[],
+    }
 }
 
 /// Rays of one packet tested against single objects. A struct with an

@@ -234,7 +234,7 @@ impl Tests<'_, '_> {
                 let occ = TriangleOccluder::new(&v, pk.q.point, pk.reach);
                 self.block(&Occluder::Triangle(occ), m, live)
             }
-            _ => self.block(&Occluder::new(prim, pk.q.point, inside, pk.reach), m, live),
+            _ => shape_test(self, prim, inside, m, live),
         }
     }
 
@@ -291,6 +291,21 @@ impl Tests<'_, '_> {
         let span = (u64::MAX >> (64 - (past - first))) << first;
         live & (!span | (live_rays(v) << first))
     }
+}
+
+avx2_dispatch!(
+    /// [`Tests::test`] of an object other than a face, out of line: the
+    /// scenes that walk packets are mostly faces, and the kernel stays
+    /// small.
+    #[inline(never)]
+    fn shape_test(tests: &mut Tests, prim: Primitive, inside: bool, m: u64, live: u64) -> u64
+        => shape_test_generic
+);
+
+#[inline(always)]
+fn shape_test_generic(tests: &mut Tests, prim: Primitive, inside: bool, m: u64, live: u64) -> u64 {
+    let pk = tests.pk;
+    tests.block(&Occluder::new(prim, pk.q.point, inside, pk.reach), m, live)
 }
 
 /// Chunks of 8 rays up to which a test covers only the chunks holding its

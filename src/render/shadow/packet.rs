@@ -7,7 +7,7 @@ use super::ray_packet::RayBins;
 use super::visibility::ShadowQuery;
 use glam::Vec3;
 
-use crate::render::geometry::{Primitive, Slot, TriangleOccluder};
+use crate::render::geometry::{Primitive, Shape, Slot, TriangleOccluder};
 use crate::render::math::avx2_dispatch;
 use crate::render::scene::Scene;
 
@@ -234,6 +234,10 @@ impl Tests<'_, '_> {
                 let occ = TriangleOccluder::new(&v, pk.q.point, pk.reach);
                 self.block(&Occluder::Triangle(occ), m, live)
             }
+            // Spheres fill the generated rooms: inlined as well.
+            Primitive::Shape(Shape::Sphere(_)) => {
+                self.block(&Occluder::new(prim, pk.q.point, inside, pk.reach), m, live)
+            }
             _ => shape_test(self, prim, inside, m, live),
         }
     }
@@ -294,9 +298,9 @@ impl Tests<'_, '_> {
 }
 
 avx2_dispatch!(
-    /// [`Tests::test`] of an object other than a face, out of line: the
-    /// scenes that walk packets are mostly faces, and the kernel stays
-    /// small.
+    /// [`Tests::test`] of an object other than a face or sphere, out of
+    /// line: the scenes that walk packets hold mostly those, and the
+    /// kernel stays small.
     #[inline(never)]
     fn shape_test(tests: &mut Tests, prim: Primitive, inside: bool, m: u64, live: u64) -> u64
         => shape_test_generic

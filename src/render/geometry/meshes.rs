@@ -190,7 +190,7 @@ impl Meshes {
     /// (the same operations, so the same bits).
     #[inline(always)]
     pub fn occluder(&self, f: u32, p: DVec3, reach: f32) -> TriangleOccluder {
-        triangle::occluder(&self.vertices(f), p, reach)
+        TriangleOccluder::new(&self.vertices(f), p, reach)
     }
 
     /// Bytes held (vertex buffers, faces, shading flags).

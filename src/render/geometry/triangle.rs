@@ -106,7 +106,7 @@ impl Triangle {
 
     /// The shadow-ray form seen from `p`, for rays no longer than `reach`.
     pub fn occluder(&self, p: DVec3, reach: f32) -> TriangleOccluder {
-        occluder(&self.vertices(), p, reach)
+        TriangleOccluder::new(&self.vertices(), p, reach)
     }
 }
 
@@ -193,37 +193,9 @@ pub fn surface(
     }
 }
 
-/// The shadow-ray form of the triangle `v` seen from `p`, for rays no
-/// longer than `reach`.
-#[inline(always)]
-pub fn occluder(v: &[DVec3; 3], p: DVec3, reach: f32) -> TriangleOccluder {
-    let exact = v.map(|v| v - p);
-    let [a, b, c] = exact.map(|v| v.as_vec3());
-    let n = (b - a).cross(c - a);
-    // |ab · d| is off by at most 7.2·2⁻²⁴·|a|₁|b|₁|d|₁ from the exact value
-    // of the unrounded vertices (their rounding, the cross product's and
-    // the dot product's), and |d|₁ ≤ √3·reach: 2⁻¹⁹ leaves room for the
-    // rounding of the bound itself. One bound for the three edges, from
-    // the farthest vertex: a lane then compares the nearest edge only.
-    let far = a
-        .abs()
-        .element_sum()
-        .max(b.abs().element_sum())
-        .max(c.abs().element_sum());
-    TriangleOccluder {
-        ab: a.cross(b),
-        bc: b.cross(c),
-        ca: c.cross(a),
-        n,
-        dist: n.dot(a),
-        unsure: far * far * (reach * EDGE_ROUNDING),
-        exact,
-    }
-}
-
 /// The rounding bound of an f32 edge test, relative to the squared
 /// distance of the farthest vertex and the ray's length (see
-/// [`occluder`]).
+/// [`TriangleOccluder::new`]).
 const EDGE_ROUNDING: f32 = 1.0 / (1 << 19) as f32;
 
 /// A triangle seen from a hit point (the origin), in f32: the normals of
@@ -256,6 +228,34 @@ pub struct TriangleOccluder {
 }
 
 impl TriangleOccluder {
+    /// The shadow-ray form of the triangle `v` seen from `p`, for rays no
+    /// longer than `reach`.
+    #[inline(always)]
+    pub fn new(v: &[DVec3; 3], p: DVec3, reach: f32) -> TriangleOccluder {
+        let exact = v.map(|v| v - p);
+        let [a, b, c] = exact.map(|v| v.as_vec3());
+        let n = (b - a).cross(c - a);
+        // |ab · d| is off by at most 7.2·2⁻²⁴·|a|₁|b|₁|d|₁ from the exact value
+        // of the unrounded vertices (their rounding, the cross product's and
+        // the dot product's), and |d|₁ ≤ √3·reach: 2⁻¹⁹ leaves room for the
+        // rounding of the bound itself. One bound for the three edges, from
+        // the farthest vertex: a lane then compares the nearest edge only.
+        let far = a
+            .abs()
+            .element_sum()
+            .max(b.abs().element_sum())
+            .max(c.abs().element_sum());
+        TriangleOccluder {
+            ab: a.cross(b),
+            bc: b.cross(c),
+            ca: c.cross(a),
+            n,
+            dist: n.dot(a),
+            unsure: far * far * (reach * EDGE_ROUNDING),
+            exact,
+        }
+    }
+
     /// Whether the ray `t·(x, y, z)` meets the triangle for t in (0, end).
     #[inline(always)]
     pub fn blocks(&self, x: f32, y: f32, z: f32, end: f32) -> bool {

@@ -7,7 +7,7 @@ use super::ray_packet::RayBins;
 use super::visibility::ShadowQuery;
 use glam::Vec3;
 
-use crate::render::geometry::{Primitive, Slot, TriangleOccluder};
+use crate::render::geometry::{Primitive, Shape, Slot, TriangleOccluder};
 use crate::render::math::avx2_dispatch;
 use crate::render::scene::Scene;
 
@@ -80,6 +80,7 @@ fn packet_generic(
         vis,
         tested: 0,
     };
+    let mut lone = [0];
     // Depth-first; each entry holds the rays that may meet the node.
     stack.clear();
     stack.push((0, live));
@@ -118,17 +119,8 @@ fn packet_generic(
                                 next[n_next] = (near[s], c);
                                 n_next += 1;
                             }
-                            Slot::Object(i) => {
-                                live = tests.test(i, 1 << j, live);
-                                if live == 0 {
-                                    return tests.tested;
-                                }
-                                if live & (1 << j) == 0 {
-                                    break 'walk;
-                                }
-                            }
-                            Slot::Leaf { first, count } => {
-                                for &i in &tree.items[first as usize..(first + count) as usize] {
+                            objects => {
+                                for &i in slot_objects(objects, &tree.items, &mut lone) {
                                     live = tests.test(i, 1 << j, live);
                                     if live == 0 {
                                         return tests.tested;
@@ -163,14 +155,8 @@ fn packet_generic(
                     next[n_next] = (feet.near[s], (c, m));
                     n_next += 1;
                 }
-                Slot::Object(i) => {
-                    live = tests.test(i, m, live);
-                    if live == 0 {
-                        return tests.tested;
-                    }
-                }
-                Slot::Leaf { first, count } => {
-                    for &i in &tree.items[first as usize..(first + count) as usize] {
+                objects => {
+                    for &i in slot_objects(objects, &tree.items, &mut lone) {
                         live = tests.test(i, m & live, live);
                         if live == 0 {
                             return tests.tested;
@@ -188,6 +174,20 @@ fn packet_generic(
         stack.extend(next.iter().map(|&(_, c)| c));
     }
     tests.tested
+}
+
+/// The objects of an object or leaf slot (a lone object is put in `lone`):
+/// one loop, so one inlined copy of the object test per walk.
+#[inline(always)]
+fn slot_objects<'s>(slot: Slot, items: &'s [u32], lone: &'s mut [u32; 1]) -> &'s [u32] {
+    match slot {
+        Slot::Leaf { first, count } => &items[first as usize..(first + count) as usize],
+        Slot::Object(i) => {
+            lone[0] = i;
+            lone
+        }
+        Slot::Empty | Slot::Node(_) => &[],
+    }
 }
 
 /// Rays of one packet tested against single objects. A struct with an
@@ -212,36 +212,49 @@ impl Tests<'_, '_> {
     #[allow(clippy::needless_range_loop)]
     #[inline(always)]
     fn test(&mut self, i: u32, m: u64, live: u64) -> u64 {
-        let (pk, d) = (self.pk, self.d);
+        let pk = self.pk;
         let prim = self.scene.primitive(i);
         let inside = i == pk.q.object && pk.q.inside;
         if i == pk.q.object && prim.skips_itself(pk.q.inside) {
             return live;
         }
-        // A face meets only the rays ending inside its own shadow on the
-        // light: most rays of its leaf's footprint miss it.
-        let m = match prim {
+        match prim {
             Primitive::Face { meshes, face } => {
-                match pk
-                    .sb
-                    .frame
-                    .triangle_footprint(&pk.eye, meshes.vertices(face))
-                {
+                // Its vertices read once, for the cull and the occluder.
+                let v = meshes.vertices(face);
+                // A face meets only the rays ending inside its own shadow on
+                // the light: most rays of its leaf's footprint miss it.
+                let m = match pk.sb.frame.triangle_footprint(&pk.eye, v) {
                     Some(rect) => m & self.bins.rays_in_rect(rect),
                     None => m,
+                };
+                if m & live == 0 {
+                    return live;
                 }
+                let occ = TriangleOccluder::new(&v, pk.q.point, pk.reach);
+                self.block(&Occluder::Triangle(occ), m, live)
             }
-            _ => m,
-        };
-        if m & live == 0 {
-            return live;
+            // Spheres fill the generated rooms: inlined as well.
+            Primitive::Shape(Shape::Sphere(_)) => {
+                self.block(&Occluder::new(prim, pk.q.point, inside, pk.reach), m, live)
+            }
+            _ => shape_test(self, prim, inside, m, live),
         }
+    }
+
+    /// Clears the rays `m` (and possibly others of their chunks of 8) that
+    /// `occ` blocks; returns the rays still live. Inlined into each kind
+    /// of object's test, so that a face's knows its occluder's kind.
+    // Lanes of parallel arrays: index loops are what vectorizes.
+    #[allow(clippy::needless_range_loop)]
+    #[inline(always)]
+    fn block(&mut self, occ: &Occluder, m: u64, live: u64) -> u64 {
+        let d = self.d;
         self.tested |= m;
-        let occ = Occluder::new(prim, pk.q.point, inside, pk.reach);
         let few = at_most(m, FEW);
         let vis = &mut *self.vis;
         let mut live = live;
-        if few && let Some(blocks) = LoneRayTest::of(&occ) {
+        if few && let Some(blocks) = LoneRayTest::of(occ) {
             // A few rays: the lane test alone, without a vector call.
             let mut rays = m;
             while rays != 0 {
@@ -282,6 +295,21 @@ impl Tests<'_, '_> {
         let span = (u64::MAX >> (64 - (past - first))) << first;
         live & (!span | (live_rays(v) << first))
     }
+}
+
+avx2_dispatch!(
+    /// [`Tests::test`] of an object other than a face or sphere, out of
+    /// line: the scenes that walk packets hold mostly those, and the
+    /// kernel stays small.
+    #[inline(never)]
+    fn shape_test(tests: &mut Tests, prim: Primitive, inside: bool, m: u64, live: u64) -> u64
+        => shape_test_generic
+);
+
+#[inline(always)]
+fn shape_test_generic(tests: &mut Tests, prim: Primitive, inside: bool, m: u64, live: u64) -> u64 {
+    let pk = tests.pk;
+    tests.block(&Occluder::new(prim, pk.q.point, inside, pk.reach), m, live)
 }
 
 /// Chunks of 8 rays up to which a test covers only the chunks holding its

@@ -337,6 +337,18 @@ mod tests {
     use super::*;
     use crate::render::geometry::Slot;
 
+    /// The seed room's light moved to `corner` with edges `edge_u`, `edge_v`.
+    fn seed_light_at(corner: [f64; 3], edge_u: [f64; 3], edge_v: [f64; 3]) -> AreaLight {
+        AreaLight::new(&crate::render::scene_file::LightDesc {
+            corner,
+            edge_u,
+            edge_v,
+            ..crate::render::SceneDesc::from_json(crate::render::scene::SEED_ROOM_JSON)
+                .unwrap()
+                .light
+        })
+    }
+
     /// One box's footprint.
     #[derive(Debug, Clone, Copy, PartialEq)]
     struct Footprint {
@@ -394,14 +406,7 @@ mod tests {
     /// vertex level with p or behind it has none.
     #[test]
     fn triangle_footprint_holds_every_segment_through_the_triangle() {
-        let light = AreaLight::new(&crate::render::scene_file::LightDesc {
-            corner: [-1.5, 7.0, -1.0],
-            edge_u: [2.5, 0.6, 0.3],
-            edge_v: [0.8, 0.2, 2.0],
-            ..crate::render::SceneDesc::from_json(crate::render::scene::SEED_ROOM_JSON)
-                .unwrap()
-                .light
-        });
+        let light = seed_light_at([-1.5, 7.0, -1.0], [2.5, 0.6, 0.3], [0.8, 0.2, 2.0]);
         let frame = LightFrame::new(&light);
         let p = DVec3::new(0.5, 0.2, -0.3);
         let eye = Eye::new(frame.local(p), 0.0);
@@ -469,14 +474,7 @@ mod tests {
 
     #[test]
     fn frame_maps_the_light_onto_its_plane() {
-        let light = AreaLight::new(&crate::render::scene_file::LightDesc {
-            corner: [1.0, 7.0, -2.0],
-            edge_u: [0.0, 0.0, 3.0],
-            edge_v: [2.0, 0.0, 1.0],
-            ..crate::render::SceneDesc::from_json(crate::render::scene::SEED_ROOM_JSON)
-                .unwrap()
-                .light
-        });
+        let light = seed_light_at([1.0, 7.0, -2.0], [0.0, 0.0, 3.0], [2.0, 0.0, 1.0]);
         let frame = LightFrame::new(&light);
         for (a, b) in [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (0.3, 0.8)] {
             let world = light.shape.point(glam::DVec2::new(a, b));

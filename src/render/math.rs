@@ -35,9 +35,10 @@ pub(crate) use avx2_dispatch;
 /// Defines `fn name(args) -> ret` running `body` (an `#[inline(always)]`
 /// function of the same arguments) compiled for AVX-512 — sixteen lanes —
 /// where the CPU has it ([`avx512_kernels`]) and `cond` (an expression of
-/// the arguments, e.g. enough points to fill the lanes) holds, and the
-/// eight-lane `narrow` (an [`avx2_dispatch!`] function) otherwise. The same
-/// operations lane by lane, so the same bits.
+/// the arguments, e.g. enough points to fill the lanes) holds, and
+/// otherwise `body` on eight lanes (under [`avx2_dispatch!`]), or the
+/// `narrow` given after `else` (an [`avx2_dispatch!`] function a test can
+/// call by name). The same operations lane by lane, so the same bits.
 macro_rules! avx512_dispatch {
     ($(#[$meta:meta])* $vis:vis fn $name:ident($($arg:ident: $ty:ty),* $(,)?) -> $ret:ty
         => $body_fn:ident if $cond:expr, else $narrow:ident) => {
@@ -63,6 +64,28 @@ macro_rules! avx512_dispatch {
     ($(#[$meta:meta])* $vis:vis fn $name:ident($($arg:ident: $ty:ty),* $(,)?)
         => $body_fn:ident if $cond:expr, else $narrow:ident) => {
         avx512_dispatch!($(#[$meta])* $vis fn $name($($arg: $ty),*) -> () => $body_fn if $cond, else $narrow);
+    };
+    // Without `else`: the eight-lane path is `body` under [`avx2_dispatch!`]
+    // (name it with `else` only where a test calls it directly).
+    ($(#[$meta:meta])* $vis:vis fn $name:ident($($arg:ident: $ty:ty),* $(,)?) -> $ret:ty
+        => $body_fn:ident if $cond:expr) => {
+        $(#[$meta])*
+        $vis fn $name($($arg: $ty),*) -> $ret {
+            $crate::render::math::avx2_dispatch!(
+                #[allow(clippy::too_many_arguments)]
+                fn narrow($($arg: $ty),*) -> $ret => $body_fn
+            );
+            avx512_dispatch!(
+                #[allow(clippy::too_many_arguments)]
+                #[inline(always)]
+                fn dispatch($($arg: $ty),*) -> $ret => $body_fn if $cond, else narrow
+            );
+            dispatch($($arg),*)
+        }
+    };
+    ($(#[$meta:meta])* $vis:vis fn $name:ident($($arg:ident: $ty:ty),* $(,)?)
+        => $body_fn:ident if $cond:expr) => {
+        avx512_dispatch!($(#[$meta])* $vis fn $name($($arg: $ty),*) -> () => $body_fn if $cond);
     };
 }
 pub(crate) use avx512_dispatch;

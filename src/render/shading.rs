@@ -359,19 +359,7 @@ avx512_dispatch!(
         need_s: bool,
         count: usize,
         buf: &mut ShadowBuffers,
-    ) -> SampledTerms => sampled_terms_generic if count >= WIDE_POINTS, else sampled_terms_avx2
-);
-
-avx2_dispatch!(
-    /// [`sampled_terms`] on up to eight lanes.
-    fn sampled_terms_avx2(
-        n: Vec3,
-        v: Vec3,
-        shininess: f32,
-        need_s: bool,
-        count: usize,
-        buf: &mut ShadowBuffers,
-    ) -> SampledTerms => sampled_terms_generic
+    ) -> SampledTerms => sampled_terms_generic if count >= WIDE_POINTS
 );
 
 #[inline(always)]
@@ -440,23 +428,7 @@ avx512_dispatch!(
         dz: &[f32],
         vis: &[f32],
         out: PointTerms<'_>,
-    ) => point_terms_generic if out.d.len() >= WIDE_POINTS, else point_terms_avx2
-);
-
-avx2_dispatch!(
-    /// [`point_terms`] on up to eight lanes.
-    #[allow(clippy::too_many_arguments)]
-    fn point_terms_avx2(
-        n: Vec3,
-        v: Vec3,
-        shininess: f32,
-        need_s: bool,
-        dx: &[f32],
-        dy: &[f32],
-        dz: &[f32],
-        vis: &[f32],
-        out: PointTerms<'_>,
-    ) => point_terms_generic
+    ) => point_terms_generic if out.d.len() >= WIDE_POINTS
 );
 
 /// Written for the vectorizer: one branch-free loop over the points.

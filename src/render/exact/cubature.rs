@@ -37,7 +37,7 @@ use glam::{DVec2, DVec3};
 
 use super::diffuse::{Outline, outline};
 use super::polygon::{HalfPlane, Pieces, clip_into, edges_of};
-use crate::render::math::{avx2_dispatch, avx512_dispatch};
+use crate::render::math::avx512_dispatch;
 
 /// Nodes per axis of a cell (the fit has degree `ORDER − 1`).
 const ORDER: usize = 8;
@@ -77,13 +77,7 @@ avx512_dispatch!(
     /// lanes where the CPU has them (the same operations lane by lane, so
     /// the same bits).
     fn lobe_at_tensor_nodes(l: &Lobe, xs: &[f64; ORDER], ys: &[f64; ORDER], out: &mut [f64; NODES])
-        => lobe_at_tensor_nodes_generic if true, else lobe_at_tensor_nodes_avx2
-);
-
-avx2_dispatch!(
-    /// [`lobe_at_tensor_nodes`] on eight lanes.
-    fn lobe_at_tensor_nodes_avx2(l: &Lobe, xs: &[f64; ORDER], ys: &[f64; ORDER], out: &mut [f64; NODES])
-        => lobe_at_tensor_nodes_generic
+        => lobe_at_tensor_nodes_generic if true
 );
 
 #[inline(always)]
@@ -104,13 +98,7 @@ avx512_dispatch!(
     /// coordinates in the kernel's lanes too. Sixteen lanes where the CPU
     /// has them, as [`lobe_at_tensor_nodes`].
     fn lobe_at_nested_nodes(l: &Lobe, lo: DVec2, size: f64, x: &[f64; CHUNK], y: &[f64; CHUNK], out: &mut [f64; CHUNK])
-        => lobe_at_nested_nodes_generic if true, else lobe_at_nested_nodes_avx2
-);
-
-avx2_dispatch!(
-    /// [`lobe_at_nested_nodes`] on eight lanes.
-    fn lobe_at_nested_nodes_avx2(l: &Lobe, lo: DVec2, size: f64, x: &[f64; CHUNK], y: &[f64; CHUNK], out: &mut [f64; CHUNK])
-        => lobe_at_nested_nodes_generic
+        => lobe_at_nested_nodes_generic if true
 );
 
 #[inline(always)]
@@ -369,12 +357,7 @@ avx512_dispatch!(
     /// (x along a, y along b), an 8×8 matrix product written row by row so
     /// that it vectorizes. [`coefficients`], [`tail_estimate`] and
     /// [`node_sum`] finish what each cell needs of it.
-    fn fit_rows(r: &Rule, f: &[f64; NODES], t: &mut [[f64; ORDER]; ORDER]) => fit_rows_generic if true, else fit_rows_avx2
-);
-
-avx2_dispatch!(
-    /// [`fit_rows`] on AVX2.
-    fn fit_rows_avx2(r: &Rule, f: &[f64; NODES], t: &mut [[f64; ORDER]; ORDER]) => fit_rows_generic
+    fn fit_rows(r: &Rule, f: &[f64; NODES], t: &mut [[f64; ORDER]; ORDER]) => fit_rows_generic if true
 );
 
 // Tensor nodes and coefficients: index loops read best.
@@ -394,12 +377,7 @@ fn fit_rows_generic(r: &Rule, f: &[f64; NODES], t: &mut [[f64; ORDER]; ORDER]) {
 
 avx512_dispatch!(
     /// The fit's coefficients `c[k][l] = norm Σ_i P_k(x_i) w_i t[i][l]`.
-    fn coefficients(r: &Rule, t: &[[f64; ORDER]; ORDER], c: &mut [[f64; ORDER]; ORDER]) => coefficients_generic if true, else coefficients_avx2
-);
-
-avx2_dispatch!(
-    /// [`coefficients`] on AVX2.
-    fn coefficients_avx2(r: &Rule, t: &[[f64; ORDER]; ORDER], c: &mut [[f64; ORDER]; ORDER]) => coefficients_generic
+    fn coefficients(r: &Rule, t: &[[f64; ORDER]; ORDER], c: &mut [[f64; ORDER]; ORDER]) => coefficients_generic if true
 );
 
 #[allow(clippy::needless_range_loop)]
@@ -425,12 +403,7 @@ avx512_dispatch!(
     /// sums, so the same bits, as from all of them); the row and column
     /// summed in vector lanes as [`coefficients`] does.
     fn tail_estimate(r: &Rule, t: &[[f64; ORDER]; ORDER]) -> f64
-        => tail_estimate_generic if true, else tail_estimate_avx2
-);
-
-avx2_dispatch!(
-    /// [`tail_estimate`] on AVX2.
-    fn tail_estimate_avx2(r: &Rule, t: &[[f64; ORDER]; ORDER]) -> f64 => tail_estimate_generic
+        => tail_estimate_generic if true
 );
 
 #[allow(clippy::needless_range_loop)]
@@ -473,12 +446,7 @@ avx512_dispatch!(
     /// is a polynomial of degree 2·degree + 1 along the edge). Entries with
     /// k > degree are left alone, those with l > degree are not taken (the
     /// fit is zero there, and they are not read).
-    fn edge_moments(r: &Rule, degree: usize, p0: DVec2, p1: DVec2, m: &mut [[f64; ORDER]; ORDER]) => edge_moments_generic if true, else edge_moments_avx2
-);
-
-avx2_dispatch!(
-    /// [`edge_moments`] on AVX2.
-    fn edge_moments_avx2(r: &Rule, degree: usize, p0: DVec2, p1: DVec2, m: &mut [[f64; ORDER]; ORDER]) => edge_moments_generic
+    fn edge_moments(r: &Rule, degree: usize, p0: DVec2, p1: DVec2, m: &mut [[f64; ORDER]; ORDER]) => edge_moments_generic if true
 );
 
 #[allow(clippy::needless_range_loop)]

@@ -4,7 +4,7 @@ use glam::{DVec3, Vec3};
 
 use super::RAY_END;
 use crate::render::geometry::{Cuboid, Primitive, Shape, TriangleOccluder};
-use crate::render::math::{WIDE_POINTS, avx2_dispatch, avx512_dispatch};
+use crate::render::math::{WIDE_POINTS, avx512_dispatch};
 
 /// An object as seen from one hit point, in f32 relative to it.
 #[derive(Debug, Clone, Copy)]
@@ -254,12 +254,7 @@ pub(super) fn sphere_blocks(oc: Vec3, r2: f32, inside: bool, x: f32, y: f32, z: 
 
 avx512_dispatch!(
     /// Clears `vis[j]` for every ray that `occ` blocks.
-    fn block(occ: &Occluder, d: Dirs, vis: &mut [f32]) => block_generic if vis.len() >= WIDE_POINTS, else block_avx2
-);
-
-avx2_dispatch!(
-    /// [`block`] on up to eight lanes.
-    fn block_avx2(occ: &Occluder, d: Dirs, vis: &mut [f32]) => block_generic
+    fn block(occ: &Occluder, d: Dirs, vis: &mut [f32]) => block_generic if vis.len() >= WIDE_POINTS
 );
 
 #[inline(always)]

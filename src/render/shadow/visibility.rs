@@ -559,13 +559,7 @@ avx512_dispatch!(
     /// Directions from the hit point to the light points, and 1 in `vis` for
     /// those in front of the surface; returns how many are.
     pub(crate) fn light_directions(to_corner: Vec3, eu: Vec3, ev: Vec3, n: Vec3, count: usize, buf: &mut ShadowBuffers) -> u64
-        => light_directions_generic if count >= WIDE_POINTS, else light_directions_avx2
-);
-
-avx2_dispatch!(
-    /// [`light_directions`] on up to eight lanes.
-    fn light_directions_avx2(to_corner: Vec3, eu: Vec3, ev: Vec3, n: Vec3, count: usize, buf: &mut ShadowBuffers) -> u64
-        => light_directions_generic
+        => light_directions_generic if count >= WIDE_POINTS
 );
 
 #[inline(always)]

@@ -294,7 +294,10 @@ impl Scene {
     }
 
     /// The surface point of a hit on primitive `id` found by
-    /// [`Scene::intersect`].
+    /// [`Scene::intersect`]. Inlined, so that the tile kernel's hit points
+    /// are computed with its CPU features (the same operations, so the same
+    /// bits).
+    #[inline(always)]
     pub fn surface(&self, id: u32, ray: &Ray, t: f64) -> SurfacePoint {
         match self.objects.get(id as usize) {
             Some(o) => o.shape.surface(ray, t),

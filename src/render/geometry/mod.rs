@@ -113,6 +113,7 @@ impl Shape {
     }
 
     /// The surface point and normal of a hit found by [`Shape::intersect`].
+    #[inline(always)]
     pub fn surface(&self, ray: &Ray, t: f64) -> SurfacePoint {
         match self {
             Shape::Plane(s) => s.surface(ray, t),

@@ -61,6 +61,10 @@ impl Camera {
     /// ray copied whole from here is read back at the offsets it was
     /// written with (a direction put into a ray on the stack was read back
     /// across two of its stores, which stalls the load).
+    ///
+    /// Inlined, so that the tile kernel computes its rays with its CPU
+    /// features (wider vectors; the same operations, so the same bits).
+    #[inline(always)]
     pub fn row_rays(&self, x0: u32, y: u32, n: u32, out: &mut Vec<Ray>) {
         const CHUNK: usize = 8;
         out.clear();

@@ -36,6 +36,7 @@ fn hit(loaded: &Loaded, x: u32, y: u32) -> Option<ShadingPoint<'_>> {
         object,
         inside,
         material: &loaded.shading.materials[scene.material_of(object) as usize],
+        material_index: scene.material_of(object),
     })
 }
 

@@ -98,6 +98,7 @@ fn occluder_hiding_half_the_light_gives_half_visibility() {
         object: 0,
         inside: false,
         material: &loaded.shading.materials[0],
+        material_index: 0,
     };
     light_terms(
         &loaded.scene,

@@ -32,6 +32,8 @@ pub struct ShadingPoint<'a> {
     pub object: u32,
     pub inside: bool,
     pub material: &'a Material,
+    /// `material`'s index among the shading parameters' materials.
+    pub material_index: u32,
 }
 
 /// The light-averaged factors of one hit point, before any colour: the

@@ -106,6 +106,17 @@ pub struct Tracer<'a> {
     pub pattern: Pattern,
     /// Where a pixel's camera samples go, with more than one per pixel.
     filter: Option<PixelFilter>,
+    /// Each material's needs and colours, computed once instead of per hit.
+    material_terms: Vec<MaterialTerms>,
+}
+
+/// What [`Tracer::tile`] multiplies a material's light factors by, and
+/// which factors it needs ([`Needs::of`], [`PhongColours::new`]: the same
+/// values).
+#[derive(Debug, Clone, Copy)]
+struct MaterialTerms {
+    needs: Needs,
+    colours: PhongColours,
 }
 
 /// Per-thread scratch space of a tracer.
@@ -138,6 +149,14 @@ impl<'a> Tracer<'a> {
             shading,
             pattern: Pattern::new(settings.sampling, shadow_rays),
             filter: (settings.samples_per_pixel > 1).then(|| PixelFilter::new(settings.filter)),
+            material_terms: shading
+                .materials
+                .iter()
+                .map(|m| MaterialTerms {
+                    needs: Needs::of(m, &shading.light, settings.terms),
+                    colours: PhongColours::new(m, &shading.light, settings.terms),
+                })
+                .collect(),
         }
     }
 
@@ -372,6 +391,7 @@ impl<'a> Tracer<'a> {
                 object,
                 inside,
                 material,
+                material_index,
             };
             // A fixed pattern draws no random numbers: its hits need no
             // stream of their own.
@@ -518,10 +538,8 @@ fn tile_in_lanes_generic(
                     factors,
                     weight,
                 } => {
-                    let m = &tracer.shading.materials[material as usize];
                     let f = colour.factors[factors as usize];
-                    sum +=
-                        local_colour(m, &tracer.shading.light, tracer.settings.terms, f) * weight;
+                    sum += tracer.material_terms[material as usize].colours.colour(f) * weight;
                 }
                 Term::PixelEnd => {
                     out.push(sum);
@@ -639,9 +657,10 @@ impl PathColour for Deferred {
         weight: f32,
     ) {
         // As `shade`, with the `sampled` model's sums left to the lanes.
-        let (scene, s, shading) = (tracer.scene, tracer.settings, tracer.shading);
-        let (m, light) = (sp.material, &shading.light);
-        let needs = Needs::of(m, light, s.terms);
+        let (scene, s) = (tracer.scene, tracer.settings);
+        let m = sp.material;
+        let terms = tracer.material_terms[sp.material_index as usize];
+        let needs = terms.needs;
         let buf = &mut scratch.shadow;
         let count = tracer.pattern.count();
         let lit = light_points_generic(
@@ -661,7 +680,7 @@ impl PathColour for Deferred {
                 let index = self.factors.len();
                 self.factors.push(LightTerms::default());
                 self.terms.push(Term::Waiting {
-                    material: scene.material_of(sp.object),
+                    material: sp.material_index,
                     factors: index as u32,
                     weight,
                 });
@@ -678,9 +697,8 @@ impl PathColour for Deferred {
                 return;
             }
         };
-        let local = local_colour(m, light, s.terms, factors);
         self.terms.push(Term::Known {
-            colour: local,
+            colour: terms.colours.colour(factors),
             weight,
         });
     }

@@ -249,7 +249,9 @@ impl<'a> Tracer<'a> {
         }
         let mut objects = std::mem::take(&mut scratch.camera_objects);
         camera_objects(self.scene, rect, &mut objects);
+        scratch.shadow.start_tile(self.scene);
         let finished = tile_in_lanes(self, rect, &objects, cancel, scratch, out);
+        scratch.shadow.end_tile();
         scratch.camera_objects = objects;
         finished
     }
@@ -659,7 +661,7 @@ impl PathColour for Deferred {
         // As `shade`, with the `sampled` model's sums left to the lanes.
         let (scene, s) = (tracer.scene, tracer.settings);
         let m = sp.material;
-        let terms = tracer.material_terms[sp.material_index as usize];
+        let terms = &tracer.material_terms[sp.material_index as usize];
         let needs = terms.needs;
         let buf = &mut scratch.shadow;
         let count = tracer.pattern.count();

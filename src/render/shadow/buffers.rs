@@ -5,6 +5,7 @@ use super::packet::PacketScratch;
 use super::ray_packet::{PACKET, RayBins};
 use super::visibility::Candidate;
 use crate::render::exact::ExactScratch;
+use crate::render::scene::Scene;
 use crate::render::scene_file::Sampling;
 
 /// Per-thread buffers for one hit point's light points, reused from hit to
@@ -65,6 +66,17 @@ impl ShadowBuffers {
             scratch: PacketScratch::default(),
             exact: ExactScratch::default(),
         }
+    }
+
+    /// Before the hit points of one tile (all of `scene`, which the caller
+    /// holds borrowed until [`Self::end_tile`]): the occluder lists are
+    /// checked against the scene once instead of at every hit point.
+    pub(crate) fn start_tile(&mut self, scene: &Scene) {
+        self.cells.check_for(scene);
+    }
+
+    pub(crate) fn end_tile(&mut self) {
+        self.cells.forget_check();
     }
 }
 

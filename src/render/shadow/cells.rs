@@ -96,6 +96,10 @@ pub(crate) struct OccluderCells {
     /// 1 / `side`.
     per_side: f64,
     margin: f64,
+    /// The address of the scene [`Self::check_for`] found the lists made
+    /// for (0: none): until [`Self::forget_check`], while its caller holds
+    /// that scene borrowed, [`Self::list_at`] does not compare it again.
+    checked: usize,
     /// The last cube's list: neighbouring hit points mostly share it.
     last: Slot,
     slots: Vec<Slot>,
@@ -129,7 +133,8 @@ impl OccluderCells {
     }
 
     /// Keeps these lists for the next render on this thread.
-    pub(super) fn keep(self) {
+    pub(super) fn keep(mut self) {
+        self.forget_check();
         // A thread that is ending keeps nothing.
         let _ = KEPT.try_with(|k| *k.borrow_mut() = self);
     }
@@ -146,8 +151,8 @@ impl OccluderCells {
     /// far outside the scene).
     #[inline(always)]
     pub(super) fn list_at(&mut self, scene: &Scene, p: DVec3) -> Option<CubeList> {
-        if !self.made.as_ref().is_some_and(|m| m.is_for(scene)) {
-            self.start(scene);
+        if self.checked != address(scene) {
+            self.make_for(scene);
         }
         if self.slots.is_empty() {
             return None;
@@ -176,6 +181,28 @@ impl OccluderCells {
         Some(slot.list)
     }
 
+    /// Makes the lists `scene`'s (anew unless they are) and lets
+    /// [`Self::list_at`] take that as known until [`Self::forget_check`]:
+    /// for the hit points of one tile, whose scene cannot change while the
+    /// caller holds it borrowed.
+    pub(super) fn check_for(&mut self, scene: &Scene) {
+        self.make_for(scene);
+        self.checked = address(scene);
+    }
+
+    /// Ends [`Self::check_for`]: the scene is compared again.
+    pub(super) fn forget_check(&mut self) {
+        self.checked = 0;
+    }
+
+    /// The lists made anew unless they are `scene`'s.
+    #[inline(always)]
+    fn make_for(&mut self, scene: &Scene) {
+        if !self.made.as_ref().is_some_and(|m| m.is_for(scene)) {
+            self.start(scene);
+        }
+    }
+
     /// Forgets every list: they are made anew for `made`'s scene.
     #[cold]
     fn start(&mut self, scene: &Scene) {
@@ -200,6 +227,11 @@ impl OccluderCells {
         self.margin = MARGIN * scene.scale;
         self.slots.resize(1 << SLOT_BITS, EMPTY_SLOT);
     }
+}
+
+/// Where `scene` lies in memory: what [`OccluderCells::check_for`] keeps.
+fn address(scene: &Scene) -> usize {
+    std::ptr::from_ref(scene) as usize
 }
 
 /// The objects that may block a shadow ray from a point of the box

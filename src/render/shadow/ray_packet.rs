@@ -138,13 +138,16 @@ impl RayBins {
     }
 }
 
-/// ⌊c⌋ clamped to 0..=CELLS (NaN to 0): `max` and `min` (vector
-/// instructions; `max` takes 0 for a NaN) and an in-range conversion.
-/// (Comparisons and selects instead let the compiler move the upper
-/// clamp past the conversion, where it no longer vectorizes.)
+/// ⌊c⌋ clamped to 0..=CELLS (NaN to 0): a comparison for the lower end
+/// and `min` (a vector instruction) for the upper, then an in-range
+/// conversion. (A comparison and select for the upper end lets the
+/// compiler move it past the conversion, where a node's sixteen cells no
+/// longer vectorize; `max` for the lower end costs a face's rectangle its
+/// vector form.)
 #[inline(always)]
 fn clamp_cell(c: f64) -> i32 {
-    let c = c.max(0.0).min(CELLS as f64);
+    let c = if c > 0.0 { c } else { 0.0 };
+    let c = c.min(CELLS as f64);
     // SAFETY: c is in [0, CELLS], finite and not NaN. (A signed conversion:
     // the one with a vector instruction.)
     unsafe { c.to_int_unchecked::<i32>() }

@@ -229,6 +229,16 @@ mod tests {
             near: 0.0,
         };
         assert_eq!(bins.rays_in(&empty), 0);
+        // Ends beyond every cell clamp to the first and last: the whole
+        // plane holds every ray, as a face's rectangle does.
+        let everywhere = Footprint {
+            x: [f64::NEG_INFINITY, f64::INFINITY],
+            y: [-1e300, 1e300],
+            near: 0.0,
+        };
+        assert_eq!(bins.rays_in(&everywhere), u64::MAX);
+        let [x, y] = [everywhere.x, everywhere.y];
+        assert_eq!(bins.rays_in_rect([x[0], x[1], y[0], y[1]]), u64::MAX);
     }
 
     #[test]

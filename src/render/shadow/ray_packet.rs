@@ -103,31 +103,25 @@ impl RayBins {
     #[allow(clippy::needless_range_loop)]
     #[inline(always)]
     pub fn rays_in4(&self, f: &Footprints) -> [u64; 4] {
-        // Cell coordinates first (vector arithmetic), then the lookups.
-        let mut c = [[0.0f64; 4]; 4];
+        // Cell coordinates, clamped and converted four lanes at a time.
+        let mut cell = [[0i32; 4]; 4];
         for s in 0..4 {
-            c[0][s] = (f.x0[s] - self.min[0]) * self.scale[0];
-            c[1][s] = (f.x1[s] - self.min[0]) * self.scale[0] + 1.0;
-            c[2][s] = (f.y0[s] - self.min[1]) * self.scale[1];
-            c[3][s] = (f.y1[s] - self.min[1]) * self.scale[1] + 1.0;
+            cell[0][s] = clamp_cell((f.x0[s] - self.min[0]) * self.scale[0]);
+            cell[1][s] = clamp_cell((f.x1[s] - self.min[0]) * self.scale[0] + 1.0);
+            cell[2][s] = clamp_cell((f.y0[s] - self.min[1]) * self.scale[1]);
+            cell[3][s] = clamp_cell((f.y1[s] - self.min[1]) * self.scale[1] + 1.0);
         }
-        // Most rectangles lie beside the packet's points: one is empty if
-        // its high ends fall in no cell above the lowest or its low ends in
-        // the last (what its cells would say; a NaN end goes the long way).
+        // Most rectangles lie beside the packet's points: one whose high
+        // ends fall in no cell above the lowest, or its low ends in the
+        // last, holds no ray (its table entries are 0 and all).
+        let top = CELLS as i32;
         let mut empty = [false; 4];
         for s in 0..4 {
-            let top = CELLS as f64;
-            empty[s] = c[1][s] <= 0.0 || c[0][s] >= top || c[3][s] <= 0.0 || c[2][s] >= top;
+            empty[s] =
+                (cell[1][s] == 0) | (cell[0][s] == top) | (cell[3][s] == 0) | (cell[2][s] == top);
         }
         if empty == [true; 4] {
             return [0; 4];
-        }
-        // The cells, clamped and converted four lanes at a time.
-        let mut cell = [[0i32; 4]; 4];
-        for k in 0..4 {
-            for s in 0..4 {
-                cell[k][s] = clamp_cell(c[k][s]);
-            }
         }
         let [bx, by] = &self.below;
         let at = |table: &[u64; CELLS + 1], cell: i32| {
@@ -144,12 +138,16 @@ impl RayBins {
     }
 }
 
-/// ⌊c⌋ clamped to 0..=CELLS (NaN to 0), with plain comparisons and an
-/// in-range conversion: cheaper than `f64::clamp` and a saturating `as`.
+/// ⌊c⌋ clamped to 0..=CELLS (NaN to 0): a comparison for the lower end
+/// and `min` (a vector instruction) for the upper, then an in-range
+/// conversion. (A comparison and select for the upper end lets the
+/// compiler move it past the conversion, where a node's sixteen cells no
+/// longer vectorize; `max` for the lower end costs a face's rectangle its
+/// vector form.)
 #[inline(always)]
 fn clamp_cell(c: f64) -> i32 {
     let c = if c > 0.0 { c } else { 0.0 };
-    let c = if c < CELLS as f64 { c } else { CELLS as f64 };
+    let c = c.min(CELLS as f64);
     // SAFETY: c is in [0, CELLS], finite and not NaN. (A signed conversion:
     // the one with a vector instruction.)
     unsafe { c.to_int_unchecked::<i32>() }
@@ -231,6 +229,16 @@ mod tests {
             near: 0.0,
         };
         assert_eq!(bins.rays_in(&empty), 0);
+        // Ends beyond every cell clamp to the first and last: the whole
+        // plane holds every ray, as a face's rectangle does.
+        let everywhere = Footprint {
+            x: [f64::NEG_INFINITY, f64::INFINITY],
+            y: [-1e300, 1e300],
+            near: 0.0,
+        };
+        assert_eq!(bins.rays_in(&everywhere), u64::MAX);
+        let [x, y] = [everywhere.x, everywhere.y];
+        assert_eq!(bins.rays_in_rect([x[0], x[1], y[0], y[1]]), u64::MAX);
     }
 
     #[test]

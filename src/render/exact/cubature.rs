@@ -533,6 +533,8 @@ fn legendre_integrals(x: f64, top: usize) -> [f64; ORDER] {
 /// Scratch of the cubature: the visible pieces clipped to each level's cell.
 #[derive(Debug, Clone, Default)]
 pub struct CubatureScratch {
+    /// Level d ≥ 1 (the root's pieces are the caller's, not copied: see
+    /// [`Ctx::pieces`]).
     levels: Vec<Pieces>,
     outline: Outline,
     tmp: Vec<DVec2>,
@@ -605,8 +607,7 @@ pub fn specular_factor(
         s.levels
             .resize_with(MAX_DEPTH as usize + 1, Pieces::default);
     }
-    s.levels[0].clone_from(pieces);
-    let ctx = Ctx::new(lobe, span);
+    let ctx = Ctx::new(lobe, span, pieces);
     let total = cell(&ctx, s, 0, DVec2::ZERO, 1.0, visible, &mut report);
     (total, report)
 }
@@ -679,6 +680,8 @@ fn lobe_bound_cos(l: &Lobe) -> f64 {
 
 struct Ctx<'a> {
     lobe: &'a Lobe,
+    /// The visible pieces (the root cell's).
+    root: &'a Pieces,
     /// The lobe's width in L along the plane of incidence (how far it
     /// reaches) and across it (the finest detail to resolve).
     width: f64,
@@ -695,7 +698,7 @@ struct Ctx<'a> {
 }
 
 impl Ctx<'_> {
-    fn new<'a>(lobe: &'a Lobe, span: &LightSpan) -> Ctx<'a> {
+    fn new<'a>(lobe: &'a Lobe, span: &LightSpan, root: &'a Pieces) -> Ctx<'a> {
         // The lobe's width in L (cos^s θ_H ≈ exp(−s θ_H²/2), θ_L ≈ 2 θ_H)
         // and the mirror direction, where it peaks.
         let mirror = lobe.n * (2.0 * lobe.n.dot(lobe.v)) - lobe.v;
@@ -707,6 +710,7 @@ impl Ctx<'_> {
         let width = 2.0 / lobe.shininess.max(1.0).sqrt();
         Ctx {
             lobe,
+            root,
             width,
             narrow: width * lobe.n.dot(lobe.v).clamp(NARROWEST, 1.0),
             mirror: mirror.normalize_or_zero(),
@@ -899,7 +903,7 @@ fn cell(
     // once each way, and its moments would cancel. One piece is its own
     // outline (no sort to find it).
     let to_cell = |p: DVec2| (p - lo) / half - DVec2::ONE;
-    let pieces = &s.levels[d];
+    let pieces = level(ctx.root, &s.levels, d);
     if pieces.len() == 1 {
         let poly = pieces.piece(0);
         for (p, q) in edges_of(poly) {
@@ -942,16 +946,21 @@ fn split_cell(
     let mut total = 0.0;
     for (dx, dy) in [(0.0, 0.0), (half, 0.0), (0.0, half), (half, half)] {
         let child = lo + DVec2::new(dx, dy);
-        clip_level(s, depth as usize, child, half);
+        clip_level(ctx.root, s, depth as usize, child, half);
         let covered = s.levels[depth as usize + 1].area();
         total += cell(ctx, s, depth + 1, child, half, covered, report);
     }
     total
 }
 
-/// The pieces of level `d` clipped to the cell [lo, lo + size]², into
-/// level d + 1.
-fn clip_level(s: &mut CubatureScratch, d: usize, lo: DVec2, size: f64) {
+/// The pieces of level `d`: `root` at level 0, else those of a cell.
+fn level<'a>(root: &'a Pieces, levels: &'a [Pieces], d: usize) -> &'a Pieces {
+    if d == 0 { root } else { &levels[d] }
+}
+
+/// The pieces of level `d` (`root` at level 0) clipped to the cell
+/// [lo, lo + size]², into level d + 1.
+fn clip_level(root: &Pieces, s: &mut CubatureScratch, d: usize, lo: DVec2, size: f64) {
     let hi = lo + DVec2::splat(size);
     let planes = [
         HalfPlane {
@@ -972,7 +981,7 @@ fn clip_level(s: &mut CubatureScratch, d: usize, lo: DVec2, size: f64) {
         },
     ];
     let (head, tail) = s.levels.split_at_mut(d + 1);
-    let (parent, out) = (&head[d], &mut tail[0]);
+    let (parent, out) = (level(root, head, d), &mut tail[0]);
     out.clear();
     for p in parent.iter() {
         let (plo, phi) = super::polygon::bounds(p);
@@ -999,7 +1008,7 @@ fn clip_level(s: &mut CubatureScratch, d: usize, lo: DVec2, size: f64) {
 #[cfg(test)]
 mod tests {
     use super::{
-        CHUNK, CellView, Ctx, LightSpan, Lobe, MAX_DEPTH, TOLERANCE, bound_ln,
+        CHUNK, CellView, Ctx, LightSpan, Lobe, MAX_DEPTH, Pieces, TOLERANCE, bound_ln,
         lobe_at_nested_nodes, lobe_bound_cos, pow_one_minus, whole_cell,
     };
     use crate::render::rng::Rng;
@@ -1208,7 +1217,8 @@ mod tests {
                 continue;
             }
             tried += 1;
-            let ctx = Ctx::new(&lobe, &LightSpan::new(lobe.edge_u, lobe.edge_v));
+            let none = Pieces::default();
+            let ctx = Ctx::new(&lobe, &LightSpan::new(lobe.edge_u, lobe.edge_v), &none);
             let view = (depth < MAX_DEPTH).then(|| CellView::new(&ctx, lo, size));
             let Some((value, estimate)) = whole_cell(&ctx, lo, size, view.as_ref()) else {
                 continue;

@@ -53,10 +53,13 @@ pub fn diffuse_over_pieces(
     outline_scratch: &mut Outline,
 ) -> f64 {
     let centre = (rect[0] + rect[1] + rect[2] + rect[3]) * 0.25;
+    // One square root of the largest square: the same number as the
+    // largest root (the root is rounded correctly, so it keeps the order).
     let radius = rect
         .iter()
-        .map(|&p| (p - centre).length())
-        .fold(0.0, f64::max);
+        .map(|&p| (p - centre).length_squared())
+        .fold(0.0, f64::max)
+        .sqrt();
     if radius < SMALL_LIGHT * (centre.length_squared() + h * h).sqrt() {
         return pieces
             .iter()
@@ -183,8 +186,9 @@ fn piece_integral(poly: &[DVec2], a: DVec2, b: f64, h: f64) -> f64 {
     let centroid = poly.iter().copied().sum::<DVec2>() / k as f64;
     let radius = poly
         .iter()
-        .map(|q| (*q - centroid).length())
-        .fold(0.0, f64::max);
+        .map(|q| (*q - centroid).length_squared())
+        .fold(0.0, f64::max)
+        .sqrt();
     if radius < SMALL_LIGHT * (centroid.length_squared() + h * h).sqrt() {
         return diffuse_polygon_integral(poly, a, b, h);
     }

@@ -26,7 +26,7 @@ use super::shading::{
     light_terms, local_colour, model_terms, nearest_point_specular_direction, shade,
 };
 use super::shading_params::ShadingParams;
-use super::shadow::ShadowBuffers;
+use super::shadow::{ShadowBuffers, ShadowQuery};
 use super::stats::RayStats;
 use super::tile_frustum::{TileTargets, camera_objects};
 
@@ -387,11 +387,13 @@ impl<'a> Tracer<'a> {
             let sp = ShadingPoint {
                 point: surface.point,
                 normal: shading_normal,
-                geometric: normal,
-                shadow_point,
                 view: -ray.dir,
-                object,
-                inside,
+                shadow: ShadowQuery {
+                    point: shadow_point,
+                    normal,
+                    object,
+                    inside,
+                },
                 material,
                 material_index,
             };
@@ -424,7 +426,7 @@ impl<'a> Tracer<'a> {
                     }
                     // The directions the shadow rays took: from the
                     // shadow point (lifted on smooth triangles).
-                    _ => (scene.light.shape.corner - sp.shadow_point).as_vec3(),
+                    _ => (scene.light.shape.corner - sp.shadow.point).as_vec3(),
                 };
                 sink.hit(
                     HitRecord {
@@ -687,7 +689,7 @@ impl PathColour for Deferred {
                     weight,
                 });
                 let hit = LaneHit {
-                    to_corner: (scene.light.shape.corner - sp.shadow_point).as_vec3(),
+                    to_corner: (scene.light.shape.corner - sp.shadow.point).as_vec3(),
                     normal: sp.normal.as_vec3(),
                     view: sp.view.as_vec3(),
                     shininess: m.shininess,

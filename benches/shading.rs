@@ -10,7 +10,7 @@ use penumbra::render::Loaded;
 use penumbra::render::RayStats;
 use penumbra::render::rng::Rng;
 use penumbra::render::shading::{ShadingPoint, shade};
-use penumbra::render::shadow::ShadowBuffers;
+use penumbra::render::shadow::{ShadowBuffers, ShadowQuery};
 use penumbra::render::tracer::Tracer;
 
 /// The first hit of pixel (x, y) as the tracer shades it.
@@ -30,11 +30,13 @@ fn hit(loaded: &Loaded, x: u32, y: u32) -> Option<ShadingPoint<'_>> {
     Some(ShadingPoint {
         point: surface.point,
         normal,
-        geometric: normal,
-        shadow_point: surface.point,
         view: -ray.dir,
-        object,
-        inside,
+        shadow: ShadowQuery {
+            point: surface.point,
+            normal,
+            object,
+            inside,
+        },
         material: &loaded.shading.materials[scene.material_of(object) as usize],
         material_index: scene.material_of(object),
     })
@@ -54,7 +56,7 @@ fn shading(c: &mut Criterion) {
     let (mut traced, mut skipped) = (None, None);
     for y in (h / 2..h).rev().step_by(4) {
         for x in (0..w).step_by(4) {
-            let Some(sp) = hit(&loaded, x, y).filter(|sp| sp.object == 0) else {
+            let Some(sp) = hit(&loaded, x, y).filter(|sp| sp.shadow.object == 0) else {
                 continue;
             };
             let mut stats = RayStats::default();

@@ -8,7 +8,7 @@ use penumbra::render::HitTarget;
 use penumbra::render::rng::Rng;
 use penumbra::render::sampling::Pattern;
 use penumbra::render::shading::{Needs, ShadingPoint, light_terms};
-use penumbra::render::shadow::ShadowBuffers;
+use penumbra::render::shadow::{ShadowBuffers, ShadowQuery};
 use penumbra::render::{CancelToken, RenderOptions};
 use penumbra::render::{Loaded, RayStats, Sampling, SceneDesc};
 
@@ -92,11 +92,13 @@ fn occluder_hiding_half_the_light_gives_half_visibility() {
     let point = ShadingPoint {
         point: DVec3::ZERO,
         normal: DVec3::Y,
-        geometric: DVec3::Y,
-        shadow_point: DVec3::ZERO,
         view: DVec3::Y,
-        object: 0,
-        inside: false,
+        shadow: ShadowQuery {
+            point: DVec3::ZERO,
+            normal: DVec3::Y,
+            object: 0,
+            inside: false,
+        },
         material: &loaded.shading.materials[0],
         material_index: 0,
     };

@@ -21,16 +21,15 @@ pub struct ShadingPoint<'a> {
     pub point: DVec3,
     /// Unit shading normal, flipped to face the incoming ray.
     pub normal: DVec3,
-    /// Unit geometric normal, flipped the same way: what decides which
-    /// light points lie behind the surface.
-    pub geometric: DVec3,
-    /// Where the shadow rays start: `point`, or for smooth triangles the
-    /// point lifted off the flat face (see `geometry/triangle.rs`).
-    pub shadow_point: DVec3,
     /// Unit direction towards the viewer (against the incoming ray).
     pub view: DVec3,
-    pub object: u32,
-    pub inside: bool,
+    /// The point's shadow test, kept whole so that it is handed on without
+    /// a copy: where the shadow rays start (`point`, or for smooth
+    /// triangles the point lifted off the flat face, see
+    /// `geometry/triangle.rs`), the unit geometric normal flipped like
+    /// `normal` (what decides which light points lie behind the surface),
+    /// the hit object and its side.
+    pub shadow: ShadowQuery,
     pub material: &'a Material,
     /// `material`'s index among the shading parameters' materials.
     pub material_index: u32,
@@ -190,15 +189,7 @@ pub(crate) fn light_points_generic(
     stats: &mut RayStats,
 ) -> Lit {
     let m = sp.material;
-    // Written first: read back right after its stores, the point's z and
-    // the normal's x came in one load spanning two of them, which waits for
-    // both to reach the cache.
-    let query = ShadowQuery {
-        point: sp.shadow_point,
-        normal: sp.geometric,
-        object: sp.object,
-        inside: sp.inside,
-    };
+    let query = &sp.shadow;
     if !scene.light.illuminates(sp.point) {
         return Lit::Known(LightTerms::default());
     }
@@ -211,13 +202,13 @@ pub(crate) fn light_points_generic(
 
     if s.model == AreaLightModel::Exact {
         let p = ExactPoint {
-            shadow_point: sp.shadow_point,
+            shadow_point: query.point,
             normal: sp.normal,
-            geometric: sp.geometric,
+            geometric: query.normal,
             view: sp.view,
             shininess: m.shininess as f64,
-            object: sp.object,
-            inside: sp.inside,
+            object: query.object,
+            inside: query.inside,
             shadows: s.shadows,
         };
         match exact_factors(scene, &p, need_s, CircleFit::SameArea, &mut buf.exact) {
@@ -234,7 +225,7 @@ pub(crate) fn light_points_generic(
     }
 
     fill_light_points(pattern, rng, buf);
-    shadow::visibility_inline(scene, s, &query, count, buf, stats);
+    shadow::visibility_inline(scene, s, query, count, buf, stats);
     Lit::Points
 }
 

@@ -26,7 +26,7 @@ use super::shading::{
     light_terms, local_colour, model_terms, nearest_point_specular_direction, shade,
 };
 use super::shading_params::ShadingParams;
-use super::shadow::ShadowBuffers;
+use super::shadow::{ShadowBuffers, ShadowQuery};
 use super::stats::RayStats;
 use super::tile_frustum::{TileTargets, camera_objects};
 
@@ -387,11 +387,13 @@ impl<'a> Tracer<'a> {
             let sp = ShadingPoint {
                 point: surface.point,
                 normal: shading_normal,
-                geometric: normal,
-                shadow_point,
                 view: -ray.dir,
-                object,
-                inside,
+                shadow: ShadowQuery {
+                    point: shadow_point,
+                    normal,
+                    object,
+                    inside,
+                },
                 material,
                 material_index,
             };
@@ -424,7 +426,7 @@ impl<'a> Tracer<'a> {
                     }
                     // The directions the shadow rays took: from the
                     // shadow point (lifted on smooth triangles).
-                    _ => (scene.light.shape.corner - sp.shadow_point).as_vec3(),
+                    _ => (scene.light.shape.corner - sp.shadow.point).as_vec3(),
                 };
                 sink.hit(
                     HitRecord {
@@ -524,7 +526,7 @@ fn tile_in_lanes_generic(
         camera.row_rays(rect.x, y, rect.w, &mut rays);
         for (x, &ray) in (rect.x..).zip(&rays) {
             tracer.trace_path(x, y, 0, ray, Some(objects), scratch, &mut (), &mut colour);
-            colour.terms.push(Term::PixelEnd);
+            colour.end_pixel();
         }
     }
     scratch.camera_rays = rays;
@@ -533,20 +535,17 @@ fn tile_in_lanes_generic(
         out.clear();
         let mut sum = Vec3::ZERO;
         for term in &colour.terms {
-            match *term {
-                Term::Known { colour, weight } => sum += colour * weight,
-                Term::Waiting {
-                    material,
-                    factors,
-                    weight,
-                } => {
+            let local = match term.colour {
+                TermColour::Known(c) => c,
+                TermColour::Waiting { material, factors } => {
                     let f = colour.factors[factors as usize];
-                    sum += tracer.material_terms[material as usize].colours.colour(f) * weight;
+                    tracer.material_terms[material as usize].colours.colour(f)
                 }
-                Term::PixelEnd => {
-                    out.push(sum);
-                    sum = Vec3::ZERO;
-                }
+            };
+            sum += local * term.weight;
+            if term.pixel_end {
+                out.push(sum);
+                sum = Vec3::ZERO;
             }
         }
     } else {
@@ -609,18 +608,35 @@ impl PathColour for Sum {
 /// One term of a tile's path colours, in the order of [`Tracer::trace`]'s
 /// sum.
 #[derive(Debug, Clone, Copy)]
-pub enum Term {
-    /// `colour * weight`.
-    Known { colour: Vec3, weight: f32 },
+struct Term {
+    colour: TermColour,
+    weight: f32,
+    /// The pixel's last term: a mark in the same place for every kind of
+    /// term (set without looking at the kind), not a term of its own.
+    pixel_end: bool,
+}
+
+/// The colour a [`Term`]'s weight multiplies.
+#[derive(Debug, Clone, Copy)]
+enum TermColour {
+    Known(Vec3),
     /// A hit's local colour, whose light factors wait in the lanes (their
-    /// index in `factors`), times `weight`.
+    /// index in `factors`).
     Waiting {
         material: u32,
         factors: u32,
-        weight: f32,
     },
-    /// The end of a pixel's path.
-    PixelEnd,
+}
+
+impl Term {
+    #[inline(always)]
+    fn new(colour: TermColour, weight: f32) -> Term {
+        Term {
+            colour,
+            weight,
+            pixel_end: false,
+        }
+    }
 }
 
 /// A tile's path colours as terms, the light factors of lit hits computed
@@ -634,6 +650,16 @@ struct Deferred {
 }
 
 impl Deferred {
+    /// Marks the last term as the end of its pixel (every path adds at
+    /// least one term: its end's colour or a hit's).
+    #[inline(always)]
+    fn end_pixel(&mut self) {
+        self.terms
+            .last_mut()
+            .expect("a path adds at least one term")
+            .pixel_end = true;
+    }
+
     /// Computes the waiting hits' factors.
     #[inline(always)]
     fn flush(&mut self) {
@@ -646,7 +672,8 @@ impl Deferred {
 impl PathColour for Deferred {
     #[inline(always)]
     fn add(&mut self, colour: Vec3, weight: f32) {
-        self.terms.push(Term::Known { colour, weight });
+        self.terms
+            .push(Term::new(TermColour::Known(colour), weight));
     }
 
     #[inline(always)]
@@ -681,13 +708,15 @@ impl PathColour for Deferred {
             Lit::Points => {
                 let index = self.factors.len();
                 self.factors.push(LightTerms::default());
-                self.terms.push(Term::Waiting {
-                    material: sp.material_index,
-                    factors: index as u32,
+                self.terms.push(Term::new(
+                    TermColour::Waiting {
+                        material: sp.material_index,
+                        factors: index as u32,
+                    },
                     weight,
-                });
+                ));
                 let hit = LaneHit {
-                    to_corner: (scene.light.shape.corner - sp.shadow_point).as_vec3(),
+                    to_corner: (scene.light.shape.corner - sp.shadow.point).as_vec3(),
                     normal: sp.normal.as_vec3(),
                     view: sp.view.as_vec3(),
                     shininess: m.shininess,
@@ -699,10 +728,10 @@ impl PathColour for Deferred {
                 return;
             }
         };
-        self.terms.push(Term::Known {
-            colour: terms.colours.colour(factors),
+        self.terms.push(Term::new(
+            TermColour::Known(terms.colours.colour(factors)),
             weight,
-        });
+        ));
     }
 }
 

@@ -44,7 +44,8 @@ pub use buffers::ShadowBuffers;
 pub(crate) use cells::OccluderCells;
 pub use light_frame::OccluderBvh;
 pub(crate) use packet::live_rays;
-pub(crate) use visibility::{ShadowQuery, possible_occluders, visibility, visibility_inline};
+pub use visibility::ShadowQuery;
+pub(crate) use visibility::{possible_occluders, visibility, visibility_inline};
 
 /// Shadow rays end at this fraction of the way to their light point: a
 /// surface the light lies in (a light flush with a ceiling) must not block

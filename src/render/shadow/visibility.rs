@@ -36,7 +36,7 @@ pub(super) struct Candidate {
 }
 
 /// One hit point whose shadow rays are to be traced.
-pub(crate) struct ShadowQuery {
+pub struct ShadowQuery {
     /// The hit point (on the surface).
     pub point: DVec3,
     /// Unit normal facing the incoming ray.

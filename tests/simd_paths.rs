@@ -3,8 +3,8 @@
 //! in-process test switches a process-wide choice (the other runs the
 //! `penumbra` binary once per choice).
 
-use penumbra::render::Loaded;
 use penumbra::render::math::force_portable_kernels;
+use penumbra::render::{CancelToken, EditClass, LiveRender, Loaded, RenderOptions};
 
 #[test]
 fn avx2_and_portable_kernels_render_the_same_bits() {
@@ -25,14 +25,51 @@ fn avx2_and_portable_kernels_render_the_same_bits() {
         let fast = loaded.render_image();
         assert!(!force_portable_kernels(true));
         let portable = loaded.render_image();
+        // The viewer's frames, which record every path (and a light edit's,
+        // which follow the records), through the portable kernels too.
+        let mut live = LiveRender::default();
+        let options = RenderOptions {
+            threads: Some(2),
+            progressive: false,
+            tile_size: 16,
+        };
+        let mut recorded = vec![];
+        let mut relit_desc = desc.clone();
+        relit_desc.light.corner[0] += 0.25;
+        for (d, class) in [
+            (&desc, EditClass::Rebuild),
+            (&relit_desc, EditClass::Relight),
+        ] {
+            let report = live
+                .render(d, &options, &CancelToken::new(), &|_| {})
+                .unwrap();
+            assert_eq!(report.class, class, "{name}");
+            recorded.push(report.film);
+        }
         force_portable_kernels(false);
-        let differing = fast
-            .pixels
-            .iter()
-            .zip(&portable.pixels)
-            .filter(|(a, b)| a.to_array().map(f32::to_bits) != b.to_array().map(f32::to_bits))
-            .count();
-        assert_eq!(differing, 0, "{name}: AVX2 ({avx2}) against portable");
+        let relit_fresh = Loaded::new(&relit_desc).unwrap().render_image();
+        let differing = |a: &penumbra::render::Film, b: &penumbra::render::Film| {
+            a.pixels
+                .iter()
+                .zip(&b.pixels)
+                .filter(|(a, b)| a.to_array().map(f32::to_bits) != b.to_array().map(f32::to_bits))
+                .count()
+        };
+        assert_eq!(
+            differing(&fast, &portable),
+            0,
+            "{name}: AVX2 ({avx2}) against portable"
+        );
+        assert_eq!(
+            differing(&fast, &recorded[0]),
+            0,
+            "{name}: recorded, portable"
+        );
+        assert_eq!(
+            differing(&relit_fresh, &recorded[1]),
+            0,
+            "{name}: relit, portable"
+        );
         eprintln!("{name}: identical (AVX2 kernels available: {avx2})");
     }
 }

@@ -11,7 +11,8 @@
 use glam::{DVec3, Vec3};
 
 use super::geometry::{Ray, spawn_origin};
-use super::live::record::ColourHit;
+use super::live::record::{ColourHit, TileRecorder};
+use super::live::relight::Relighter;
 use super::math::avx2_dispatch;
 use super::pixel_filter::PixelFilter;
 use super::progressive::{CancelToken, TileRect};
@@ -83,17 +84,40 @@ pub trait PathSink {
     ) -> Option<(HitTarget, f64)> {
         find()
     }
-    /// A hit with its factors; `visible` holds its light points'
-    /// visibility as it was traced.
-    fn hit(&mut self, hit: HitRecord, buf: &ShadowBuffers, count: usize);
+    /// A hit with its factors; `buf` holds its light points' visibility
+    /// as it was traced. Returns the hit's index among the sink's hits.
+    fn hit(&mut self, hit: HitRecord, buf: &ShadowBuffers, count: usize) -> usize;
+    /// The factors of hit `index`, recorded before they were known (the
+    /// hits a tile shades side by side, see [`Tracer::trace_rect`]).
+    fn set_factors(&mut self, index: usize, factors: LightTerms);
     fn end(&mut self, end: PathEnd);
+    /// [`Tracer::trace_rect`] of a recording sink under the `sampled`
+    /// model ([`record_tile`]); a sink overrides it with a copy compiled
+    /// for AVX2 as a whole, as [`Tracer::tile`]'s is.
+    fn record_tile(
+        tracer: &Tracer,
+        rect: TileRect,
+        cancel: &CancelToken,
+        scratch: &mut TraceScratch,
+        sink: &mut Self,
+        out: &mut Vec<Vec3>,
+    ) -> bool
+    where
+        Self: Sized,
+    {
+        record_tile(tracer, rect, cancel, scratch, sink, out)
+    }
 }
 
 /// A one-shot render records nothing.
 impl PathSink for () {
     const RECORD: bool = false;
     #[inline(always)]
-    fn hit(&mut self, _: HitRecord, _: &ShadowBuffers, _: usize) {}
+    fn hit(&mut self, _: HitRecord, _: &ShadowBuffers, _: usize) -> usize {
+        0
+    }
+    #[inline(always)]
+    fn set_factors(&mut self, _: usize, _: LightTerms) {}
     #[inline(always)]
     fn end(&mut self, _: PathEnd) {}
 }
@@ -128,6 +152,8 @@ pub struct TraceScratch {
     lanes: SampledLanes,
     terms: Vec<Term>,
     factors: Vec<LightTerms>,
+    /// A recording sink's index of each waiting hit.
+    factor_hits: Vec<u32>,
     /// What [`Tracer::tile`]'s camera rays test.
     camera_objects: TileTargets,
     /// One row of a tile's camera rays.
@@ -172,6 +198,7 @@ impl<'a> Tracer<'a> {
             lanes: SampledLanes::default(),
             terms: Vec::new(),
             factors: Vec::new(),
+            factor_hits: Vec::new(),
             camera_objects: TileTargets::default(),
             camera_rays: Vec::new(),
         }
@@ -259,8 +286,9 @@ impl<'a> Tracer<'a> {
     /// The pixels of `rect` (rows packed) into `out`, each path given to
     /// `sink`, as [`Tracer::trace`] gives them (the same bits); with one
     /// camera sample per pixel the camera rays test only the tile's
-    /// [`camera_objects`], as [`Tracer::tile`]'s do. False if cancelled
-    /// part-way.
+    /// [`camera_objects`], as [`Tracer::tile`]'s do, and a recording sink's
+    /// hits under the `sampled` model are shaded side by side as there
+    /// ([`PathSink::record_tile`]). False if cancelled part-way.
     pub fn trace_rect<S: PathSink>(
         &self,
         rect: TileRect,
@@ -281,6 +309,9 @@ impl<'a> Tracer<'a> {
             }
             return true;
         }
+        if S::RECORD && self.shades_in_lanes() {
+            return S::record_tile(self, rect, cancel, scratch, sink, out);
+        }
         let mut objects = std::mem::take(&mut scratch.camera_objects);
         camera_objects(self.scene, rect, &mut objects);
         let finished = self.each_camera_ray(rect, cancel, scratch, |x, y, ray, scratch| {
@@ -290,6 +321,27 @@ impl<'a> Tracer<'a> {
         });
         scratch.camera_objects = objects;
         finished
+    }
+
+    /// What a recording sink keeps of hit `sp` (object `object` at
+    /// distance `t` along its ray) with light factors `factors`.
+    #[inline(always)]
+    fn hit_record(&self, sp: &ShadingPoint, t: f64, factors: LightTerms) -> HitRecord {
+        let to_light = match self.settings.model {
+            AreaLightModel::NearestPoint => nearest_point_specular_direction(self.scene, sp),
+            // The directions the shadow rays took: from the shadow point
+            // (lifted on smooth triangles).
+            _ => (self.scene.light.shape.corner - sp.shadow.point).as_vec3(),
+        };
+        HitRecord {
+            material: sp.material_index,
+            object: sp.shadow.object,
+            t,
+            factors,
+            to_light,
+            normal: sp.normal.as_vec3(),
+            view: sp.view.as_vec3(),
+        }
     }
 
     /// Calls `each` with the camera ray of every pixel of `rect` (one
@@ -405,46 +457,7 @@ impl<'a> Tracer<'a> {
                 Rng::for_sample(s.seed, x, y, sample, depth)
             };
             if S::RECORD {
-                let buf = &mut scratch.shadow;
-                // Every factor is computed, so that a later edit of any
-                // colour finds it; the light points are cleared first so
-                // that a point behind the light records as invisible.
-                buf.vis[..self.pattern.count()].fill(0.0);
-                let factors = light_terms(
-                    scene,
-                    s,
-                    &sp,
-                    Needs::ALL,
-                    &self.pattern,
-                    &mut rng,
-                    buf,
-                    &mut scratch.stats,
-                );
-                let to_light = match s.model {
-                    super::scene_file::AreaLightModel::NearestPoint => {
-                        nearest_point_specular_direction(scene, &sp)
-                    }
-                    // The directions the shadow rays took: from the
-                    // shadow point (lifted on smooth triangles).
-                    _ => (scene.light.shape.corner - sp.shadow.point).as_vec3(),
-                };
-                sink.hit(
-                    HitRecord {
-                        material: material_index,
-                        object,
-                        t,
-                        factors,
-                        to_light,
-                        normal: shading_normal.as_vec3(),
-                        view: sp.view.as_vec3(),
-                    },
-                    buf,
-                    self.pattern.count(),
-                );
-                colour.add(
-                    local_colour(material, &shading.light, s.terms, factors),
-                    weight,
-                );
+                colour.record(self, &sp, &mut rng, scratch, weight, sink, t);
             } else {
                 colour.shade(self, &sp, &mut rng, scratch, weight);
             }
@@ -500,12 +513,75 @@ fn tile_in_lanes_generic(
     scratch: &mut TraceScratch,
     out: &mut Vec<Vec3>,
 ) -> bool {
+    lanes_tile(tracer, rect, objects, cancel, scratch, &mut (), out)
+}
+
+/// [`Tracer::trace_rect`] of a recording sink under the `sampled` model:
+/// as [`Tracer::tile`], the hits shaded side by side, each hit recorded
+/// as it is traced and its factors set once the lanes have them.
+#[inline(always)]
+pub fn record_tile<S: PathSink>(
+    tracer: &Tracer<'_>,
+    rect: TileRect,
+    cancel: &CancelToken,
+    scratch: &mut TraceScratch,
+    sink: &mut S,
+    out: &mut Vec<Vec3>,
+) -> bool {
+    let mut objects = std::mem::take(&mut scratch.camera_objects);
+    camera_objects(tracer.scene, rect, &mut objects);
+    scratch.shadow.start_tile(tracer.scene);
+    let finished = lanes_tile(tracer, rect, &objects, cancel, scratch, sink, out);
+    scratch.shadow.end_tile();
+    scratch.camera_objects = objects;
+    finished
+}
+
+avx2_dispatch!(
+    /// [`record_tile`] of a fresh record, compiled for AVX2 as a whole
+    /// where the CPU has it.
+    pub(crate) fn record_tile_fresh(
+        tracer: &Tracer<'_>,
+        rect: TileRect,
+        cancel: &CancelToken,
+        scratch: &mut TraceScratch,
+        sink: &mut TileRecorder<'_>,
+        out: &mut Vec<Vec3>,
+    ) -> bool => record_tile
+);
+
+avx2_dispatch!(
+    /// [`record_tile`] of a light edit following the last records,
+    /// compiled for AVX2 as a whole where the CPU has it.
+    pub(crate) fn record_tile_relit(
+        tracer: &Tracer<'_>,
+        rect: TileRect,
+        cancel: &CancelToken,
+        scratch: &mut TraceScratch,
+        sink: &mut Relighter<'_>,
+        out: &mut Vec<Vec3>,
+    ) -> bool => record_tile
+);
+
+/// The pixels of `rect` with their hits' `sampled` sums side by side
+/// ([`Deferred`]), each path also given to `sink`.
+#[inline(always)]
+fn lanes_tile<S: PathSink>(
+    tracer: &Tracer<'_>,
+    rect: TileRect,
+    objects: &TileTargets,
+    cancel: &CancelToken,
+    scratch: &mut TraceScratch,
+    sink: &mut S,
+    out: &mut Vec<Vec3>,
+) -> bool {
     let mut lanes = std::mem::take(&mut scratch.lanes);
     lanes.start(&tracer.pattern);
     let mut colour = Deferred {
         lanes,
         terms: std::mem::take(&mut scratch.terms),
         factors: std::mem::take(&mut scratch.factors),
+        hits: std::mem::take(&mut scratch.factor_hits),
         edges: (
             tracer.scene.light.shape.edge_u.as_vec3(),
             tracer.scene.light.shape.edge_v.as_vec3(),
@@ -513,6 +589,7 @@ fn tile_in_lanes_generic(
     };
     colour.terms.clear();
     colour.factors.clear();
+    colour.hits.clear();
     // The rows written out, not through `each_camera_ray`: a closure would
     // be compiled without this function's CPU features.
     let camera = &tracer.scene.camera;
@@ -525,13 +602,17 @@ fn tile_in_lanes_generic(
         }
         camera.row_rays(rect.x, y, rect.w, &mut rays);
         for (x, &ray) in (rect.x..).zip(&rays) {
-            tracer.trace_path(x, y, 0, ray, Some(objects), scratch, &mut (), &mut colour);
+            tracer.trace_path(x, y, 0, ray, Some(objects), scratch, sink, &mut colour);
             colour.end_pixel();
         }
     }
     scratch.camera_rays = rays;
     if finished {
         colour.flush();
+        // Only a recording sink's waiting hits have entries in `hits`.
+        for (&hit, &factors) in colour.hits.iter().zip(&colour.factors) {
+            sink.set_factors(hit as usize, factors);
+        }
         out.clear();
         let mut sum = Vec3::ZERO;
         for term in &colour.terms {
@@ -554,6 +635,7 @@ fn tile_in_lanes_generic(
     scratch.lanes = colour.lanes;
     scratch.terms = colour.terms;
     scratch.factors = colour.factors;
+    scratch.factor_hits = colour.hits;
     finished
 }
 
@@ -570,6 +652,20 @@ trait PathColour {
         rng: &mut Rng,
         scratch: &mut TraceScratch,
         weight: f32,
+    );
+    /// As [`PathColour::shade`], with every light factor computed (a later
+    /// edit of any colour finds it) and the hit, `t` along its ray, given
+    /// to `sink`.
+    #[allow(clippy::too_many_arguments)]
+    fn record<S: PathSink>(
+        &mut self,
+        tracer: &Tracer,
+        sp: &ShadingPoint,
+        rng: &mut Rng,
+        scratch: &mut TraceScratch,
+        weight: f32,
+        sink: &mut S,
+        t: f64,
     );
 }
 
@@ -601,6 +697,37 @@ impl PathColour for Sum {
             &mut scratch.shadow,
             &mut scratch.stats,
         );
+        self.0 += local * weight;
+    }
+
+    #[inline(always)]
+    fn record<S: PathSink>(
+        &mut self,
+        tracer: &Tracer,
+        sp: &ShadingPoint,
+        rng: &mut Rng,
+        scratch: &mut TraceScratch,
+        weight: f32,
+        sink: &mut S,
+        t: f64,
+    ) {
+        let (s, count) = (tracer.settings, tracer.pattern.count());
+        let buf = &mut scratch.shadow;
+        // The light points are cleared first so that a point behind the
+        // light records as invisible.
+        buf.vis[..count].fill(0.0);
+        let factors = light_terms(
+            tracer.scene,
+            s,
+            sp,
+            Needs::ALL,
+            &tracer.pattern,
+            rng,
+            buf,
+            &mut scratch.stats,
+        );
+        sink.hit(tracer.hit_record(sp, t, factors), buf, count);
+        let local = local_colour(sp.material, &tracer.shading.light, s.terms, factors);
         self.0 += local * weight;
     }
 }
@@ -645,6 +772,8 @@ struct Deferred {
     lanes: SampledLanes,
     terms: Vec<Term>,
     factors: Vec<LightTerms>,
+    /// A recording sink's index of the hit each of `factors` belongs to.
+    hits: Vec<u32>,
     /// The light's edges, as the light points' directions take them.
     edges: (Vec3, Vec3),
 }
@@ -730,6 +859,70 @@ impl PathColour for Deferred {
         };
         self.terms.push(Term::new(
             TermColour::Known(terms.colours.colour(factors)),
+            weight,
+        ));
+    }
+
+    #[inline(always)]
+    fn record<S: PathSink>(
+        &mut self,
+        tracer: &Tracer,
+        sp: &ShadingPoint,
+        rng: &mut Rng,
+        scratch: &mut TraceScratch,
+        weight: f32,
+        sink: &mut S,
+        t: f64,
+    ) {
+        // As `Sum::record`, with the `sampled` sums left to the lanes.
+        let (scene, s) = (tracer.scene, tracer.settings);
+        let count = tracer.pattern.count();
+        let buf = &mut scratch.shadow;
+        buf.vis[..count].fill(0.0);
+        let lit = light_points_generic(
+            scene,
+            s,
+            sp,
+            Needs::ALL,
+            &tracer.pattern,
+            rng,
+            buf,
+            &mut scratch.stats,
+        );
+        let factors = match lit {
+            Lit::Known(f) => f,
+            Lit::Points if !any_visible(buf, count) => {
+                model_terms(scene, s, sp, Needs::ALL, count, buf)
+            }
+            Lit::Points => {
+                let hit = sink.hit(tracer.hit_record(sp, t, LightTerms::default()), buf, count);
+                let index = self.factors.len();
+                self.factors.push(LightTerms::default());
+                self.hits.push(hit as u32);
+                self.terms.push(Term::new(
+                    TermColour::Waiting {
+                        material: sp.material_index,
+                        factors: index as u32,
+                    },
+                    weight,
+                ));
+                let lane = LaneHit {
+                    to_corner: (scene.light.shape.corner - sp.shadow.point).as_vec3(),
+                    normal: sp.normal.as_vec3(),
+                    view: sp.view.as_vec3(),
+                    shininess: sp.material.shininess,
+                    specular: true,
+                };
+                if self.lanes.push(index, lane, buf) {
+                    self.flush();
+                }
+                return;
+            }
+        };
+        sink.hit(tracer.hit_record(sp, t, factors), buf, count);
+        let colours = &tracer.material_terms[sp.material_index as usize].colours;
+        self.terms.push(Term::new(
+            TermColour::Known(colours.colour(factors)),
             weight,
         ));
     }

@@ -18,11 +18,13 @@ use std::sync::{Arc, Mutex};
 use glam::Vec3;
 
 use super::cosine_logs::CosineLogs;
-use crate::render::progressive::{TileRect, lock};
+use crate::render::progressive::{CancelToken, TileRect, lock};
 use crate::render::shading::LightTerms;
 use crate::render::shading_params::ShadingParams;
 use crate::render::shadow::{ShadowBuffers, live_rays};
-use crate::render::tracer::{HitRecord, PathEnd, PathSink};
+use crate::render::tracer::{
+    HitRecord, PathEnd, PathSink, TraceScratch, Tracer, record_tile_fresh,
+};
 
 /// The colour tier of one hit.
 #[derive(Debug, Clone, Copy)]
@@ -200,8 +202,9 @@ impl PathSink for TileRecorder<'_> {
     // Inlined into the path's loop: passed through memory, the hit's 60
     // bytes cost more than writing them out.
     #[inline(always)]
-    fn hit(&mut self, hit: HitRecord, buf: &ShadowBuffers, count: usize) {
+    fn hit(&mut self, hit: HitRecord, buf: &ShadowBuffers, count: usize) -> usize {
         let r = &mut *self.record;
+        let index = r.hits.len();
         r.hits.push(ColourHit {
             material: hit.material,
             factors: hit.factors,
@@ -216,6 +219,23 @@ impl PathSink for TileRecorder<'_> {
             });
             push_visibility_bits(&buf.vis, count, &mut s.visible);
         }
+        index
+    }
+
+    #[inline(always)]
+    fn set_factors(&mut self, index: usize, factors: LightTerms) {
+        self.record.hits[index].factors = factors;
+    }
+
+    fn record_tile(
+        tracer: &Tracer,
+        rect: TileRect,
+        cancel: &CancelToken,
+        scratch: &mut TraceScratch,
+        sink: &mut Self,
+        out: &mut Vec<Vec3>,
+    ) -> bool {
+        record_tile_fresh(tracer, rect, cancel, scratch, sink, out)
     }
 
     #[inline]

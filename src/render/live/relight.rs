@@ -16,11 +16,17 @@
 
 use std::sync::Mutex;
 
+use glam::Vec3;
+
 use super::record::{TileRecord, TileRecorder};
 use crate::render::geometry::{Parallelogram, Ray};
+use crate::render::progressive::{CancelToken, TileRect};
 use crate::render::scene::HitTarget;
+use crate::render::shading::LightTerms;
 use crate::render::shadow::ShadowBuffers;
-use crate::render::tracer::{HitRecord, PathEnd, PathSink};
+use crate::render::tracer::{
+    HitRecord, PathEnd, PathSink, TraceScratch, Tracer, record_tile_relit,
+};
 
 /// Follows the recorded paths of one tile (`old`) under a new light while
 /// recording them again into `recorder`.
@@ -96,8 +102,24 @@ impl PathSink for Relighter<'_> {
     }
 
     #[inline]
-    fn hit(&mut self, hit: HitRecord, buf: &ShadowBuffers, count: usize) {
-        self.recorder.hit(hit, buf, count);
+    fn hit(&mut self, hit: HitRecord, buf: &ShadowBuffers, count: usize) -> usize {
+        self.recorder.hit(hit, buf, count)
+    }
+
+    #[inline]
+    fn set_factors(&mut self, index: usize, factors: LightTerms) {
+        self.recorder.set_factors(index, factors);
+    }
+
+    fn record_tile(
+        tracer: &Tracer,
+        rect: TileRect,
+        cancel: &CancelToken,
+        scratch: &mut TraceScratch,
+        sink: &mut Self,
+        out: &mut Vec<Vec3>,
+    ) -> bool {
+        record_tile_relit(tracer, rect, cancel, scratch, sink, out)
     }
 
     #[inline]

@@ -70,7 +70,7 @@ impl<'a> Relighter<'a> {
 impl PathSink for Relighter<'_> {
     const RECORD: bool = true;
 
-    #[inline]
+    #[inline(always)]
     fn nearest(
         &mut self,
         depth: u32,
@@ -101,12 +101,12 @@ impl PathSink for Relighter<'_> {
         find()
     }
 
-    #[inline]
+    #[inline(always)]
     fn hit(&mut self, hit: HitRecord, buf: &ShadowBuffers, count: usize) -> usize {
         self.recorder.hit(hit, buf, count)
     }
 
-    #[inline]
+    #[inline(always)]
     fn set_factors(&mut self, index: usize, factors: LightTerms) {
         self.recorder.set_factors(index, factors);
     }

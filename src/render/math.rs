@@ -5,8 +5,29 @@
 /// (SSE2) build otherwise. The hot loops are plain scalar code written for
 /// the vectorizer; only the vector width changes (no FMA contraction), so
 /// both give bit-identical results (`tests/simd_paths.rs` renders with
-/// each). `$body_fn` must be `#[inline(always)]`.
+/// each). `$body_fn` must be `#[inline(always)]`. A function may take one
+/// type parameter (`fn name<S: Bound>(…)`): each type it is called with
+/// gets its own AVX2 copy.
 macro_rules! avx2_dispatch {
+    ($(#[$meta:meta])* $vis:vis fn $name:ident<$g:ident: $bound:path>($($arg:ident: $ty:ty),* $(,)?) -> $ret:ty => $body_fn:ident) => {
+        $(#[$meta])*
+        $vis fn $name<$g: $bound>($($arg: $ty),*) -> $ret {
+            #[cfg(target_arch = "x86_64")]
+            {
+                // The kernel's own signature, however long.
+                #[allow(clippy::too_many_arguments)]
+                #[target_feature(enable = "avx2")]
+                fn avx2<$g: $bound>($($arg: $ty),*) -> $ret {
+                    $body_fn($($arg),*)
+                }
+                if $crate::render::math::avx2_kernels() {
+                    // SAFETY: the CPU supports AVX2 (`avx2_kernels` checks).
+                    return unsafe { avx2($($arg),*) };
+                }
+            }
+            $body_fn($($arg),*)
+        }
+    };
     ($(#[$meta:meta])* $vis:vis fn $name:ident($($arg:ident: $ty:ty),* $(,)?) -> $ret:ty => $body_fn:ident) => {
         $(#[$meta])*
         $vis fn $name($($arg: $ty),*) -> $ret {

@@ -11,8 +11,7 @@
 use glam::{DVec3, Vec3};
 
 use super::geometry::{Ray, spawn_origin};
-use super::live::record::{ColourHit, TileRecorder};
-use super::live::relight::Relighter;
+use super::live::record::ColourHit;
 use super::math::avx2_dispatch;
 use super::pixel_filter::PixelFilter;
 use super::progressive::{CancelToken, TileRect};
@@ -91,22 +90,6 @@ pub trait PathSink {
     /// hits a tile shades side by side, see [`Tracer::trace_rect`]).
     fn set_factors(&mut self, index: usize, factors: LightTerms);
     fn end(&mut self, end: PathEnd);
-    /// [`Tracer::trace_rect`] of a recording sink under the `sampled`
-    /// model ([`record_tile`]); a sink overrides it with a copy compiled
-    /// for AVX2 as a whole, as [`Tracer::tile`]'s is.
-    fn record_tile(
-        tracer: &Tracer,
-        rect: TileRect,
-        cancel: &CancelToken,
-        scratch: &mut TraceScratch,
-        sink: &mut Self,
-        out: &mut Vec<Vec3>,
-    ) -> bool
-    where
-        Self: Sized,
-    {
-        record_tile(tracer, rect, cancel, scratch, sink, out)
-    }
 }
 
 /// A one-shot render records nothing.
@@ -274,10 +257,23 @@ impl<'a> Tracer<'a> {
         if !self.shades_in_lanes() {
             return self.trace_rect(rect, cancel, scratch, &mut (), out);
         }
+        self.in_lanes(rect, cancel, scratch, &mut (), out)
+    }
+
+    /// [`tile_in_lanes`] with the tile's camera objects found and its
+    /// occluder lists checked first.
+    fn in_lanes<S: PathSink>(
+        &self,
+        rect: TileRect,
+        cancel: &CancelToken,
+        scratch: &mut TraceScratch,
+        sink: &mut S,
+        out: &mut Vec<Vec3>,
+    ) -> bool {
         let mut objects = std::mem::take(&mut scratch.camera_objects);
         camera_objects(self.scene, rect, &mut objects);
         scratch.shadow.start_tile(self.scene);
-        let finished = tile_in_lanes(self, rect, &objects, cancel, scratch, out);
+        let finished = tile_in_lanes(self, rect, &objects, cancel, scratch, sink, out);
         scratch.shadow.end_tile();
         scratch.camera_objects = objects;
         finished
@@ -288,7 +284,7 @@ impl<'a> Tracer<'a> {
     /// camera sample per pixel the camera rays test only the tile's
     /// [`camera_objects`], as [`Tracer::tile`]'s do, and a recording sink's
     /// hits under the `sampled` model are shaded side by side as there
-    /// ([`PathSink::record_tile`]). False if cancelled part-way.
+    /// ([`tile_in_lanes`]). False if cancelled part-way.
     pub fn trace_rect<S: PathSink>(
         &self,
         rect: TileRect,
@@ -310,7 +306,7 @@ impl<'a> Tracer<'a> {
             return true;
         }
         if S::RECORD && self.shades_in_lanes() {
-            return S::record_tile(self, rect, cancel, scratch, sink, out);
+            return self.in_lanes(rect, cancel, scratch, sink, out);
         }
         let mut objects = std::mem::take(&mut scratch.camera_objects);
         camera_objects(self.scene, rect, &mut objects);
@@ -456,11 +452,7 @@ impl<'a> Tracer<'a> {
             } else {
                 Rng::for_sample(s.seed, x, y, sample, depth)
             };
-            if S::RECORD {
-                colour.record(self, &sp, &mut rng, scratch, weight, sink, t);
-            } else {
-                colour.shade(self, &sp, &mut rng, scratch, weight);
-            }
+            colour.hit(self, &sp, &mut rng, scratch, weight, sink, t);
 
             if material.reflectivity == 0.0 || depth == s.max_depth {
                 sink.end(if material.reflectivity == 0.0 {
@@ -489,84 +481,29 @@ impl<'a> Tracer<'a> {
 }
 
 avx2_dispatch!(
-    /// [`Tracer::tile`] with its hits shaded side by side, compiled for
-    /// AVX2 as a whole where the CPU has it: one feature check per tile,
-    /// and the shading kernels inlined into the path loop instead of a
-    /// dispatched call per hit point (the same operations, so the same
-    /// bits).
-    fn tile_in_lanes(
+    /// The pixels of `rect` with their hits shaded side by side, each
+    /// path given to `sink` ([`Tracer::tile`] with `()`, and
+    /// [`Tracer::trace_rect`] of a recording sink under the `sampled`
+    /// model, whose hits are recorded as they are traced and their factors
+    /// set once the lanes have them). Compiled for AVX2 as a whole where
+    /// the CPU has it: one feature check per tile, and the shading kernels
+    /// and the sink inlined into the path loop instead of a dispatched call
+    /// per hit point (the same operations, so the same bits).
+    fn tile_in_lanes<S: PathSink>(
         tracer: &Tracer<'_>,
         rect: TileRect,
         objects: &TileTargets,
         cancel: &CancelToken,
         scratch: &mut TraceScratch,
+        sink: &mut S,
         out: &mut Vec<Vec3>,
     ) -> bool => tile_in_lanes_generic
 );
 
+/// [`tile_in_lanes`], the hits' `sampled` sums side by side in
+/// [`Deferred`].
 #[inline(always)]
-fn tile_in_lanes_generic(
-    tracer: &Tracer<'_>,
-    rect: TileRect,
-    objects: &TileTargets,
-    cancel: &CancelToken,
-    scratch: &mut TraceScratch,
-    out: &mut Vec<Vec3>,
-) -> bool {
-    lanes_tile(tracer, rect, objects, cancel, scratch, &mut (), out)
-}
-
-/// [`Tracer::trace_rect`] of a recording sink under the `sampled` model:
-/// as [`Tracer::tile`], the hits shaded side by side, each hit recorded
-/// as it is traced and its factors set once the lanes have them.
-#[inline(always)]
-pub fn record_tile<S: PathSink>(
-    tracer: &Tracer<'_>,
-    rect: TileRect,
-    cancel: &CancelToken,
-    scratch: &mut TraceScratch,
-    sink: &mut S,
-    out: &mut Vec<Vec3>,
-) -> bool {
-    let mut objects = std::mem::take(&mut scratch.camera_objects);
-    camera_objects(tracer.scene, rect, &mut objects);
-    scratch.shadow.start_tile(tracer.scene);
-    let finished = lanes_tile(tracer, rect, &objects, cancel, scratch, sink, out);
-    scratch.shadow.end_tile();
-    scratch.camera_objects = objects;
-    finished
-}
-
-avx2_dispatch!(
-    /// [`record_tile`] of a fresh record, compiled for AVX2 as a whole
-    /// where the CPU has it.
-    pub(crate) fn record_tile_fresh(
-        tracer: &Tracer<'_>,
-        rect: TileRect,
-        cancel: &CancelToken,
-        scratch: &mut TraceScratch,
-        sink: &mut TileRecorder<'_>,
-        out: &mut Vec<Vec3>,
-    ) -> bool => record_tile
-);
-
-avx2_dispatch!(
-    /// [`record_tile`] of a light edit following the last records,
-    /// compiled for AVX2 as a whole where the CPU has it.
-    pub(crate) fn record_tile_relit(
-        tracer: &Tracer<'_>,
-        rect: TileRect,
-        cancel: &CancelToken,
-        scratch: &mut TraceScratch,
-        sink: &mut Relighter<'_>,
-        out: &mut Vec<Vec3>,
-    ) -> bool => record_tile
-);
-
-/// The pixels of `rect` with their hits' `sampled` sums side by side
-/// ([`Deferred`]), each path also given to `sink`.
-#[inline(always)]
-fn lanes_tile<S: PathSink>(
+fn tile_in_lanes_generic<S: PathSink>(
     tracer: &Tracer<'_>,
     rect: TileRect,
     objects: &TileTargets,
@@ -644,20 +581,11 @@ fn lanes_tile<S: PathSink>(
 trait PathColour {
     /// Adds `c * weight`.
     fn add(&mut self, c: Vec3, weight: f32);
-    /// Adds the local colour of hit `sp` times `weight`.
-    fn shade(
-        &mut self,
-        tracer: &Tracer,
-        sp: &ShadingPoint,
-        rng: &mut Rng,
-        scratch: &mut TraceScratch,
-        weight: f32,
-    );
-    /// As [`PathColour::shade`], with every light factor computed (a later
-    /// edit of any colour finds it) and the hit, `t` along its ray, given
-    /// to `sink`.
+    /// Adds the local colour of hit `sp` times `weight`; a recording sink
+    /// (`S::RECORD`) also gets the hit, `t` along its ray, with every light
+    /// factor computed (a later edit of any colour finds it).
     #[allow(clippy::too_many_arguments)]
-    fn record<S: PathSink>(
+    fn hit<S: PathSink>(
         &mut self,
         tracer: &Tracer,
         sp: &ShadingPoint,
@@ -679,29 +607,7 @@ impl PathColour for Sum {
     }
 
     #[inline(always)]
-    fn shade(
-        &mut self,
-        tracer: &Tracer,
-        sp: &ShadingPoint,
-        rng: &mut Rng,
-        scratch: &mut TraceScratch,
-        weight: f32,
-    ) {
-        let local = shade(
-            tracer.scene,
-            tracer.settings,
-            tracer.shading,
-            sp,
-            &tracer.pattern,
-            rng,
-            &mut scratch.shadow,
-            &mut scratch.stats,
-        );
-        self.0 += local * weight;
-    }
-
-    #[inline(always)]
-    fn record<S: PathSink>(
+    fn hit<S: PathSink>(
         &mut self,
         tracer: &Tracer,
         sp: &ShadingPoint,
@@ -713,6 +619,20 @@ impl PathColour for Sum {
     ) {
         let (s, count) = (tracer.settings, tracer.pattern.count());
         let buf = &mut scratch.shadow;
+        if !S::RECORD {
+            let local = shade(
+                tracer.scene,
+                s,
+                tracer.shading,
+                sp,
+                &tracer.pattern,
+                rng,
+                buf,
+                &mut scratch.stats,
+            );
+            self.0 += local * weight;
+            return;
+        }
         // The light points are cleared first so that a point behind the
         // light records as invisible.
         buf.vis[..count].fill(0.0);
@@ -805,22 +725,30 @@ impl PathColour for Deferred {
             .push(Term::new(TermColour::Known(colour), weight));
     }
 
+    // Its factors now, or left to the lanes (the `sampled` sums of a hit
+    // with a light point in view; a recording sink's at the flush); `()`
+    // gets only the needed factors.
     #[inline(always)]
-    fn shade(
+    fn hit<S: PathSink>(
         &mut self,
         tracer: &Tracer,
         sp: &ShadingPoint,
         rng: &mut Rng,
         scratch: &mut TraceScratch,
         weight: f32,
+        sink: &mut S,
+        t: f64,
     ) {
-        // As `shade`, with the `sampled` model's sums left to the lanes.
         let (scene, s) = (tracer.scene, tracer.settings);
-        let m = sp.material;
         let terms = &tracer.material_terms[sp.material_index as usize];
-        let needs = terms.needs;
-        let buf = &mut scratch.shadow;
+        // A record serves any later colour: every factor.
+        let needs = if S::RECORD { Needs::ALL } else { terms.needs };
         let count = tracer.pattern.count();
+        let buf = &mut scratch.shadow;
+        if S::RECORD {
+            // So that a point behind the light records as invisible.
+            buf.vis[..count].fill(0.0);
+        }
         let lit = light_points_generic(
             scene,
             s,
@@ -837,6 +765,10 @@ impl PathColour for Deferred {
             Lit::Points => {
                 let index = self.factors.len();
                 self.factors.push(LightTerms::default());
+                if S::RECORD {
+                    let open = tracer.hit_record(sp, t, LightTerms::default());
+                    self.hits.push(sink.hit(open, buf, count) as u32);
+                }
                 self.terms.push(Term::new(
                     TermColour::Waiting {
                         material: sp.material_index,
@@ -848,7 +780,7 @@ impl PathColour for Deferred {
                     to_corner: (scene.light.shape.corner - sp.shadow.point).as_vec3(),
                     normal: sp.normal.as_vec3(),
                     view: sp.view.as_vec3(),
-                    shininess: m.shininess,
+                    shininess: sp.material.shininess,
                     specular: needs.specular,
                 };
                 if self.lanes.push(index, hit, buf) {
@@ -857,72 +789,11 @@ impl PathColour for Deferred {
                 return;
             }
         };
+        if S::RECORD {
+            sink.hit(tracer.hit_record(sp, t, factors), buf, count);
+        }
         self.terms.push(Term::new(
             TermColour::Known(terms.colours.colour(factors)),
-            weight,
-        ));
-    }
-
-    #[inline(always)]
-    fn record<S: PathSink>(
-        &mut self,
-        tracer: &Tracer,
-        sp: &ShadingPoint,
-        rng: &mut Rng,
-        scratch: &mut TraceScratch,
-        weight: f32,
-        sink: &mut S,
-        t: f64,
-    ) {
-        // As `Sum::record`, with the `sampled` sums left to the lanes.
-        let (scene, s) = (tracer.scene, tracer.settings);
-        let count = tracer.pattern.count();
-        let buf = &mut scratch.shadow;
-        buf.vis[..count].fill(0.0);
-        let lit = light_points_generic(
-            scene,
-            s,
-            sp,
-            Needs::ALL,
-            &tracer.pattern,
-            rng,
-            buf,
-            &mut scratch.stats,
-        );
-        let factors = match lit {
-            Lit::Known(f) => f,
-            Lit::Points if !any_visible(buf, count) => {
-                model_terms(scene, s, sp, Needs::ALL, count, buf)
-            }
-            Lit::Points => {
-                let hit = sink.hit(tracer.hit_record(sp, t, LightTerms::default()), buf, count);
-                let index = self.factors.len();
-                self.factors.push(LightTerms::default());
-                self.hits.push(hit as u32);
-                self.terms.push(Term::new(
-                    TermColour::Waiting {
-                        material: sp.material_index,
-                        factors: index as u32,
-                    },
-                    weight,
-                ));
-                let lane = LaneHit {
-                    to_corner: (scene.light.shape.corner - sp.shadow.point).as_vec3(),
-                    normal: sp.normal.as_vec3(),
-                    view: sp.view.as_vec3(),
-                    shininess: sp.material.shininess,
-                    specular: true,
-                };
-                if self.lanes.push(index, lane, buf) {
-                    self.flush();
-                }
-                return;
-            }
-        };
-        sink.hit(tracer.hit_record(sp, t, factors), buf, count);
-        let colours = &tracer.material_terms[sp.material_index as usize].colours;
-        self.terms.push(Term::new(
-            TermColour::Known(colours.colour(factors)),
             weight,
         ));
     }

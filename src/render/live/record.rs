@@ -18,13 +18,11 @@ use std::sync::{Arc, Mutex};
 use glam::Vec3;
 
 use super::cosine_logs::CosineLogs;
-use crate::render::progressive::{CancelToken, TileRect, lock};
+use crate::render::progressive::{TileRect, lock};
 use crate::render::shading::LightTerms;
 use crate::render::shading_params::ShadingParams;
 use crate::render::shadow::{ShadowBuffers, live_rays};
-use crate::render::tracer::{
-    HitRecord, PathEnd, PathSink, TraceScratch, Tracer, record_tile_fresh,
-};
+use crate::render::tracer::{HitRecord, PathEnd, PathSink};
 
 /// The colour tier of one hit.
 #[derive(Debug, Clone, Copy)]
@@ -225,17 +223,6 @@ impl PathSink for TileRecorder<'_> {
     #[inline(always)]
     fn set_factors(&mut self, index: usize, factors: LightTerms) {
         self.record.hits[index].factors = factors;
-    }
-
-    fn record_tile(
-        tracer: &Tracer,
-        rect: TileRect,
-        cancel: &CancelToken,
-        scratch: &mut TraceScratch,
-        sink: &mut Self,
-        out: &mut Vec<Vec3>,
-    ) -> bool {
-        record_tile_fresh(tracer, rect, cancel, scratch, sink, out)
     }
 
     #[inline]

@@ -16,17 +16,12 @@
 
 use std::sync::Mutex;
 
-use glam::Vec3;
-
 use super::record::{TileRecord, TileRecorder};
 use crate::render::geometry::{Parallelogram, Ray};
-use crate::render::progressive::{CancelToken, TileRect};
 use crate::render::scene::HitTarget;
 use crate::render::shading::LightTerms;
 use crate::render::shadow::ShadowBuffers;
-use crate::render::tracer::{
-    HitRecord, PathEnd, PathSink, TraceScratch, Tracer, record_tile_relit,
-};
+use crate::render::tracer::{HitRecord, PathEnd, PathSink};
 
 /// Follows the recorded paths of one tile (`old`) under a new light while
 /// recording them again into `recorder`.
@@ -109,17 +104,6 @@ impl PathSink for Relighter<'_> {
     #[inline(always)]
     fn set_factors(&mut self, index: usize, factors: LightTerms) {
         self.recorder.set_factors(index, factors);
-    }
-
-    fn record_tile(
-        tracer: &Tracer,
-        rect: TileRect,
-        cancel: &CancelToken,
-        scratch: &mut TraceScratch,
-        sink: &mut Self,
-        out: &mut Vec<Vec3>,
-    ) -> bool {
-        record_tile_relit(tracer, rect, cancel, scratch, sink, out)
     }
 
     #[inline]

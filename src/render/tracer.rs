@@ -23,7 +23,7 @@ use super::scene_file::AreaLightModel;
 use super::settings::RenderSettings;
 use super::shading::{
     LightTerms, Lit, Needs, PhongColours, ShadingPoint, any_visible, light_points_generic,
-    light_terms, local_colour, model_terms, nearest_point_specular_direction, shade,
+    light_terms, model_terms, nearest_point_specular_direction,
 };
 use super::shading_params::ShadingParams;
 use super::shadow::{ShadowBuffers, ShadowQuery};
@@ -257,26 +257,28 @@ impl<'a> Tracer<'a> {
         if !self.shades_in_lanes() {
             return self.trace_rect(rect, cancel, scratch, &mut (), out);
         }
-        self.in_lanes(rect, cancel, scratch, &mut (), out)
+        self.per_tile(rect, scratch, |objects, scratch| {
+            tile_in_lanes(self, rect, objects, cancel, scratch, &mut (), out)
+        })
     }
 
-    /// [`tile_in_lanes`] with the tile's camera objects found and its
-    /// occluder lists checked first.
-    fn in_lanes<S: PathSink>(
+    /// `work` for tile `rect` with the objects its camera rays may meet
+    /// ([`camera_objects`]), the thread's occluder lists checked against
+    /// the scene once for all its hit points.
+    #[inline(always)]
+    fn per_tile<R>(
         &self,
         rect: TileRect,
-        cancel: &CancelToken,
         scratch: &mut TraceScratch,
-        sink: &mut S,
-        out: &mut Vec<Vec3>,
-    ) -> bool {
+        work: impl FnOnce(&TileTargets, &mut TraceScratch) -> R,
+    ) -> R {
         let mut objects = std::mem::take(&mut scratch.camera_objects);
         camera_objects(self.scene, rect, &mut objects);
         scratch.shadow.start_tile(self.scene);
-        let finished = tile_in_lanes(self, rect, &objects, cancel, scratch, sink, out);
+        let result = work(&objects, scratch);
         scratch.shadow.end_tile();
         scratch.camera_objects = objects;
-        finished
+        result
     }
 
     /// The pixels of `rect` (rows packed) into `out`, each path given to
@@ -284,7 +286,9 @@ impl<'a> Tracer<'a> {
     /// camera sample per pixel the camera rays test only the tile's
     /// [`camera_objects`], as [`Tracer::tile`]'s do, and a recording sink's
     /// hits under the `sampled` model are shaded side by side as there
-    /// ([`tile_in_lanes`]). False if cancelled part-way.
+    /// ([`tile_in_lanes`]); every tile's hit points check the thread's
+    /// occluder lists once ([`Tracer::per_tile`]). False if cancelled
+    /// part-way.
     pub fn trace_rect<S: PathSink>(
         &self,
         rect: TileRect,
@@ -305,18 +309,16 @@ impl<'a> Tracer<'a> {
             }
             return true;
         }
-        if S::RECORD && self.shades_in_lanes() {
-            return self.in_lanes(rect, cancel, scratch, sink, out);
-        }
-        let mut objects = std::mem::take(&mut scratch.camera_objects);
-        camera_objects(self.scene, rect, &mut objects);
-        let finished = self.each_camera_ray(rect, cancel, scratch, |x, y, ray, scratch| {
-            let mut colour = Sum(Vec3::ZERO);
-            self.trace_path(x, y, 0, ray, Some(&objects), scratch, sink, &mut colour);
-            out.push(colour.0);
-        });
-        scratch.camera_objects = objects;
-        finished
+        self.per_tile(rect, scratch, |objects, scratch| {
+            if S::RECORD && self.shades_in_lanes() {
+                return tile_in_lanes(self, rect, objects, cancel, scratch, sink, out);
+            }
+            self.each_camera_ray(rect, cancel, scratch, |x, y, ray, scratch| {
+                let mut colour = Sum(Vec3::ZERO);
+                self.trace_path(x, y, 0, ray, Some(objects), scratch, sink, &mut colour);
+                out.push(colour.0);
+            })
+        })
     }
 
     /// What a recording sink keeps of hit `sp` (object `object` at
@@ -617,38 +619,31 @@ impl PathColour for Sum {
         sink: &mut S,
         t: f64,
     ) {
+        // As `shading::shade`, with the material's needs and colours
+        // worked out once per tracer.
         let (s, count) = (tracer.settings, tracer.pattern.count());
+        let terms = &tracer.material_terms[sp.material_index as usize];
+        // A record serves any later colour: every factor.
+        let needs = if S::RECORD { Needs::ALL } else { terms.needs };
         let buf = &mut scratch.shadow;
-        if !S::RECORD {
-            let local = shade(
-                tracer.scene,
-                s,
-                tracer.shading,
-                sp,
-                &tracer.pattern,
-                rng,
-                buf,
-                &mut scratch.stats,
-            );
-            self.0 += local * weight;
-            return;
+        if S::RECORD {
+            // So that a point behind the light records as invisible.
+            buf.vis[..count].fill(0.0);
         }
-        // The light points are cleared first so that a point behind the
-        // light records as invisible.
-        buf.vis[..count].fill(0.0);
         let factors = light_terms(
             tracer.scene,
             s,
             sp,
-            Needs::ALL,
+            needs,
             &tracer.pattern,
             rng,
             buf,
             &mut scratch.stats,
         );
-        sink.hit(tracer.hit_record(sp, t, factors), buf, count);
-        let local = local_colour(sp.material, &tracer.shading.light, s.terms, factors);
-        self.0 += local * weight;
+        if S::RECORD {
+            sink.hit(tracer.hit_record(sp, t, factors), buf, count);
+        }
+        self.0 += terms.colours.colour(factors) * weight;
     }
 }
 

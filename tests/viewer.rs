@@ -52,6 +52,19 @@ fn first_frame_renders_the_scene_into_the_texture() {
     h.get_by_label_contains("Mray/s");
 }
 
+/// The exact model traces no shadow rays: the bar names it instead of a
+/// count of samples per hit that nothing uses.
+#[test]
+fn with_the_exact_model_the_status_bar_names_it_instead_of_samples() {
+    let mut desc = small_room();
+    desc.render.area_light_model = penumbra::render::AreaLightModel::Exact;
+    let mut h = harness(ViewerOptions::new(desc.clone()));
+    settle(&mut h);
+    assert_eq!(finished(h.state()), core_render(&desc));
+    h.get_by_label("exact light");
+    assert!(h.query_by_label_contains("samples/hit").is_none());
+}
+
 #[test]
 fn slider_move_restarts_the_render_with_the_new_value() {
     let mut h = harness(ViewerOptions::new(small_room()));

@@ -6,14 +6,17 @@ use std::time::{Duration, Instant};
 
 use super::error_view::Readout;
 use super::render_job::{JobState, TileMsg};
-use crate::render::Sampling;
 use crate::render::sampling::points_per_hit;
+use crate::render::{AreaLightModel, Sampling};
 
 /// Progress of the render on screen, as seen from the tiles shown.
 #[derive(Debug, Clone)]
 pub struct Progress {
     pub started: Instant,
     pub sampling: Sampling,
+    /// The exact model traces no shadow rays (but where a point falls
+    /// back): the bar says so instead of a count of samples.
+    pub model: AreaLightModel,
     pub pass_index: usize,
     pub pass_count: usize,
     pub shadow_rays: u32,
@@ -31,10 +34,11 @@ pub struct Progress {
 }
 
 impl Progress {
-    pub fn new(sampling: Sampling) -> Progress {
+    pub fn new(sampling: Sampling, model: AreaLightModel) -> Progress {
         Progress {
             started: Instant::now(),
             sampling,
+            model,
             pass_index: 0,
             pass_count: 0,
             shadow_rays: 0,
@@ -111,10 +115,18 @@ pub fn status_ui(
                 progress.pass_count
             ));
             ui.separator();
-            ui.label(format!(
-                "{} samples/hit",
-                points_per_hit(progress.sampling, progress.shadow_rays.max(1))
-            ));
+            if progress.model == AreaLightModel::Exact {
+                ui.label("exact light").on_hover_text(
+                    "The visible part of the light at each hit point, without shadow rays \
+                     (a point the exact model does not cover falls back to the analytic \
+                     estimate with the shadow rays set)",
+                );
+            } else {
+                ui.label(format!(
+                    "{} samples/hit",
+                    points_per_hit(progress.sampling, progress.shadow_rays.max(1))
+                ));
+            }
             ui.separator();
             let spp = match progress.refining {
                 Some((to, done, total)) => format!(

@@ -256,7 +256,7 @@ impl Viewer {
         Viewer {
             home_camera: desc.camera.clone(),
             view: ViewSettings::for_scene(&desc),
-            progress: Progress::new(desc.render.sampling),
+            progress: Progress::new(desc.render.sampling, desc.render.area_light_model),
             file_desc: options
                 .scene_path
                 .as_ref()
@@ -707,7 +707,7 @@ impl Viewer {
             self.notice = Some("the camera is behind a wall: C (cut-away) sees through it".into());
         }
         self.last_pass = None;
-        self.progress = Progress::new(desc.render.sampling);
+        self.progress = Progress::new(desc.render.sampling, desc.render.area_light_model);
         let generation = job.restart(desc);
         self.timings.on_change(generation, size);
         let shown_size = [size.0 as usize, size.1 as usize];

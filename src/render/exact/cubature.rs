@@ -121,7 +121,7 @@ fn lobe_at_nested_nodes_generic(
 /// small: cos²θ_H is taken as 1 − sin²θ_H with sin²θ_H = |N × H|²/|H|²,
 /// accurate relative to itself where the lobe peaks (1 − cos² in f32
 /// would lose its digits there), and raised to s/2 by
-/// [`pow_one_minus`]. What remains is the f32 direction's rounding,
+/// [`log2_one_minus_times`] and [`exp2_unless_zero`]. What remains is the f32 direction's rounding,
 /// amplified by the shininess: values within 5e-6 of the f64 lobe up to
 /// shininess 2000 (tested), below the cubature's tolerance.
 #[inline(always)]
@@ -129,7 +129,12 @@ fn lobe_f32<const M: usize>(l: &Lobe, af: &[f32; M], bf: &[f32; M], out: &mut [f
     let (c, u, w) = (l.corner.as_vec3(), l.edge_u.as_vec3(), l.edge_v.as_vec3());
     let (n, v) = (l.n.as_vec3(), l.v.as_vec3());
     let half_s = (0.5 * l.shininess) as f32;
-    let mut of = [0f32; M];
+    // Three loops, each a third of a node's chain of dependent operations
+    // (as `shading::point_terms`): in one loop the CPU overlapped too few
+    // vectors to hide the chain's latency. The same operations lane by
+    // lane, so the same values.
+    let mut sin2 = [0f32; M];
+    let mut lit = [false; M];
     for j in 0..M {
         let x = c.x + u.x * af[j] + w.x * bf[j];
         let y = c.y + u.y * af[j] + w.y * bf[j];
@@ -143,13 +148,18 @@ fn lobe_f32<const M: usize>(l: &Lobe, af: &[f32; M], bf: &[f32; M], out: &mut [f
             n.z * hx - n.x * hz,
             n.x * hy - n.y * hx,
         );
-        let sin2 = ((cx * cx + cy * cy + cz * cz) / h2).min(1.0);
-        let value = pow_one_minus(sin2, half_s);
+        sin2[j] = ((cx * cx + cy * cy + cz * cz) / h2).min(1.0);
         // N·H ≤ 0 and H = 0 (light exactly behind the viewer) give 0.
-        of[j] = if nh > 0.0 && h2 > 0.0 { value } else { 0.0 };
+        lit[j] = nh > 0.0 && h2 > 0.0;
+    }
+    let mut exponent = [0f32; M];
+    for j in 0..M {
+        exponent[j] = log2_one_minus_times(sin2[j], half_s);
     }
     for j in 0..M {
-        out[j] = of[j] as f64;
+        let value = exp2_unless_zero(exponent[j], sin2[j]);
+        let kept = if lit[j] { value } else { 0.0 };
+        out[j] = kept as f64;
     }
 }
 
@@ -157,9 +167,16 @@ fn lobe_f32<const M: usize>(l: &Lobe, af: &[f32; M], bf: &[f32; M], out: &mut [f
 /// exp2(y · log2(1 − e)), the logarithm from e itself where e is small
 /// (ln(1 − e) = −2 atanh(e/(2 − e))) and from the mantissa of 1 − e
 /// elsewhere; relative error ~1e-7 · max(1, |y · log2(1 − e)|); results
-/// below 2⁻¹²⁶ give 0.
-#[inline(always)]
+/// below 2⁻¹²⁶ give 0. In two halves, [`log2_one_minus_times`] and
+/// [`exp2_unless_zero`], so that a loop can run each over many nodes.
+#[cfg(test)]
 fn pow_one_minus(e: f32, y: f32) -> f32 {
+    exp2_unless_zero(log2_one_minus_times(e, y), e)
+}
+
+/// The first half of [`pow_one_minus`]: y · log2(1 − e), at least −126.
+#[inline(always)]
+fn log2_one_minus_times(e: f32, y: f32) -> f32 {
     // Small e: t = e/(2 − e) ≤ 1/7.
     // Elsewhere: 1 − e = m 2^k with m in [√½, √2), t = (m − 1)/(m + 1).
     let x = 1.0 - e;
@@ -181,7 +198,14 @@ fn pow_one_minus(e: f32, y: f32) -> f32 {
     let ln_small = -2.0 * t * series;
     let ln_big = k as f32 * std::f32::consts::LN_2 + 2.0 * t * series;
     let ln = if small { ln_small } else { ln_big };
-    let z = (y * ln * std::f32::consts::LOG2_E).max(-126.0);
+    (y * ln * std::f32::consts::LOG2_E).max(-126.0)
+}
+
+/// The second half of [`pow_one_minus`]: 2^z, or 0 where z is at its floor
+/// or 1 − e is not positive.
+#[inline(always)]
+fn exp2_unless_zero(z: f32, e: f32) -> f32 {
+    let x = 1.0 - e;
     // 2^z = 2^r · e^(f·ln 2), r = round(z) by adding and removing 1.5·2²³.
     const ROUNDER: f32 = 12_582_912.0;
     let r = z + ROUNDER;

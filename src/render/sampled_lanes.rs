@@ -19,7 +19,7 @@
 
 use glam::Vec3;
 
-use super::math::{avx2_dispatch, avx512_dispatch, pow_approx};
+use super::math::{avx2_dispatch, avx512_dispatch, pow_from_log2, pow_log2};
 use super::rng::Rng;
 use super::sampling::Pattern;
 use super::scene_file::Sampling;
@@ -332,6 +332,9 @@ impl HitRows {
     }
 }
 
+/// Points a pass of [`lane_sums`] takes at once.
+const BLOCK: usize = 16;
+
 type Kernel = fn(&LaneInputs, &[[u64; LANES]], &Points<'_>) -> ([f32; LANES], [f32; LANES]);
 
 /// The light points of a batch: a fixed pattern's offsets along the
@@ -464,21 +467,47 @@ fn lane_sums(
     // Each sum left to right from −0 (as `Iterator::sum`).
     let mut diffuse = [-0.0f32; LANES];
     let mut specular = [-0.0f32; LANES];
-    for (k, word) in bits.iter().enumerate() {
-        for l in 0..(count - 64 * k).min(64) {
-            let j = 64 * k + l;
+    // A block of points at a time in passes (cosines, logarithms, powers,
+    // sums): one loop made each point one chain of dependent operations
+    // longer than the CPU overlaps from point to point (as
+    // `shading::point_terms`). The same operations lane by lane and the
+    // same order of the sums, so the same bits.
+    let mut start = 0;
+    while start < count {
+        let n = (count - start).min(BLOCK);
+        let mut f = [[0f32; LANES]; BLOCK];
+        let mut s = [[0f32; LANES]; BLOCK];
+        for i in 0..n {
             for h in 0..LANES {
                 // As `light_directions`, then the terms of `sampled_terms`.
-                let ((x, y, z, inv), n, v) = hits.towards(points, h, point(j, h));
-                let f = ((n.x * x + n.y * y + n.z * z) * inv).max(0.0);
-                let s = pow_approx(blinn_cosine(n, v, x, y, z, inv), hits.shininess[h]);
+                let ((x, y, z, inv), nn, v) = hits.towards(points, h, point(start + i, h));
+                f[i][h] = ((nn.x * x + nn.y * y + nn.z * z) * inv).max(0.0);
+                s[i][h] = blinn_cosine(nn, v, x, y, z, inv);
+            }
+        }
+        // `pow_approx` in its two halves.
+        for row in &mut s[..n] {
+            for c in row.iter_mut() {
+                *c = pow_log2(*c);
+            }
+        }
+        for row in &mut s[..n] {
+            for (c, &shininess) in row.iter_mut().zip(&hits.shininess) {
+                *c = pow_from_log2(*c, shininess);
+            }
+        }
+        for i in 0..n {
+            let j = start + i;
+            let (word, l) = (&bits[j / 64], j % 64);
+            for h in 0..LANES {
                 // The tracer multiplies by the visibility (1 or 0): the
                 // term, or +0 (both are finite and not negative).
                 let visible = (word[h] >> l) & 1 != 0;
-                diffuse[h] += if visible { f } else { 0.0 };
-                specular[h] += if visible { s } else { 0.0 };
+                diffuse[h] += if visible { f[i][h] } else { 0.0 };
+                specular[h] += if visible { s[i][h] } else { 0.0 };
             }
         }
+        start += n;
     }
     let inv_count = 1.0 / count as f32;
     (

@@ -116,46 +116,34 @@ impl Occluder {
                 ref exact,
             } => {
                 let (lo, hi) = (-half - origin, half - origin);
-                // (blocked, unsure): an unsure ray enters and leaves within
-                // rounding of each other (or of the segment's ends); it is
-                // decided in f64, and `blocked` is then false.
-                let lane = |x: f32, y: f32, z: f32| {
-                    let (lx, lz) = (x * cos - z * sin, x * sin + z * cos);
-                    let (ix, iy, iz) = (1.0 / lx, 1.0 / y, 1.0 / lz);
-                    let (ax, bx) = (lo.x * ix, hi.x * ix);
-                    let (ay, by) = (lo.y * iy, hi.y * iy);
-                    let (az, bz) = (lo.z * iz, hi.z * iz);
+                // A NaN needs 0·∞: a slab bound of exactly 0 (p on a face's
+                // plane) times the reciprocal of a direction component of
+                // exactly 0. With no bound 0 there is none, and plain
+                // compare-and-select minima and maxima (one instruction
+                // each, where `f32::min` adds two to drop a NaN) decide the
+                // same: they differ from `f32::min` only in the sign of a
+                // zero, which no decision below sees.
+                if lo.cmpne(Vec3::ZERO).all() && hi.cmpne(Vec3::ZERO).all() {
+                    let min = |a: f32, b: f32| if a < b { a } else { b };
+                    let max = |a: f32, b: f32| if a > b { a } else { b };
+                    cuboid_block(lo, hi, cos, sin, unsure, exact, dx, dy, dz, vis, min, max);
+                } else {
                     // f32::min/max drop the NaN of 0·∞ (a ray in a face's
                     // plane), treating that slab as not limiting.
-                    let near = ax.min(bx).max(ay.min(by)).max(az.min(bz)).max(0.0);
-                    let far = ax.max(bx).min(ay.max(by)).min(az.max(bz)).min(RAY_END);
-                    let bound = unsure.x * ix * ix + unsure.y * iy * iy + unsure.z * iz * iz;
-                    let unsure = (far - near).abs() <= bound;
-                    // The box is closed, as its triangles are (edges
-                    // inclusive): a ray that enters and leaves at the same
-                    // t runs through an edge or corner and is blocked; the
-                    // segment stays open (t in (0, RAY_END)).
-                    let blocked = near <= far && far > 0.0 && near < RAY_END;
-                    (blocked & !unsure, unsure)
-                };
-                // Unsure rays are left to a second, scalar pass: rare, and
-                // kept out of the vector loop.
-                let mut any_unsure = false;
-                for j in 0..n {
-                    let (blocked, unsure) = lane(dx[j], dy[j], dz[j]);
-                    vis[j] = if blocked { 0.0 } else { vis[j] };
-                    any_unsure |= unsure;
-                }
-                if any_unsure {
-                    let (origin, cuboid) = exact;
-                    for j in 0..n {
-                        let d = DVec3::new(dx[j] as f64, dy[j] as f64, dz[j] as f64);
-                        if lane(dx[j], dy[j], dz[j]).1
-                            && cuboid.segment_meets(*origin, d, RAY_END as f64)
-                        {
-                            vis[j] = 0.0;
-                        }
-                    }
+                    cuboid_block(
+                        lo,
+                        hi,
+                        cos,
+                        sin,
+                        unsure,
+                        exact,
+                        dx,
+                        dy,
+                        dz,
+                        vis,
+                        f32::min,
+                        f32::max,
+                    );
                 }
             }
             Occluder::Rect {
@@ -218,6 +206,65 @@ impl Occluder {
         };
         self.block(dirs, &mut v);
         v[0] == 0.0
+    }
+}
+
+/// Clears `vis[j]` for every ray the box (slab bounds `lo`, `hi` from p in
+/// its frame, rotated by `cos`, `sin` about y) blocks, with `min` and
+/// `max` as the slab test's minima and maxima.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn cuboid_block(
+    lo: Vec3,
+    hi: Vec3,
+    cos: f32,
+    sin: f32,
+    unsure: Vec3,
+    exact: &(DVec3, Cuboid),
+    dx: &[f32],
+    dy: &[f32],
+    dz: &[f32],
+    vis: &mut [f32],
+    min: impl Fn(f32, f32) -> f32,
+    max: impl Fn(f32, f32) -> f32,
+) {
+    let n = vis.len();
+    // (blocked, unsure): an unsure ray enters and leaves within rounding
+    // of each other (or of the segment's ends); it is decided in f64, and
+    // `blocked` is then false.
+    let lane = |x: f32, y: f32, z: f32| {
+        let (lx, lz) = (x * cos - z * sin, x * sin + z * cos);
+        let (ix, iy, iz) = (1.0 / lx, 1.0 / y, 1.0 / lz);
+        let (ax, bx) = (lo.x * ix, hi.x * ix);
+        let (ay, by) = (lo.y * iy, hi.y * iy);
+        let (az, bz) = (lo.z * iz, hi.z * iz);
+        let near = max(max(max(min(ax, bx), min(ay, by)), min(az, bz)), 0.0);
+        let far = min(min(min(max(ax, bx), max(ay, by)), max(az, bz)), RAY_END);
+        let bound = unsure.x * ix * ix + unsure.y * iy * iy + unsure.z * iz * iz;
+        let unsure = (far - near).abs() <= bound;
+        // The box is closed, as its triangles are (edges inclusive): a ray
+        // that enters and leaves at the same t runs through an edge or
+        // corner and is blocked; the segment stays open (t in
+        // (0, RAY_END)).
+        let blocked = near <= far && far > 0.0 && near < RAY_END;
+        (blocked & !unsure, unsure)
+    };
+    // Unsure rays are left to a second, scalar pass: rare, and kept out of
+    // the vector loop.
+    let mut any_unsure = false;
+    for j in 0..n {
+        let (blocked, unsure) = lane(dx[j], dy[j], dz[j]);
+        vis[j] = if blocked { 0.0 } else { vis[j] };
+        any_unsure |= unsure;
+    }
+    if any_unsure {
+        let (origin, cuboid) = exact;
+        for j in 0..n {
+            let d = DVec3::new(dx[j] as f64, dy[j] as f64, dz[j] as f64);
+            if lane(dx[j], dy[j], dz[j]).1 && cuboid.segment_meets(*origin, d, RAY_END as f64) {
+                vis[j] = 0.0;
+            }
+        }
     }
 }
 
@@ -291,6 +338,81 @@ mod tests {
     /// edges (the f32 tests' rounding is ~1e-7 of the distances): the box
     /// and its twelve triangles block exactly the rays the f64 intersection
     /// finds blocked.
+    /// The slab test's plain minima and maxima (taken where no slab bound
+    /// is 0) decide every ray as `f32::min`/`max` do: rays along the axes
+    /// (a reciprocal of ±∞), through edges and corners, random ones.
+    #[test]
+    fn plain_slab_minima_decide_as_the_nan_dropping_ones() {
+        let mut rng = Rng::new(11);
+        let mut u = |lo: f32, hi: f32| lo + (hi - lo) * rng.next_f32();
+        let (mut checked, mut blocked) = (0, 0);
+        for case in 0..2000 {
+            let half = Vec3::new(u(0.1, 2.0), u(0.1, 2.0), u(0.1, 2.0));
+            let origin = Vec3::new(u(-6.0, 6.0), u(-6.0, 6.0), u(-6.0, 6.0));
+            let (lo, hi) = (-half - origin, half - origin);
+            if !(lo.cmpne(Vec3::ZERO).all() && hi.cmpne(Vec3::ZERO).all()) {
+                continue;
+            }
+            let angle = u(0.0, std::f32::consts::TAU);
+            let (sin, cos) = if case % 3 == 0 {
+                (0.0, 1.0)
+            } else {
+                angle.sin_cos()
+            };
+            let unsure = (half + origin.abs()) * (20.0 * SLAB_ROUNDING);
+            let cuboid = Cuboid::new((-half).as_dvec3(), half.as_dvec3(), 0.0, DVec3::ZERO);
+            let exact = (origin.as_dvec3(), cuboid);
+            let mut d: [Vec<f32>; 3] = Default::default();
+            for k in 0..64 {
+                let mut dir = [u(-8.0, 8.0), u(-8.0, 8.0), u(-8.0, 8.0)];
+                // Some along an axis or in a coordinate plane, some at a
+                // corner of the box.
+                match k % 4 {
+                    0 => dir[k % 3] = 0.0,
+                    1 => {
+                        dir = [0.0; 3];
+                        dir[k % 3] = u(-8.0, 8.0);
+                    }
+                    2 => {
+                        let c = Vec3::new(lo.x, hi.y, lo.z) * u(1.0, 3.0);
+                        dir = [c.x * cos + c.z * sin, c.y, -c.x * sin + c.z * cos];
+                    }
+                    _ => {}
+                }
+                for i in 0..3 {
+                    d[i].push(dir[i]);
+                }
+            }
+            let (mut plain, mut dropping) = (vec![1.0f32; 64], vec![1.0f32; 64]);
+            let min = |a: f32, b: f32| if a < b { a } else { b };
+            let max = |a: f32, b: f32| if a > b { a } else { b };
+            cuboid_block(
+                lo, hi, cos, sin, unsure, &exact, &d[0], &d[1], &d[2], &mut plain, min, max,
+            );
+            cuboid_block(
+                lo,
+                hi,
+                cos,
+                sin,
+                unsure,
+                &exact,
+                &d[0],
+                &d[1],
+                &d[2],
+                &mut dropping,
+                f32::min,
+                f32::max,
+            );
+            assert_eq!(plain, dropping, "case {case}");
+            checked += 1;
+            blocked += plain.iter().filter(|&&v| v == 0.0).count();
+        }
+        assert!(
+            checked > 1500 && blocked > 1000,
+            "{checked} boxes, {blocked} rays blocked"
+        );
+    }
+
     #[test]
     fn a_box_and_its_triangles_decide_grazing_rays_as_the_exact_geometry() {
         let c = Cuboid::new(

@@ -81,17 +81,10 @@ pub(crate) fn visibility_inline(
     // Below sixteen points, inlined: this kernel is compiled for the same
     // CPU features as the eight-lane one it would call (the same bits,
     // without two calls and a dispatch per hit point).
-    let (a, b) = (&buf.a[..count], &buf.b[..count]);
-    let (dx, dy, dz) = (
-        &mut buf.dx[..count],
-        &mut buf.dy[..count],
-        &mut buf.dz[..count],
-    );
-    let vis = &mut buf.vis[..count];
     let facing = if count < WIDE_POINTS {
-        light_directions_generic(to_corner, eu, ev, n, a, b, dx, dy, dz, vis)
+        light_directions_generic(to_corner, eu, ev, n, count, buf)
     } else {
-        light_directions(to_corner, eu, ev, n, a, b, dx, dy, dz, vis)
+        light_directions(to_corner, eu, ev, n, count, buf)
     };
     stats.shadow_backfacing += count as u64 - facing;
     if facing == 0 {
@@ -563,38 +556,28 @@ struct Rays<'a> {
 }
 
 avx512_dispatch!(
-    /// Directions from the hit point to the light points (offsets `a`, `b`
-    /// along the light's edges), and 1 in `vis` for those in front of the
-    /// surface; returns how many are. The buffers come as separate slices:
-    /// as fields of one `ShadowBuffers` the compiler could not tell that
-    /// they do not overlap, and checked it at every call.
-    #[allow(clippy::too_many_arguments)]
-    pub(crate) fn light_directions(to_corner: Vec3, eu: Vec3, ev: Vec3, n: Vec3, a: &[f32], b: &[f32], dx: &mut [f32], dy: &mut [f32], dz: &mut [f32], vis: &mut [f32]) -> u64
-        => light_directions_generic if a.len() >= WIDE_POINTS
+    /// Directions from the hit point to the light points, and 1 in `vis` for
+    /// those in front of the surface; returns how many are.
+    pub(crate) fn light_directions(to_corner: Vec3, eu: Vec3, ev: Vec3, n: Vec3, count: usize, buf: &mut ShadowBuffers) -> u64
+        => light_directions_generic if count >= WIDE_POINTS
 );
 
-#[allow(clippy::too_many_arguments)]
 #[inline(always)]
 fn light_directions_generic(
     to_corner: Vec3,
     eu: Vec3,
     ev: Vec3,
     n: Vec3,
-    a: &[f32],
-    b: &[f32],
-    dx: &mut [f32],
-    dy: &mut [f32],
-    dz: &mut [f32],
-    vis: &mut [f32],
+    count: usize,
+    buf: &mut ShadowBuffers,
 ) -> u64 {
-    let count = a.len();
-    let (b, dx, dy, dz, vis) = (
-        &b[..count],
-        &mut dx[..count],
-        &mut dy[..count],
-        &mut dz[..count],
-        &mut vis[..count],
+    let (a, b) = (&buf.a[..count], &buf.b[..count]);
+    let (dx, dy, dz) = (
+        &mut buf.dx[..count],
+        &mut buf.dy[..count],
+        &mut buf.dz[..count],
     );
+    let vis = &mut buf.vis[..count];
     // Counted as integers: a float sum of the ones would be one chain of
     // dependent additions (the same value, exact below 2²⁴, far slower).
     // As u32 (a hit has at most 4096 rays), lane for lane with the f32s: u64

@@ -115,35 +115,18 @@ impl Occluder {
                 unsure,
                 ref exact,
             } => {
-                let (lo, hi) = (-half - origin, half - origin);
-                // A NaN needs 0·∞: a slab bound of exactly 0 (p on a face's
-                // plane) times the reciprocal of a direction component of
-                // exactly 0. With no bound 0 there is none, and plain
-                // compare-and-select minima and maxima (one instruction
-                // each, where `f32::min` adds two to drop a NaN) decide the
-                // same: they differ from `f32::min` only in the sign of a
-                // zero, which no decision below sees.
-                if lo.cmpne(Vec3::ZERO).all() && hi.cmpne(Vec3::ZERO).all() {
-                    let min = |a: f32, b: f32| if a < b { a } else { b };
-                    let max = |a: f32, b: f32| if a > b { a } else { b };
-                    cuboid_block(lo, hi, cos, sin, unsure, exact, dx, dy, dz, vis, min, max);
+                let slabs = BoxSlabs {
+                    lo: -half - origin,
+                    hi: half - origin,
+                    cos,
+                    sin,
+                    unsure,
+                    exact,
+                };
+                if slabs.nan_free() {
+                    slabs.block::<true>(dx, dy, dz, vis);
                 } else {
-                    // f32::min/max drop the NaN of 0·∞ (a ray in a face's
-                    // plane), treating that slab as not limiting.
-                    cuboid_block(
-                        lo,
-                        hi,
-                        cos,
-                        sin,
-                        unsure,
-                        exact,
-                        dx,
-                        dy,
-                        dz,
-                        vis,
-                        f32::min,
-                        f32::max,
-                    );
+                    slabs.block::<false>(dx, dy, dz, vis);
                 }
             }
             Occluder::Rect {
@@ -209,60 +192,89 @@ impl Occluder {
     }
 }
 
-/// Clears `vis[j]` for every ray the box (slab bounds `lo`, `hi` from p in
-/// its frame, rotated by `cos`, `sin` about y) blocks, with `min` and
-/// `max` as the slab test's minima and maxima.
-#[allow(clippy::too_many_arguments)]
-#[inline(always)]
-fn cuboid_block(
+/// A box's slab test from p: its slab bounds `lo`, `hi` in its frame
+/// (rotated by `cos`, `sin` about y), the rounding bound `unsure` and the
+/// f64 box for the rays within it.
+struct BoxSlabs<'a> {
     lo: Vec3,
     hi: Vec3,
     cos: f32,
     sin: f32,
     unsure: Vec3,
-    exact: &(DVec3, Cuboid),
-    dx: &[f32],
-    dy: &[f32],
-    dz: &[f32],
-    vis: &mut [f32],
-    min: impl Fn(f32, f32) -> f32,
-    max: impl Fn(f32, f32) -> f32,
-) {
-    let n = vis.len();
-    // (blocked, unsure): an unsure ray enters and leaves within rounding
-    // of each other (or of the segment's ends); it is decided in f64, and
-    // `blocked` is then false.
-    let lane = |x: f32, y: f32, z: f32| {
-        let (lx, lz) = (x * cos - z * sin, x * sin + z * cos);
-        let (ix, iy, iz) = (1.0 / lx, 1.0 / y, 1.0 / lz);
-        let (ax, bx) = (lo.x * ix, hi.x * ix);
-        let (ay, by) = (lo.y * iy, hi.y * iy);
-        let (az, bz) = (lo.z * iz, hi.z * iz);
-        let near = max(max(max(min(ax, bx), min(ay, by)), min(az, bz)), 0.0);
-        let far = min(min(min(max(ax, bx), max(ay, by)), max(az, bz)), RAY_END);
-        let bound = unsure.x * ix * ix + unsure.y * iy * iy + unsure.z * iz * iz;
-        let unsure = (far - near).abs() <= bound;
-        // The box is closed, as its triangles are (edges inclusive): a ray
-        // that enters and leaves at the same t runs through an edge or
-        // corner and is blocked; the segment stays open (t in
-        // (0, RAY_END)).
-        let blocked = near <= far && far > 0.0 && near < RAY_END;
-        (blocked & !unsure, unsure)
-    };
-    // Unsure rays are left to a second, scalar pass: rare, and kept out of
-    // the vector loop.
-    let mut any_unsure = false;
-    for j in 0..n {
-        let (blocked, unsure) = lane(dx[j], dy[j], dz[j]);
-        vis[j] = if blocked { 0.0 } else { vis[j] };
-        any_unsure |= unsure;
+    exact: &'a (DVec3, Cuboid),
+}
+
+impl BoxSlabs<'_> {
+    /// Whether no slab bound is 0. A NaN needs 0·∞: a bound of exactly 0
+    /// (p on a face's plane) times the reciprocal of a direction component
+    /// of exactly 0. Without one, plain compare-and-select minima and
+    /// maxima (one instruction each, where `f32::min` adds two to drop a
+    /// NaN) decide as `f32::min` does: they differ from it only in the
+    /// sign of a zero, which no decision sees.
+    fn nan_free(&self) -> bool {
+        self.lo.cmpne(Vec3::ZERO).all() && self.hi.cmpne(Vec3::ZERO).all()
     }
-    if any_unsure {
-        let (origin, cuboid) = exact;
+
+    /// Clears `vis[j]` for every ray the box blocks; `PLAIN`: the minima
+    /// and maxima compare and select (only where [`Self::nan_free`]), else
+    /// `f32::min`/`max`, which drop the NaN of 0·∞ (a ray in a face's
+    /// plane), treating that slab as not limiting.
+    #[inline(always)]
+    fn block<const PLAIN: bool>(&self, dx: &[f32], dy: &[f32], dz: &[f32], vis: &mut [f32]) {
+        let min = |a: f32, b: f32| match PLAIN {
+            true if a < b => a,
+            true => b,
+            false => a.min(b),
+        };
+        let max = |a: f32, b: f32| match PLAIN {
+            true if a > b => a,
+            true => b,
+            false => a.max(b),
+        };
+        let BoxSlabs {
+            lo,
+            hi,
+            cos,
+            sin,
+            unsure,
+            exact,
+        } = *self;
+        let n = vis.len();
+        // (blocked, unsure): an unsure ray enters and leaves within
+        // rounding of each other (or of the segment's ends); it is decided
+        // in f64, and `blocked` is then false.
+        let lane = |x: f32, y: f32, z: f32| {
+            let (lx, lz) = (x * cos - z * sin, x * sin + z * cos);
+            let (ix, iy, iz) = (1.0 / lx, 1.0 / y, 1.0 / lz);
+            let (ax, bx) = (lo.x * ix, hi.x * ix);
+            let (ay, by) = (lo.y * iy, hi.y * iy);
+            let (az, bz) = (lo.z * iz, hi.z * iz);
+            let near = max(max(max(min(ax, bx), min(ay, by)), min(az, bz)), 0.0);
+            let far = min(min(min(max(ax, bx), max(ay, by)), max(az, bz)), RAY_END);
+            let bound = unsure.x * ix * ix + unsure.y * iy * iy + unsure.z * iz * iz;
+            let unsure = (far - near).abs() <= bound;
+            // The box is closed, as its triangles are (edges inclusive): a
+            // ray that enters and leaves at the same t runs through an edge
+            // or corner and is blocked; the segment stays open (t in
+            // (0, RAY_END)).
+            let blocked = near <= far && far > 0.0 && near < RAY_END;
+            (blocked & !unsure, unsure)
+        };
+        // Unsure rays are left to a second, scalar pass: rare, and kept out
+        // of the vector loop.
+        let mut any_unsure = false;
         for j in 0..n {
-            let d = DVec3::new(dx[j] as f64, dy[j] as f64, dz[j] as f64);
-            if lane(dx[j], dy[j], dz[j]).1 && cuboid.segment_meets(*origin, d, RAY_END as f64) {
-                vis[j] = 0.0;
+            let (blocked, unsure) = lane(dx[j], dy[j], dz[j]);
+            vis[j] = if blocked { 0.0 } else { vis[j] };
+            any_unsure |= unsure;
+        }
+        if any_unsure {
+            let (origin, cuboid) = exact;
+            for j in 0..n {
+                let d = DVec3::new(dx[j] as f64, dy[j] as f64, dz[j] as f64);
+                if lane(dx[j], dy[j], dz[j]).1 && cuboid.segment_meets(*origin, d, RAY_END as f64) {
+                    vis[j] = 0.0;
+                }
             }
         }
     }
@@ -334,10 +346,6 @@ mod tests {
     use crate::render::geometry::{Ray, Triangle};
     use crate::render::rng::Rng;
 
-    /// Rays from all over the room to points within 1e-6 of the tall box's
-    /// edges (the f32 tests' rounding is ~1e-7 of the distances): the box
-    /// and its twelve triangles block exactly the rays the f64 intersection
-    /// finds blocked.
     /// The slab test's plain minima and maxima (taken where no slab bound
     /// is 0) decide every ray as `f32::min`/`max` do: rays along the axes
     /// (a reciprocal of ±∞), through edges and corners, random ones.
@@ -350,18 +358,25 @@ mod tests {
             let half = Vec3::new(u(0.1, 2.0), u(0.1, 2.0), u(0.1, 2.0));
             let origin = Vec3::new(u(-6.0, 6.0), u(-6.0, 6.0), u(-6.0, 6.0));
             let (lo, hi) = (-half - origin, half - origin);
-            if !(lo.cmpne(Vec3::ZERO).all() && hi.cmpne(Vec3::ZERO).all()) {
-                continue;
-            }
             let angle = u(0.0, std::f32::consts::TAU);
             let (sin, cos) = if case % 3 == 0 {
                 (0.0, 1.0)
             } else {
                 angle.sin_cos()
             };
-            let unsure = (half + origin.abs()) * (20.0 * SLAB_ROUNDING);
             let cuboid = Cuboid::new((-half).as_dvec3(), half.as_dvec3(), 0.0, DVec3::ZERO);
             let exact = (origin.as_dvec3(), cuboid);
+            let slabs = BoxSlabs {
+                lo,
+                hi,
+                cos,
+                sin,
+                unsure: (half + origin.abs()) * (20.0 * SLAB_ROUNDING),
+                exact: &exact,
+            };
+            if !slabs.nan_free() {
+                continue;
+            }
             let mut d: [Vec<f32>; 3] = Default::default();
             for k in 0..64 {
                 let mut dir = [u(-8.0, 8.0), u(-8.0, 8.0), u(-8.0, 8.0)];
@@ -384,25 +399,8 @@ mod tests {
                 }
             }
             let (mut plain, mut dropping) = (vec![1.0f32; 64], vec![1.0f32; 64]);
-            let min = |a: f32, b: f32| if a < b { a } else { b };
-            let max = |a: f32, b: f32| if a > b { a } else { b };
-            cuboid_block(
-                lo, hi, cos, sin, unsure, &exact, &d[0], &d[1], &d[2], &mut plain, min, max,
-            );
-            cuboid_block(
-                lo,
-                hi,
-                cos,
-                sin,
-                unsure,
-                &exact,
-                &d[0],
-                &d[1],
-                &d[2],
-                &mut dropping,
-                f32::min,
-                f32::max,
-            );
+            slabs.block::<true>(&d[0], &d[1], &d[2], &mut plain);
+            slabs.block::<false>(&d[0], &d[1], &d[2], &mut dropping);
             assert_eq!(plain, dropping, "case {case}");
             checked += 1;
             blocked += plain.iter().filter(|&&v| v == 0.0).count();
@@ -413,6 +411,10 @@ mod tests {
         );
     }
 
+    /// Rays from all over the room to points within 1e-6 of the tall box's
+    /// edges (the f32 tests' rounding is ~1e-7 of the distances): the box
+    /// and its twelve triangles block exactly the rays the f64 intersection
+    /// finds blocked.
     #[test]
     fn a_box_and_its_triangles_decide_grazing_rays_as_the_exact_geometry() {
         let c = Cuboid::new(

@@ -474,29 +474,29 @@ fn lane_sums(
     // same order of the sums, so the same bits.
     let mut start = 0;
     while start < count {
-        let n = (count - start).min(BLOCK);
+        let len = (count - start).min(BLOCK);
         let mut f = [[0f32; LANES]; BLOCK];
         let mut s = [[0f32; LANES]; BLOCK];
-        for i in 0..n {
+        for i in 0..len {
             for h in 0..LANES {
                 // As `light_directions`, then the terms of `sampled_terms`.
-                let ((x, y, z, inv), nn, v) = hits.towards(points, h, point(start + i, h));
-                f[i][h] = ((nn.x * x + nn.y * y + nn.z * z) * inv).max(0.0);
-                s[i][h] = blinn_cosine(nn, v, x, y, z, inv);
+                let ((x, y, z, inv), n, v) = hits.towards(points, h, point(start + i, h));
+                f[i][h] = ((n.x * x + n.y * y + n.z * z) * inv).max(0.0);
+                s[i][h] = blinn_cosine(n, v, x, y, z, inv);
             }
         }
         // `pow_approx` in its two halves.
-        for row in &mut s[..n] {
+        for row in &mut s[..len] {
             for c in row.iter_mut() {
                 *c = pow_log2(*c);
             }
         }
-        for row in &mut s[..n] {
+        for row in &mut s[..len] {
             for (c, &shininess) in row.iter_mut().zip(&hits.shininess) {
                 *c = pow_from_log2(*c, shininess);
             }
         }
-        for i in 0..n {
+        for i in 0..len {
             let j = start + i;
             let (word, l) = (&bits[j / 64], j % 64);
             for h in 0..LANES {
@@ -507,7 +507,7 @@ fn lane_sums(
                 specular[h] += if visible { s[i][h] } else { 0.0 };
             }
         }
-        start += n;
+        start += len;
     }
     let inv_count = 1.0 / count as f32;
     (

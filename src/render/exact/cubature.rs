@@ -121,8 +121,8 @@ fn lobe_at_nested_nodes_generic(
 /// small: cos²θ_H is taken as 1 − sin²θ_H with sin²θ_H = |N × H|²/|H|²,
 /// accurate relative to itself where the lobe peaks (1 − cos² in f32
 /// would lose its digits there), and raised to s/2 by
-/// [`log2_one_minus_times`] and [`exp2_unless_zero`]. What remains is the f32 direction's rounding,
-/// amplified by the shininess: values within 5e-6 of the f64 lobe up to
+/// [`log2_one_minus_times`] and [`exp2_unless_zero`]. What remains is the
+/// f32 direction's rounding, amplified by the shininess: values within 5e-6 of the f64 lobe up to
 /// shininess 2000 (tested), below the cubature's tolerance.
 #[inline(always)]
 fn lobe_f32<const M: usize>(l: &Lobe, af: &[f32; M], bf: &[f32; M], out: &mut [f64; M]) {
@@ -444,6 +444,15 @@ fn tail_estimate_generic(r: &Rule, t: &[[f64; ORDER]; ORDER]) -> f64 {
             col[k] += r.pwt[i][k] * t[i][last];
         }
     }
+    tail_of(r, &row, &col)
+}
+
+/// Σ |c_kl| over the fit's highest degree, from its highest row (`row`)
+/// and column (`col`) before their normalisation.
+#[allow(clippy::needless_range_loop)]
+#[inline(always)]
+fn tail_of(r: &Rule, row: &[f64; ORDER], col: &[f64; ORDER]) -> f64 {
+    let last = ORDER - 1;
     let mut tail = 0.0;
     for l in 0..ORDER {
         tail += (row[l] * r.norm[last][l]).abs();
@@ -457,8 +466,8 @@ fn tail_estimate_generic(r: &Rule, t: &[[f64; ORDER]; ORDER]) -> f64 {
 avx512_dispatch!(
     /// A whole cell's fit reduced to what a whole cell needs of it: the
     /// error estimate of [`tail_estimate`] and the node sum (c\[0\]\[0\],
-    /// whose multiple is the integral), straight from the node values. The highest row of
-    /// coefficients is Σ_j (Σ_i P_last(x_i) w_i f_ij) P_l(x_j) w_j, the
+    /// whose multiple is the integral), straight from the node values. The
+    /// highest row of coefficients is Σ_j (Σ_i P_last(x_i) w_i f_ij) P_l(x_j) w_j, the
     /// highest column and the node sum contract one index first likewise:
     /// five 8×8 products of vectors instead of the 8×8×8 of [`fit_rows`]
     /// (which a part of a cell needs for all its coefficients).
@@ -498,13 +507,7 @@ fn whole_cell_fit_generic(r: &Rule, f: &[f64; NODES]) -> (f64, f64) {
             col[k] += r.pwt[i][k] * t_last[i];
         }
     }
-    let mut tail = 0.0;
-    for l in 0..ORDER {
-        tail += (row[l] * r.norm[last][l]).abs();
-    }
-    for k in 0..last {
-        tail += (col[k] * r.norm[k][last]).abs();
-    }
+    let tail = tail_of(r, &row, &col);
     let mut sum = 0.0;
     for i in 0..ORDER {
         sum += r.pw[0][i] * t_first[i];

@@ -278,10 +278,72 @@ impl HitRows {
     }
 
     /// Each lane's averages: its row's sums left to right from −0 (as
-    /// `Iterator::sum`), the chains of [`SUMMED_TOGETHER`] lanes side by
-    /// side.
+    /// `Iterator::sum`).
     #[inline(always)]
     fn sums(&self) -> ([f32; LANES], [f32; LANES]) {
+        #[cfg(target_arch = "x86_64")]
+        if crate::render::math::avx2_kernels() {
+            // SAFETY: the CPU supports AVX2 (`avx2_kernels` checks).
+            return unsafe { self.sums_transposed() };
+        }
+        self.sums_by_rows()
+    }
+
+    /// [`sums`](Self::sums) on eight-lane vectors, one lane per row: each
+    /// block of eight points of eight rows is transposed in registers, so
+    /// that a row's next point is the same lane of the next vector. Each
+    /// lane adds its row's points in order, as [`sums_by_rows`]
+    /// (Self::sums_by_rows) does, so the same bits, with a third of the
+    /// shuffles of gathering the lanes' points one by one.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn sums_transposed(&self) -> ([f32; LANES], [f32; LANES]) {
+        use std::arch::x86_64::*;
+        const { assert!(LANES == 16, "two octets of lanes") };
+        let (count, padded) = (self.count, self.padded);
+        // Every read below is of the first LANES · padded values.
+        assert!(self.d.len() >= LANES * padded && self.s.len() >= LANES * padded);
+        let (d, s) = (self.d.as_ptr(), self.s.as_ptr());
+        let octet = 8 * padded;
+        // Diffuse and specular sums of lanes 0..8 and 8..16.
+        let zero = _mm256_set1_ps(-0.0);
+        let (mut d0, mut d1, mut s0, mut s1) = (zero, zero, zero, zero);
+        let mut j = 0;
+        while j < count {
+            // Points past `count` (a row's padding) are transposed but not
+            // added: they may hold anything. One octet of one row set at a
+            // time: the four at once would not fit in the registers.
+            let len = (count - j).min(8);
+            // SAFETY: j + 8 ≤ padded, so rows 0..16 of the block are within
+            // the first LANES · padded values (asserted above).
+            unsafe {
+                d0 = add_columns(d0, d.add(j), padded, len);
+                d1 = add_columns(d1, d.add(octet + j), padded, len);
+                s0 = add_columns(s0, s.add(j), padded, len);
+                s1 = add_columns(s1, s.add(octet + j), padded, len);
+            }
+            j += 8;
+        }
+        let mut diffuse = [0.0f32; LANES];
+        let mut specular = [0.0f32; LANES];
+        // SAFETY: each destination holds eight f32s.
+        unsafe {
+            _mm256_storeu_ps(diffuse.as_mut_ptr(), d0);
+            _mm256_storeu_ps(diffuse.as_mut_ptr().add(8), d1);
+            _mm256_storeu_ps(specular.as_mut_ptr(), s0);
+            _mm256_storeu_ps(specular.as_mut_ptr().add(8), s1);
+        }
+        let inv_count = 1.0 / count as f32;
+        (
+            diffuse.map(|s| s * inv_count),
+            specular.map(|s| s * inv_count),
+        )
+    }
+
+    /// The chains of [`SUMMED_TOGETHER`] lanes side by side, each lane's
+    /// points gathered one by one (the portable build's).
+    #[inline(always)]
+    fn sums_by_rows(&self) -> ([f32; LANES], [f32; LANES]) {
         let (count, padded) = (self.count, self.padded);
         let mut diffuse = [-0.0f32; LANES];
         let mut specular = [-0.0f32; LANES];
@@ -330,6 +392,58 @@ impl HitRows {
             specular.map(|s| s * inv_count),
         )
     }
+}
+
+/// `sum` plus, lane by lane in order, the first `len` of the eight points
+/// from `p` of eight rows `stride` apart (lane k: row k).
+///
+/// # Safety
+/// As [`transpose8`].
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+unsafe fn add_columns(
+    mut sum: std::arch::x86_64::__m256,
+    p: *const f32,
+    stride: usize,
+    len: usize,
+) -> std::arch::x86_64::__m256 {
+    use std::arch::x86_64::_mm256_add_ps;
+    // SAFETY: as the caller vouches.
+    let columns = unsafe { transpose8(p, stride) };
+    for column in &columns[..len] {
+        sum = _mm256_add_ps(sum, *column);
+    }
+    sum
+}
+
+/// The eight points from `p` of eight rows `stride` apart, as eight
+/// vectors of one point each: lane k of vector l is `p[k·stride + l]`.
+/// Rows k and k + 4 load as the two halves of one vector, so only the
+/// in-half 4×4 transposes are shuffles (16 of them).
+///
+/// # Safety
+/// The CPU has AVX2, and `p[k·stride + l]` is readable for k, l < 8.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+unsafe fn transpose8(p: *const f32, stride: usize) -> [std::arch::x86_64::__m256; 8] {
+    use std::arch::x86_64::*;
+    let mut out = [_mm256_setzero_ps(); 8];
+    for h in 0..2 {
+        // Points 4·h..4·h + 4 of rows k (low half) and k + 4 (high half).
+        // SAFETY: within the rows the caller vouches for.
+        let [r0, r1, r2, r3]: [__m256; 4] = std::array::from_fn(|k| unsafe {
+            _mm256_loadu2_m128(p.add((k + 4) * stride + 4 * h), p.add(k * stride + 4 * h))
+        });
+        let (t0, t1) = (_mm256_unpacklo_ps(r0, r1), _mm256_unpackhi_ps(r0, r1));
+        let (t2, t3) = (_mm256_unpacklo_ps(r2, r3), _mm256_unpackhi_ps(r2, r3));
+        out[4 * h] = _mm256_shuffle_ps::<0x44>(t0, t2);
+        out[4 * h + 1] = _mm256_shuffle_ps::<0xEE>(t0, t2);
+        out[4 * h + 2] = _mm256_shuffle_ps::<0x44>(t1, t3);
+        out[4 * h + 3] = _mm256_shuffle_ps::<0xEE>(t1, t3);
+    }
+    out
 }
 
 /// Points a pass of [`lane_sums`] takes at once.
@@ -529,6 +643,40 @@ mod tests {
             ("avx2 or portable", sampled_lanes_avx2),
             ("widest", sampled_lanes),
         ]
+    }
+
+    /// The transposed sums add each row's points in the same order as the
+    /// row by row ones, so the same bits, whatever the count (whole blocks
+    /// of eight or not) and whatever the rows' padding holds.
+    #[test]
+    fn transposed_sums_give_the_bits_of_the_row_sums() {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            let mut rng = Rng::new(11);
+            for count in [16, 17, 23, 24, 64, 100] {
+                let mut rows = HitRows::default();
+                rows.start(count);
+                for (i, (d, s)) in rows.d.iter_mut().zip(rows.s.iter_mut()).enumerate() {
+                    if i % rows.padded >= count {
+                        // Padding: never added.
+                        (*d, *s) = (f32::NAN, f32::INFINITY);
+                    } else {
+                        // Magnitudes far apart, so that the order of the
+                        // additions shows in the bits.
+                        *d = rng.next_f32() * [1.0, 1e-4, 1e4][i % 3];
+                        *s = rng.next_f32() * [1e-7, 1.0, 3e3][i % 3];
+                    }
+                }
+                let bits = |(d, s): ([f32; LANES], [f32; LANES])| {
+                    (d.map(f32::to_bits), s.map(f32::to_bits))
+                };
+                let by_rows = bits(rows.sums_by_rows());
+                // SAFETY: the CPU has AVX2 (checked above).
+                let transposed = bits(unsafe { rows.sums_transposed() });
+                assert_eq!(transposed, by_rows, "{count} points");
+                assert!(by_rows.0.iter().all(|&b| f32::from_bits(b) > 0.0));
+            }
+        }
     }
 
     /// Hits pushed in batches give, bit for bit, the tracer's factors of

@@ -63,6 +63,10 @@ fn with_the_exact_model_the_status_bar_names_it_instead_of_samples() {
     assert_eq!(finished(h.state()), core_render(&desc));
     h.get_by_label("exact light");
     assert!(h.query_by_label_contains("samples/hit").is_none());
+    // Its shadow-ray count serves only the points it falls back on, and
+    // the slider says so.
+    h.get_by_role_and_label(Role::Slider, "Fallback shadow rays");
+    assert!(h.query_by_label("Shadow rays").is_none());
 }
 
 #[test]

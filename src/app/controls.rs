@@ -142,13 +142,27 @@ pub fn controls_ui(
         .show(ui, |ui| {
             let r = &mut desc.render;
             changed |= ui.checkbox(&mut r.shadows, "Shadows").changed();
+            // The exact model traces no shadow rays: the count (and the
+            // sampling) serve only the points it leaves to the `analytic`
+            // estimate (too many pieces or mesh triangles in view, a light
+            // seen as a point).
+            let (label, hover) = if r.area_light_model == AreaLightModel::Exact {
+                (
+                    "Fallback shadow rays",
+                    "The exact model traces no shadow rays: these serve only the points \
+                     it leaves to the analytic estimate (too many shadow pieces or mesh \
+                     triangles in view, a light seen as a point)",
+                )
+            } else {
+                ("Shadow rays", "Shadow rays per hit point (the final pass)")
+            };
             changed |= ui
                 .add(
                     slider(&mut r.shadow_rays, 1..=MAX_SHADOW_RAYS)
                         .logarithmic(true)
-                        .text("Shadow rays"),
+                        .text(label),
                 )
-                .on_hover_text("Shadow rays per hit point (the final pass)")
+                .on_hover_text(hover)
                 .changed();
             egui::ComboBox::from_label("Sampling")
                 .selected_text(r.sampling.name())

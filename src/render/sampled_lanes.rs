@@ -341,8 +341,9 @@ impl HitRows {
     }
 
     /// The chains of [`SUMMED_TOGETHER`] lanes side by side, each lane's
-    /// points gathered one by one (the portable build's).
-    #[inline(always)]
+    /// points gathered one by one (the portable build's). Not inlined: the
+    /// AVX2 tile kernel, which never calls it, stays as small as before.
+    #[inline(never)]
     fn sums_by_rows(&self) -> ([f32; LANES], [f32; LANES]) {
         let (count, padded) = (self.count, self.padded);
         let mut diffuse = [-0.0f32; LANES];

@@ -302,11 +302,15 @@ fn fill_light_points(pattern: &Pattern, rng: &mut Rng, buf: &mut ShadowBuffers) 
 /// Whether any of the first `count` light points is visible.
 #[inline]
 pub(crate) fn any_visible(buf: &ShadowBuffers, count: usize) -> bool {
+    let vis = &buf.vis[..count];
+    if count <= 16 {
+        return vis.iter().any(|&v| v != 0.0);
+    }
     // Sixteen points at a time, each block without a branch per point: one
     // by one, a hit whose first points are hidden or face away paid a
-    // compare and a branch for each.
-    buf.vis[..count]
-        .chunks(16)
+    // compare and a branch for each (the blocks' set-up costs more than
+    // that below sixteen points).
+    vis.chunks(16)
         .any(|block| block.iter().fold(false, |any, &v| any | (v != 0.0)))
 }
 

@@ -232,7 +232,7 @@ struct HitRows {
     unshadowed: Vec<f32>,
 }
 
-/// Lanes whose sums [`HitRows::sums`] runs at once: two chains each, enough
+/// Lanes whose sums [`HitRows::sums_by_rows`] runs at once: two chains each, enough
 /// to keep the adders busy without running out of registers.
 const SUMMED_TOGETHER: usize = 4;
 
@@ -281,6 +281,18 @@ impl HitRows {
     /// `Iterator::sum`).
     #[inline(always)]
     fn sums(&self) -> ([f32; LANES], [f32; LANES]) {
+        let (diffuse, specular) = self.row_sums();
+        let inv_count = 1.0 / self.count as f32;
+        (
+            diffuse.map(|s| s * inv_count),
+            specular.map(|s| s * inv_count),
+        )
+    }
+
+    /// Each lane's row summed left to right from −0, the widest way the
+    /// CPU has.
+    #[inline(always)]
+    fn row_sums(&self) -> ([f32; LANES], [f32; LANES]) {
         #[cfg(target_arch = "x86_64")]
         if crate::render::math::avx2_kernels() {
             // SAFETY: the CPU supports AVX2 (`avx2_kernels` checks).
@@ -289,12 +301,12 @@ impl HitRows {
         self.sums_by_rows()
     }
 
-    /// [`sums`](Self::sums) on eight-lane vectors, one lane per row: each
-    /// block of eight points of eight rows is transposed in registers, so
-    /// that a row's next point is the same lane of the next vector. Each
-    /// lane adds its row's points in order, as [`sums_by_rows`]
-    /// (Self::sums_by_rows) does, so the same bits, with a third of the
-    /// shuffles of gathering the lanes' points one by one.
+    /// [`row_sums`](Self::row_sums) on eight-lane vectors, one lane per
+    /// row: each block of eight points of eight rows is transposed in
+    /// registers, so that a row's next point is the same lane of the next
+    /// vector. Each lane adds its row's points in order, as
+    /// [`sums_by_rows`](Self::sums_by_rows) does, so the same bits, with a
+    /// third of the shuffles of gathering the lanes' points one by one.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     fn sums_transposed(&self) -> ([f32; LANES], [f32; LANES]) {
@@ -308,8 +320,7 @@ impl HitRows {
         // Diffuse and specular sums of lanes 0..8 and 8..16.
         let zero = _mm256_set1_ps(-0.0);
         let (mut d0, mut d1, mut s0, mut s1) = (zero, zero, zero, zero);
-        let mut j = 0;
-        while j < count {
+        for j in (0..count).step_by(8) {
             // Points past `count` (a row's padding) are transposed but not
             // added: they may hold anything. One octet of one row set at a
             // time: the four at once would not fit in the registers.
@@ -322,7 +333,6 @@ impl HitRows {
                 s0 = add_columns(s0, s.add(j), padded, len);
                 s1 = add_columns(s1, s.add(octet + j), padded, len);
             }
-            j += 8;
         }
         let mut diffuse = [0.0f32; LANES];
         let mut specular = [0.0f32; LANES];
@@ -333,11 +343,7 @@ impl HitRows {
             _mm256_storeu_ps(specular.as_mut_ptr(), s0);
             _mm256_storeu_ps(specular.as_mut_ptr().add(8), s1);
         }
-        let inv_count = 1.0 / count as f32;
-        (
-            diffuse.map(|s| s * inv_count),
-            specular.map(|s| s * inv_count),
-        )
+        (diffuse, specular)
     }
 
     /// The chains of [`SUMMED_TOGETHER`] lanes side by side, each lane's
@@ -387,11 +393,7 @@ impl HitRows {
             diffuse[lanes.clone()].copy_from_slice(&sum_d);
             specular[lanes].copy_from_slice(&sum_s);
         }
-        let inv_count = 1.0 / count as f32;
-        (
-            diffuse.map(|s| s * inv_count),
-            specular.map(|s| s * inv_count),
-        )
+        (diffuse, specular)
     }
 }
 

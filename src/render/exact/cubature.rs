@@ -121,9 +121,10 @@ fn lobe_at_nested_nodes_generic(
 /// small: cos²θ_H is taken as 1 − sin²θ_H with sin²θ_H = |N × H|²/|H|²,
 /// accurate relative to itself where the lobe peaks (1 − cos² in f32
 /// would lose its digits there), and raised to s/2 by
-/// [`log2_one_minus_times`] and [`exp2_unless_zero`]. What remains is the
-/// f32 direction's rounding, amplified by the shininess: values within 5e-6 of the f64 lobe up to
-/// shininess 2000 (tested), below the cubature's tolerance.
+/// [`log2_one_minus_times`] and [`exp2_unless_zero`]. What remains is
+/// the f32 direction's rounding, amplified by the shininess: values within
+/// 5e-6 of the f64 lobe up to shininess 2000 (tested), below the
+/// cubature's tolerance.
 #[inline(always)]
 fn lobe_f32<const M: usize>(l: &Lobe, af: &[f32; M], bf: &[f32; M], out: &mut [f64; M]) {
     let (c, u, w) = (l.corner.as_vec3(), l.edge_u.as_vec3(), l.edge_v.as_vec3());
@@ -467,8 +468,9 @@ avx512_dispatch!(
     /// A whole cell's fit reduced to what a whole cell needs of it: the
     /// error estimate of [`tail_estimate`] and the node sum (c\[0\]\[0\],
     /// whose multiple is the integral), straight from the node values. The
-    /// highest row of coefficients is Σ_j (Σ_i P_last(x_i) w_i f_ij) P_l(x_j) w_j, the
-    /// highest column and the node sum contract one index first likewise:
+    /// highest row of coefficients is
+    /// Σ_j (Σ_i P_last(x_i) w_i f_ij) P_l(x_j) w_j; the highest column and
+    /// the node sum contract one index first likewise:
     /// five 8×8 products of vectors instead of the 8×8×8 of [`fit_rows`]
     /// (which a part of a cell needs for all its coefficients).
     fn whole_cell_fit(r: &Rule, f: &[f64; NODES]) -> (f64, f64) => whole_cell_fit_generic if true

@@ -35,6 +35,19 @@ pub(super) struct Candidate {
     umbra_test: bool,
 }
 
+avx512_dispatch!(
+    /// Clears `vis[j]` for every ray some candidate blocks (one call, and
+    /// one dispatch, for all of a hit point's candidates).
+    fn block_all(occs: &[Candidate], d: Dirs, vis: &mut [f32]) => block_all_generic if vis.len() >= WIDE_POINTS
+);
+
+#[inline(always)]
+fn block_all_generic(occs: &[Candidate], d: Dirs, vis: &mut [f32]) {
+    for c in occs {
+        c.occ.block_inline(d, vis);
+    }
+}
+
 /// One hit point whose shadow rays are to be traced.
 pub struct ShadowQuery {
     /// The hit point (on the surface).
@@ -98,7 +111,14 @@ pub(crate) fn visibility_inline(
     let skip = settings.skip;
     // The objects that may block a ray from p's cube of space (all of
     // them when not skipping).
-    let (listed, bvh_may_block) = match skip.then(|| buf.cells.list_at(scene, q.point)).flatten() {
+    // (An `if`, not `bool::then` with a closure: a closure may stay a call of
+    // baseline code, outside the kernel's CPU features.)
+    let list = if skip {
+        buf.cells.list_at(scene, q.point)
+    } else {
+        None
+    };
+    let (listed, bvh_may_block) = match list {
         Some(list) => {
             let own = |i: u32| i == q.object && scene.primitive(i).skips_itself(q.inside);
             if !list.bvh && each_bit(list.objects, buf.cells.objects()).all(own) {
@@ -190,8 +210,8 @@ pub(crate) fn visibility_inline(
             count,
         } = rays;
         let mut tested = if occluders.is_empty() { 0 } else { facing };
-        for c in occluders {
-            c.occ.block(d.range(0..count), &mut vis[..count]);
+        if !occluders.is_empty() {
+            block_all(occluders, d.range(0..count), &mut vis[..count]);
         }
         if let Some(pk) = &packets {
             let mut own_bins;

@@ -163,13 +163,7 @@ impl Occluder {
                 let mut unsure = false;
                 for j in 0..n {
                     let (blocked, u) = t.blocks_f32(dx[j], dy[j], dz[j], RAY_END);
-                    vis[j] = if blocked {
-                        0.0
-                    } else if u {
-                        0.0 - vis[j]
-                    } else {
-                        vis[j]
-                    };
+                    vis[j] = tested(vis[j], blocked, u);
                     unsure |= u;
                 }
                 if unsure {
@@ -265,13 +259,7 @@ impl BoxSlabs<'_> {
         let mut any_unsure = false;
         for j in 0..n {
             let (blocked, unsure) = lane(dx[j], dy[j], dz[j]);
-            vis[j] = if blocked {
-                0.0
-            } else if unsure {
-                0.0 - vis[j]
-            } else {
-                vis[j]
-            };
+            vis[j] = tested(vis[j], blocked, unsure);
             any_unsure |= unsure;
         }
         if any_unsure {
@@ -281,6 +269,19 @@ impl BoxSlabs<'_> {
                 cuboid.segment_meets(*origin, d, RAY_END as f64)
             });
         }
+    }
+}
+
+/// A ray's visibility `v` after a test that found it `blocked` (0), or
+/// `unsure` (marked for [`decide_marked`] as 0 − v), or neither (v).
+#[inline(always)]
+fn tested(v: f32, blocked: bool, unsure: bool) -> f32 {
+    if blocked {
+        0.0
+    } else if unsure {
+        0.0 - v
+    } else {
+        v
     }
 }
 
@@ -431,18 +432,42 @@ mod tests {
         );
     }
 
+    /// The seed room's tall box.
+    fn tall_box() -> Cuboid {
+        Cuboid::new(
+            DVec3::new(-1.0, 0.0, -1.0),
+            DVec3::new(1.0, 5.0, 1.0),
+            20.0,
+            DVec3::new(-2.0, 0.0, 1.0),
+        )
+    }
+
+    /// A point of the room outside box `c`.
+    fn outside(c: &Cuboid, u: &mut impl FnMut(f64, f64) -> f64) -> DVec3 {
+        loop {
+            let p = DVec3::new(u(-5.0, 5.0), u(0.0, 8.0), u(-5.0, 5.0));
+            if !c.to_local(p - c.centre).abs().cmple(c.half).all() {
+                return p;
+            }
+        }
+    }
+
+    /// A point of one of box `c`'s edges along axis `along`, nudged off it
+    /// by up to 1e-6 (the f32 tests' rounding is ~1e-7 of the distances).
+    fn near_an_edge(c: &Cuboid, along: usize, u: &mut impl FnMut(f64, f64) -> f64) -> DVec3 {
+        let mut on_edge = DVec3::new(u(-1.0, 1.0), u(-1.0, 1.0), u(-1.0, 1.0)).signum();
+        on_edge[along] = u(-1.0, 1.0);
+        let jitter = DVec3::new(u(-1.0, 1.0), u(-1.0, 1.0), u(-1.0, 1.0)) * 1e-6;
+        c.centre + c.to_world(c.half * on_edge) + jitter
+    }
+
     /// Rays from all over the room to points within 1e-6 of the tall box's
     /// edges (the f32 tests' rounding is ~1e-7 of the distances): the box
     /// and its twelve triangles block exactly the rays the f64 intersection
     /// finds blocked.
     #[test]
     fn a_box_and_its_triangles_decide_grazing_rays_as_the_exact_geometry() {
-        let c = Cuboid::new(
-            DVec3::new(-1.0, 0.0, -1.0),
-            DVec3::new(1.0, 5.0, 1.0),
-            20.0,
-            DVec3::new(-2.0, 0.0, 1.0),
-        );
+        let c = tall_box();
         let corner = c.corners();
         let triangles: Vec<Triangle> = Cuboid::FACES
             .iter()
@@ -454,16 +479,9 @@ mod tests {
         let mut u = |lo: f64, hi: f64| lo + (hi - lo) * rng.next_f64();
         let (mut blocked, mut box_wrong, mut triangles_wrong) = (0, 0, 0);
         for _ in 0..100_000 {
-            let p = DVec3::new(u(-5.0, 5.0), u(0.0, 8.0), u(-5.0, 5.0));
-            if c.to_local(p - c.centre).abs().cmple(c.half).all() {
-                continue;
-            }
-            // A point of an edge, nudged off it by up to 1e-6.
-            let mut on_edge = DVec3::new(u(-1.0, 1.0), u(-1.0, 1.0), u(-1.0, 1.0)).signum();
+            let p = outside(&c, &mut u);
             let along = (u(0.0, 3.0) as usize).min(2);
-            on_edge[along] = u(-1.0, 1.0);
-            let jitter = DVec3::new(u(-1.0, 1.0), u(-1.0, 1.0), u(-1.0, 1.0)) * 1e-6;
-            let target = c.centre + c.to_world(c.half * on_edge) + jitter;
+            let target = near_an_edge(&c, along, &mut u);
             // Past the box (a light beyond it), or short of it.
             let d = ((target - p) * u(0.5, 2.0)).as_vec3();
             let reach = d.length() * 1.001;
@@ -490,12 +508,7 @@ mod tests {
     /// the unsure rays leave no negative value and no −0 behind.
     #[test]
     fn unsure_rays_among_many_get_the_exact_answer_and_no_mark_stays() {
-        let c = Cuboid::new(
-            DVec3::new(-1.0, 0.0, -1.0),
-            DVec3::new(1.0, 5.0, 1.0),
-            20.0,
-            DVec3::new(-2.0, 0.0, 1.0),
-        );
+        let c = tall_box();
         let corner = c.corners();
         let face = Triangle::new(corner[0], corner[2], corner[6]).unwrap();
         let shapes = [Shape::Cuboid(c), Shape::Triangle(face)];
@@ -503,17 +516,11 @@ mod tests {
         let mut u = |lo: f64, hi: f64| lo + (hi - lo) * rng.next_f64();
         let (mut cleared, mut kept) = (0, 0);
         for _ in 0..2_000 {
-            let p = DVec3::new(u(-5.0, 5.0), u(0.0, 8.0), u(-5.0, 5.0));
-            if c.to_local(p - c.centre).abs().cmple(c.half).all() {
-                continue;
-            }
+            let p = outside(&c, &mut u);
             let mut d: [Vec<f32>; 3] = Default::default();
             for k in 0..64 {
                 let target = if k % 2 == 0 {
-                    let mut on_edge = DVec3::new(u(-1.0, 1.0), u(-1.0, 1.0), u(-1.0, 1.0)).signum();
-                    on_edge[k % 3] = u(-1.0, 1.0);
-                    let jitter = DVec3::new(u(-1.0, 1.0), u(-1.0, 1.0), u(-1.0, 1.0)) * 1e-6;
-                    c.centre + c.to_world(c.half * on_edge) + jitter
+                    near_an_edge(&c, k % 3, &mut u)
                 } else {
                     DVec3::new(u(-5.0, 5.0), u(0.0, 8.0), u(-5.0, 5.0))
                 };

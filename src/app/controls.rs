@@ -142,10 +142,6 @@ pub fn controls_ui(
         .show(ui, |ui| {
             let r = &mut desc.render;
             changed |= ui.checkbox(&mut r.shadows, "Shadows").changed();
-            // The exact model traces no shadow rays: the count (and the
-            // sampling) serve only the points it leaves to the `analytic`
-            // estimate (too many pieces or mesh triangles in view, a light
-            // seen as a point).
             let (label, hover) = if r.area_light_model == AreaLightModel::Exact {
                 (
                     "Fallback shadow rays",

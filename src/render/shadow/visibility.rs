@@ -209,8 +209,9 @@ pub(crate) fn visibility_inline(
             scratch,
             count,
         } = rays;
-        let mut tested = if occluders.is_empty() { 0 } else { facing };
+        let mut tested = 0;
         if !occluders.is_empty() {
+            tested = facing;
             block_all(occluders, d.range(0..count), &mut vis[..count]);
         }
         if let Some(pk) = &packets {

@@ -165,3 +165,101 @@ fn bad_scene_exits_2_with_the_field_and_leaves_no_file() {
         assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
     }
 }
+
+/// `--stats FILE`: the summary line's figures and every ray count as JSON,
+/// consistent with the line and with a render that skips nothing.
+#[test]
+fn stats_json_has_the_summary_figures_and_every_ray_count() {
+    let dir = scratch_dir("stats");
+    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/seed-room.json");
+    let run = |name: &str, extra: &[&str]| {
+        let (out, stats) = (
+            dir.join(format!("{name}.png")),
+            dir.join(format!("{name}.json")),
+        );
+        let mut args = vec![
+            "render",
+            scene,
+            "-o",
+            out.to_str().unwrap(),
+            "--stats",
+            stats.to_str().unwrap(),
+            "--width",
+            "64",
+            "--height",
+            "36",
+            "--shadow-rays",
+            "16",
+        ];
+        args.extend_from_slice(extra);
+        let o = penumbra(&args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let json: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
+        (json, stderr(&o))
+    };
+    let (on, line) = run("on", &[]);
+    let count = |j: &serde_json::Value, k: &str| j["rays"][k].as_u64().unwrap();
+    assert_eq!(
+        (on["width"].as_u64(), on["height"].as_u64()),
+        (Some(64), Some(36))
+    );
+    assert_eq!(on["skipping"], true);
+    assert_eq!(count(&on, "camera"), 64 * 36);
+    for k in ["camera", "shadow", "reflected"] {
+        let phrase = format!("{} {k}", count(&on, k));
+        assert!(line.contains(&phrase), "{phrase} in {line}");
+    }
+    let skipped = count(&on, "shadow_skipped");
+    assert!(skipped > 0 && count(&on, "shadow") > 0, "{on}");
+    assert!(
+        line.contains(&format!("{skipped} shadow rays answered")),
+        "{line}"
+    );
+    assert_eq!(
+        count(&on, "traced"),
+        count(&on, "camera") + count(&on, "reflected") + count(&on, "shadow")
+    );
+    assert_eq!(count(&on, "effective"), count(&on, "traced") + skipped);
+    let seconds = |k: &str| on["seconds"][k].as_f64().unwrap();
+    assert!(seconds("rendering") > 0.0 && seconds("rendering") <= seconds("total"));
+    assert!(seconds("loading") <= seconds("total"));
+
+    // Skipping answers exactly the rays it leaves untraced: with it off,
+    // the same rays are all traced.
+    let (off, _) = run("off", &["--no-skip"]);
+    assert_eq!(off["skipping"], false);
+    assert_eq!(count(&off, "shadow_skipped"), 0);
+    assert_eq!(count(&off, "shadow"), count(&on, "shadow") + skipped);
+    assert_eq!(count(&off, "effective"), count(&on, "effective"));
+
+    // A stats file that would replace the image, a folder, or a file in a
+    // folder that is not there: exit 2 before rendering, nothing written.
+    let bad = dir.join("bad");
+    std::fs::create_dir(&bad).unwrap();
+    let out = bad.join("x.png");
+    for stats in [
+        out.clone(),
+        bad.join(".").join("x.png"),
+        bad.clone(),
+        bad.join("missing").join("s.json"),
+    ] {
+        let o = penumbra(&[
+            "render",
+            "-o",
+            out.to_str().unwrap(),
+            "--stats",
+            stats.to_str().unwrap(),
+        ]);
+        assert_eq!(
+            o.status.code(),
+            Some(2),
+            "{}: {}",
+            stats.display(),
+            stderr(&o)
+        );
+        let err = stderr(&o);
+        assert!(err.contains("--stats"), "{err}");
+        assert!(files_in(&bad).is_empty(), "{:?}", files_in(&bad));
+    }
+}

@@ -182,6 +182,11 @@ pub struct RenderArgs {
     /// stitches such parts into the image a whole render gives.
     #[arg(long, value_name = "X,Y,W,H", value_parser = parse_region, conflicts_with = "progressive")]
     pub region: Option<TileRect>,
+    /// Also write the render's times and ray counts to FILE as JSON, for
+    /// scripts (the line on standard error is written for people, and its
+    /// wording may change).
+    #[arg(long, value_name = "FILE")]
+    pub stats: Option<PathBuf>,
 }
 
 /// `penumbra merge`'s arguments.

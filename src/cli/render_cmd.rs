@@ -1,11 +1,11 @@
-use std::io::IsTerminal;
+use std::io::{IsTerminal, Write as _};
 use std::path::Path;
 use std::time::{Duration, Instant};
 
 use indicatif::{ProgressBar, ProgressStyle};
 
 use super::{CliError, RenderArgs, SceneOverrides};
-use crate::render::output::{FileKind, PngCodes, write_film, writes_interrupted};
+use crate::render::output::{FileKind, PngCodes, write_atomic, write_film, writes_interrupted};
 use crate::render::region::{Part, check_region, fingerprint, write_part};
 use crate::render::{
     CancelToken, Loaded, RenderOptions, RenderReport, Scene, SceneDesc, TileRect, TileUpdate,
@@ -126,6 +126,9 @@ pub fn render(args: &RenderArgs) -> Result<(), CliError> {
     if let Some(scene) = &args.scene {
         super::safety::refuse_overwriting_inputs(&args.output, "output", &[("scene", scene)])?;
     }
+    if let Some(stats) = &args.stats {
+        check_stats_path(stats, args)?;
+    }
     if args.region.is_some() && FileKind::of(&args.output).ok() != Some(FileKind::Exr) {
         return Err(CliError::input(format!(
             "{}: --region writes an OpenEXR part (.exr): only it records where the region sits",
@@ -221,12 +224,120 @@ pub fn render(args: &RenderArgs) -> Result<(), CliError> {
         Ok((report, rayon::current_num_threads()))
     })
     .ok_or_else(|| CliError::other("cannot start the worker threads"))??;
-    let line = summary(&scene, &report, Some(threads), loading, start.elapsed());
+    let total = start.elapsed();
+    let line = summary(&scene, &report, Some(threads), loading, total);
     match args.region {
         Some(r) => eprintln!("region {},{},{},{} of {line}", r.x, r.y, r.w, r.h),
         None => eprintln!("{line}"),
     }
+    if let Some(path) = &args.stats {
+        let times = Times {
+            total,
+            loading,
+            rendering: report.elapsed,
+        };
+        let json = stats_json(args, &scene, &report.stats, threads, times);
+        write_atomic(path, |w| {
+            serde_json::to_writer_pretty(&mut *w, &json).map_err(|e| e.to_string())?;
+            w.write_all(b"\n").map_err(|e| e.to_string())
+        })
+        .map_err(|e| CliError::other(format!("--stats: {e}")))?;
+    }
     Ok(())
+}
+
+/// Refuses (exit 2), before rendering, a `--stats` file that cannot be
+/// written (a folder, or in a folder that is not there), or that is the
+/// image being written or the scene being read.
+fn check_stats_path(stats: &Path, args: &RenderArgs) -> Result<(), CliError> {
+    let refuse = |why: &str| CliError::input(format!("{}: --stats: {why}", stats.display()));
+    if stats.is_dir() {
+        return Err(refuse("is a folder, not a file"));
+    }
+    let dir = match stats.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    if !dir.is_dir() {
+        return Err(refuse(&format!("there is no folder {}", dir.display())));
+    }
+    let absolute = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_owned());
+    if absolute(stats) == absolute(&args.output) || super::safety::same_file(stats, &args.output) {
+        return Err(CliError::input(format!(
+            "{}: --stats: names the output image too: give it a file of its own",
+            stats.display()
+        )));
+    }
+    match &args.scene {
+        Some(scene) => {
+            super::safety::refuse_overwriting_inputs(stats, "--stats file", &[("scene", scene)])
+        }
+        None => Ok(()),
+    }
+}
+
+/// Wall times of one `penumbra render`: in all, reading and building the
+/// scene, and rendering (the rest is writing).
+struct Times {
+    total: Duration,
+    loading: Duration,
+    rendering: Duration,
+}
+
+/// What `--stats` writes: the summary line's figures, and every count of
+/// [`RayStats`](crate::render::RayStats) by name.
+fn stats_json(
+    args: &RenderArgs,
+    scene: &Scene,
+    s: &crate::render::RayStats,
+    threads: usize,
+    t: Times,
+) -> serde_json::Value {
+    let rendering = t.rendering.as_secs_f64();
+    let per_second = |rays: u64| {
+        if rendering > 0.0 {
+            rays as f64 / rendering
+        } else {
+            0.0
+        }
+    };
+    serde_json::json!({
+        "scene": args.scene.as_ref().map(|p| p.display().to_string()),
+        "output": args.output.display().to_string(),
+        "width": scene.camera.width,
+        "height": scene.camera.height,
+        "region": args.region.map(|r| [r.x, r.y, r.w, r.h]),
+        "threads": threads,
+        "skipping": !args.no_skip,
+        "seconds": {
+            "total": t.total.as_secs_f64(),
+            "loading": t.loading.as_secs_f64(),
+            "rendering": rendering,
+        },
+        "rays": {
+            "camera": s.camera,
+            "reflected": s.reflected,
+            "shadow": s.shadow,
+            "shadow_backfacing": s.shadow_backfacing,
+            "shadow_unoccluded": s.shadow_unoccluded,
+            "shadow_umbra": s.shadow_umbra,
+            "shadow_disabled": s.shadow_disabled,
+            "shadow_unneeded": s.shadow_unneeded,
+            "shadow_adaptive": s.shadow_adaptive,
+            "reflected_culled": s.reflected_culled,
+            "shadow_skipped": s.shadow_skipped(),
+            "traced": s.traced(),
+            "effective": s.effective(),
+        },
+        "rays_per_second": {
+            "traced": per_second(s.traced()),
+            "effective": per_second(s.effective()),
+        },
+        "exact": {
+            "hits": s.exact_hits,
+            "fallbacks": s.exact_fallbacks,
+        },
+    })
 }
 
 /// One line: size, wall time (in all, and of loading and rendering), rays

@@ -669,16 +669,22 @@ pub fn specular_factor(
     // A lobe whose bound over the light, times the visible share of the
     // light, is below the skip level: the factor is 0 within that bound.
     let visible = pieces.area();
-    let (cos_h, share) = (lobe_bound_cos(lobe), visible.min(1.0));
-    // ln x ≥ 1 − 1/x: a lower bound of the logarithms that settles most
-    // points (a lobe well above the skip) without taking them.
-    let lower = lobe.shininess * (1.0 - 1.0 / cos_h) + (1.0 - 1.0 / share);
-    let settled = lower > SKIP.ln() + SKIP_MARGIN;
-    if !settled {
-        let bound_ln = bound_ln(cos_h, lobe.shininess) + share.ln();
-        if bound_ln <= SKIP.ln() {
-            report.error = bound_ln.exp();
-            return (0.0, report);
+    let share = visible.min(1.0);
+    // Most lobes are settled (well above the skip) by their value in the
+    // light centre's direction, a lower bound of the bound: without the
+    // bound's square roots.
+    if !settled_by_centre(lobe, share) {
+        let cos_h = lobe_bound_cos(lobe);
+        // ln x ≥ 1 − 1/x: a lower bound of the logarithms that settles most
+        // points (a lobe well above the skip) without taking them.
+        let lower = lobe.shininess * (1.0 - 1.0 / cos_h) + (1.0 - 1.0 / share);
+        let settled = lower > SKIP.ln() + SKIP_MARGIN;
+        if !settled {
+            let bound_ln = bound_ln(cos_h, lobe.shininess) + share.ln();
+            if bound_ln <= SKIP.ln() {
+                report.error = bound_ln.exp();
+                return (0.0, report);
+            }
         }
     }
     if s.levels.len() < MAX_DEPTH as usize + 1 {
@@ -698,6 +704,30 @@ const SKIP: f64 = 1e-2 * TOLERANCE;
 /// of terms within ln [`SKIP`] of 0 where it decides): a lower bound this
 /// far above the skip level leaves the logarithms above it too.
 const SKIP_MARGIN: f64 = 1e-9;
+
+/// Whether the lobe's value in the direction of the light's centre, N·H
+/// there (a light point, so at most the bound of [`lobe_bound_cos`]),
+/// already settles the skip test of [`specular_factor`] (visible share
+/// `share`): its lower bound of the logarithms, taken with N·H for the
+/// bound, clears the skip level by more than the roundings. N·H is off
+/// by ~1e-15 relative at most, which moves s (1 − 1/N·H) by at most
+/// s/N·H times that, and s/N·H < s + 14 wherever the test passes: the
+/// margin, 10⁻¹² (1 + s) beyond the skip test's own, covers it 1000-fold.
+/// The bound then settles it too: the same decision, from two square
+/// roots instead of nine.
+#[inline]
+fn settled_by_centre(l: &Lobe, share: f64) -> bool {
+    let centre = l.direction(0.5, 0.5);
+    let h = centre / centre.length() + l.v;
+    let cos = l.n.dot(h) / h.length();
+    // A NaN (a zero direction) or N·H ≤ 0 compares false: the full test.
+    cos > 0.0
+        && l.shininess * (1.0 - 1.0 / cos) + (1.0 - 1.0 / share)
+            > SKIP.ln() + SKIP_MARGIN + CENTRE_MARGIN * (1.0 + l.shininess)
+}
+
+/// See [`settled_by_centre`].
+const CENTRE_MARGIN: f64 = 1e-12;
 
 /// The logarithm of the lobe's bound `cos_h`^s (a logarithm is cheaper
 /// than the power, and the skip only compares it).
@@ -1091,8 +1121,9 @@ fn clip_level(root: &Pieces, s: &mut CubatureScratch, d: usize, lo: DVec2, size:
 #[cfg(test)]
 mod tests {
     use super::{
-        CHUNK, CellView, Ctx, LightSpan, Lobe, MAX_DEPTH, Pieces, TOLERANCE, bound_ln,
-        lobe_at_nested_nodes, lobe_bound_cos, pow_one_minus, whole_cell,
+        CHUNK, CellView, Ctx, LightSpan, Lobe, MAX_DEPTH, Pieces, SKIP, SKIP_MARGIN, TOLERANCE,
+        bound_ln, lobe_at_nested_nodes, lobe_bound_cos, pow_one_minus, settled_by_centre,
+        whole_cell,
     };
     use crate::render::rng::Rng;
     use glam::{DVec2, DVec3};
@@ -1173,6 +1204,69 @@ mod tests {
         }
         // The bound is tight enough to skip some lobes.
         assert!(skipped > 20, "{skipped}");
+    }
+
+    /// The light centre's lobe settles the skip test only where the
+    /// bound settles it too (so the two decide alike): random lobes and
+    /// lights, shininess up to the format's 10⁶, many of them set to put
+    /// the centre's test within a hair of the skip level.
+    #[test]
+    fn the_centre_settles_only_lobes_the_bound_settles() {
+        let mut rng = Rng::new(9);
+        let unit = |rng: &mut Rng| {
+            let mut c = || rng.next_f64() * 2.0 - 1.0;
+            DVec3::new(c(), c(), c()).normalize()
+        };
+        let (mut by_centre, mut near, mut near_settled) = (0, 0, 0);
+        for case in 0..200_000 {
+            let (n, v) = (unit(&mut rng), unit(&mut rng));
+            let corner = unit(&mut rng) * (0.2 + 6.0 * rng.next_f64());
+            // Some lights tiny: the bound then comes within its own
+            // margin of the centre's value.
+            let size = if case % 5 == 0 { 1e-13 } else { 1.0 };
+            let edge_u = unit(&mut rng) * (0.05 + 3.0 * rng.next_f64()) * size;
+            let edge_v = unit(&mut rng) * (0.05 + 3.0 * rng.next_f64()) * size;
+            let share = if case % 3 == 0 {
+                1.0
+            } else {
+                (0.01 + rng.next_f64()).min(1.0)
+            };
+            let mut lobe = Lobe {
+                n,
+                v,
+                shininess: 10f64.powf(6.0 * rng.next_f64()),
+                corner,
+                edge_u,
+                edge_v,
+            };
+            if case % 2 == 0 {
+                // The shininess that puts the centre's test at the skip
+                // level, give or take 10⁻⁶ to 10⁻¹⁰ of it.
+                let h = lobe.direction(0.5, 0.5).normalize() + v;
+                let cos = n.dot(h) / h.length();
+                let level = SKIP.ln() + SKIP_MARGIN - (1.0 - 1.0 / share);
+                let spread = 10f64.powi(-6 - case / 2 % 5);
+                let s = level / (1.0 - 1.0 / cos) * (1.0 + spread * (rng.next_f64() - 0.5));
+                if !(s > 0.0 && s <= 1e6) {
+                    continue;
+                }
+                lobe.shininess = s;
+                near += 1;
+            }
+            if settled_by_centre(&lobe, share) {
+                by_centre += 1;
+                near_settled += (case % 2 == 0) as u32;
+                let cos_h = lobe_bound_cos(&lobe);
+                let lower = lobe.shininess * (1.0 - 1.0 / cos_h) + (1.0 - 1.0 / share);
+                assert!(lower > SKIP.ln() + SKIP_MARGIN, "case {case}: {lobe:?}");
+            }
+        }
+        // Many lobes settle by the centre, and many of them within a hair
+        // of the skip level.
+        assert!(
+            by_centre > 30_000 && near > 40_000 && near_settled > 5_000,
+            "{by_centre} {near} {near_settled}"
+        );
     }
 
     /// The bracketed angle test decides as the arccosine does: random

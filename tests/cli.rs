@@ -263,3 +263,51 @@ fn stats_json_has_the_summary_figures_and_every_ray_count() {
         assert!(files_in(&bad).is_empty(), "{:?}", files_in(&bad));
     }
 }
+
+/// `--width` or `--height` alone keeps the scene's aspect ratio: the same
+/// image as both sides given; a side that follows out of range is named
+/// with the option it follows.
+#[test]
+fn one_side_alone_keeps_the_scene_aspect_ratio() {
+    let dir = scratch_dir("aspect");
+    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/seed-room.json");
+    let render = |name: &str, size: &[&str]| {
+        let out = dir.join(name);
+        let mut args = vec!["render", scene, "-o", out.to_str().unwrap()];
+        args.extend_from_slice(size);
+        let o = penumbra(&args);
+        assert!(o.status.success(), "{size:?}: {}", stderr(&o));
+        image::open(&out).unwrap().to_rgb8()
+    };
+    // The seed room is 960×540.
+    let both = render("both.png", &["--width", "160", "--height", "90"]);
+    let width = render("width.png", &["--width", "160"]);
+    let height = render("height.png", &["--height", "90"]);
+    assert_eq!(both.dimensions(), (160, 90));
+    assert!(width == both && height == both, "the same image");
+    // Rounded to the nearest pixel: 100 × 540/960 = 56.25.
+    assert_eq!(
+        render("round.png", &["--width", "100"]).dimensions(),
+        (100, 56)
+    );
+    // Both given: as given, whatever the aspect.
+    let narrow = render("narrow.png", &["--width", "40", "--height", "90"]);
+    assert_eq!(narrow.dimensions(), (40, 90));
+
+    let out = dir.join("big.png");
+    let o = penumbra(&[
+        "render",
+        scene,
+        "-o",
+        out.to_str().unwrap(),
+        "--height",
+        "16384",
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    let err = stderr(&o);
+    assert!(
+        err.contains("camera.width: 29127 is out of range") && err.contains("--height 16384"),
+        "{err}"
+    );
+    assert!(!out.exists());
+}

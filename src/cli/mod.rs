@@ -78,10 +78,12 @@ pub struct ViewArgs {
 /// Overrides of a scene's settings.
 #[derive(Debug, Args, Default, Clone)]
 pub struct SceneOverrides {
-    /// Image width in pixels.
+    /// Image width in pixels (alone: the height follows at the scene's
+    /// aspect ratio).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=16384))]
     pub width: Option<u32>,
-    /// Image height in pixels.
+    /// Image height in pixels (alone: the width follows at the scene's
+    /// aspect ratio).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=16384))]
     pub height: Option<u32>,
     /// Shadow rays per hit point.

@@ -39,7 +39,29 @@ pub fn load_scene(
     } else {
         format!(" (after{moved})")
     };
+    // A side that followed the other's option at the scene's aspect ratio
+    // is named as such where it is out of range.
+    let followed = match (o.width, o.height) {
+        (Some(w), None) => Some((
+            "camera.height",
+            format!(
+                " (the height that --width {w} gives at the scene's aspect ratio; give --height too)"
+            ),
+        )),
+        (None, Some(h)) => Some((
+            "camera.width",
+            format!(
+                " (the width that --height {h} gives at the scene's aspect ratio; give --width too)"
+            ),
+        )),
+        _ => None,
+    };
     let loaded = Loaded::new(&desc).map_err(|mut e| {
+        if let Some((field, why)) = &followed
+            && e.path == *field
+        {
+            e.message += why;
+        }
         e.message += &moved;
         e
     });
@@ -74,11 +96,21 @@ pub fn load_desc(path: Option<&Path>, overrides: &SceneOverrides) -> Result<Scen
         }
     };
     let o = overrides;
-    if let Some(w) = o.width {
-        desc.camera.width = w;
-    }
-    if let Some(h) = o.height {
-        desc.camera.height = h;
+    let c = &mut desc.camera;
+    match (o.width, o.height) {
+        (Some(w), Some(h)) => (c.width, c.height) = (w, h),
+        // One side alone: the other follows at the scene's aspect ratio
+        // (the same view at another size, as `bench` sizes it), unless
+        // the scene's own size is out of range (validation then names it).
+        (Some(w), None) => {
+            c.height = at_aspect(w, c.height, c.width).unwrap_or(c.height);
+            c.width = w;
+        }
+        (None, Some(h)) => {
+            c.width = at_aspect(h, c.width, c.height).unwrap_or(c.width);
+            c.height = h;
+        }
+        (None, None) => {}
     }
     let r = &mut desc.render;
     if let Some(n) = o.shadow_rays {
@@ -117,6 +149,15 @@ pub fn load_desc(path: Option<&Path>, overrides: &SceneOverrides) -> Result<Scen
         desc = desc.translated(t);
     }
     Ok(desc)
+}
+
+/// The side that goes with `given` at the aspect ratio `side` : `other`
+/// (rounded, at least 1), or `None` where that ratio is not of a valid
+/// image size.
+fn at_aspect(given: u32, side: u32, other: u32) -> Option<u32> {
+    let valid = 1..=crate::render::scene_file::limits::MAX_SIDE;
+    (valid.contains(&side) && valid.contains(&other))
+        .then(|| ((given as f64 * side as f64 / other as f64).round() as u32).max(1))
 }
 
 /// `penumbra render`.

@@ -233,6 +233,57 @@ fn stats_json_has_the_summary_figures_and_every_ray_count() {
     assert_eq!(count(&off, "shadow"), count(&on, "shadow") + skipped);
     assert_eq!(count(&off, "effective"), count(&on, "effective"));
 
+    // `-`: standard output, the JSON alone there (the line goes to
+    // standard error).
+    let out = dir.join("stdout.png");
+    let o = penumbra(&[
+        "render",
+        scene,
+        "-o",
+        out.to_str().unwrap(),
+        "--stats",
+        "-",
+        "--width",
+        "64",
+        "--height",
+        "36",
+        "--shadow-rays",
+        "16",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let printed: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(printed["rays"], on["rays"], "the same counts on stdout");
+
+    // Through a symbolic link: the link stays, its target gets the JSON.
+    #[cfg(unix)]
+    {
+        let (target, link) = (dir.join("target.json"), dir.join("link.json"));
+        std::fs::write(&target, "{}").unwrap();
+        std::os::unix::fs::symlink(&target, &link).unwrap();
+        let o = penumbra(&[
+            "render",
+            scene,
+            "-o",
+            out.to_str().unwrap(),
+            "--stats",
+            link.to_str().unwrap(),
+            "--width",
+            "8",
+            "--height",
+            "8",
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        assert!(
+            std::fs::symlink_metadata(&link)
+                .unwrap()
+                .file_type()
+                .is_symlink()
+        );
+        let json: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&target).unwrap()).unwrap();
+        assert_eq!(json["rays"]["camera"], 64);
+    }
+
     // A stats file that would replace the image, a folder, or a file in a
     // folder that is not there: exit 2 before rendering, nothing written.
     let bad = dir.join("bad");

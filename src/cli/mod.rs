@@ -185,8 +185,8 @@ pub struct RenderArgs {
     #[arg(long, value_name = "X,Y,W,H", value_parser = parse_region, conflicts_with = "progressive")]
     pub region: Option<TileRect>,
     /// Also write the render's times and ray counts to FILE as JSON, for
-    /// scripts (the line on standard error is written for people, and its
-    /// wording may change).
+    /// scripts (`-`: standard output; the line on standard error is
+    /// written for people, and its wording may change).
     #[arg(long, value_name = "FILE")]
     pub stats: Option<PathBuf>,
 }

@@ -278,13 +278,39 @@ pub fn render(args: &RenderArgs) -> Result<(), CliError> {
             rendering: report.elapsed,
         };
         let json = stats_json(args, &scene, &report.stats, threads, times);
-        write_atomic(path, |w| {
-            serde_json::to_writer_pretty(&mut *w, &json).map_err(|e| e.to_string())?;
-            w.write_all(b"\n").map_err(|e| e.to_string())
-        })
-        .map_err(|e| CliError::other(format!("--stats: {e}")))?;
+        write_stats(path, &json)?;
     }
     Ok(())
+}
+
+/// Writes the `--stats` JSON: to standard output for `-`; through a
+/// symbolic link or into an existing file that is not a regular one
+/// (`/dev/stdout`, a FIFO), where a rename would replace the link or the
+/// file itself; else atomically, as the images are.
+fn write_stats(path: &Path, json: &serde_json::Value) -> Result<(), CliError> {
+    let text = serde_json::to_string_pretty(json).map_err(CliError::other)? + "\n";
+    let fail = |e: std::io::Error| CliError::other(format!("{}: --stats: {e}", path.display()));
+    if path.as_os_str() == "-" {
+        let mut out = std::io::stdout().lock();
+        return out
+            .write_all(text.as_bytes())
+            .and_then(|()| out.flush())
+            .map_err(fail);
+    }
+    let linked = std::fs::symlink_metadata(path).is_ok_and(|m| m.file_type().is_symlink());
+    if linked || std::fs::metadata(path).is_ok_and(|m| !m.is_file()) {
+        let mut file = std::fs::OpenOptions::new()
+            .write(true)
+            .create(true)
+            .truncate(true)
+            .open(path)
+            .map_err(fail)?;
+        return file.write_all(text.as_bytes()).map_err(fail);
+    }
+    write_atomic(path, |w| {
+        w.write_all(text.as_bytes()).map_err(|e| e.to_string())
+    })
+    .map_err(|e| CliError::other(format!("--stats: {e}")))
 }
 
 /// Refuses (exit 2), before rendering, a `--stats` file that cannot be
@@ -292,6 +318,9 @@ pub fn render(args: &RenderArgs) -> Result<(), CliError> {
 /// image being written or the scene being read.
 fn check_stats_path(stats: &Path, args: &RenderArgs) -> Result<(), CliError> {
     let refuse = |why: &str| CliError::input(format!("{}: --stats: {why}", stats.display()));
+    if stats.as_os_str() == "-" {
+        return Ok(());
+    }
     if stats.is_dir() {
         return Err(refuse("is a folder, not a file"));
     }

@@ -2,6 +2,7 @@
 
 mod common;
 
+use std::path::Path;
 use std::process::Output;
 
 use common::{files_in, penumbra};
@@ -14,14 +15,14 @@ fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
-#[test]
-fn render_writes_a_png_of_the_requested_size_and_a_summary() {
-    let dir = scratch_dir("render");
-    let out = dir.join("room.png");
-    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/seed-room.json");
-    let o = penumbra(&[
+const SEED_ROOM: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/seed-room.json");
+
+/// The seed room rendered small (64×36, 16 shadow rays) to `out`, with
+/// `extra` arguments.
+fn render_small(out: &Path, extra: &[&str]) -> Output {
+    let mut args = vec![
         "render",
-        scene,
+        SEED_ROOM,
         "-o",
         out.to_str().unwrap(),
         "--width",
@@ -30,7 +31,16 @@ fn render_writes_a_png_of_the_requested_size_and_a_summary() {
         "36",
         "--shadow-rays",
         "16",
-    ]);
+    ];
+    args.extend_from_slice(extra);
+    penumbra(&args)
+}
+
+#[test]
+fn render_writes_a_png_of_the_requested_size_and_a_summary() {
+    let dir = scratch_dir("render");
+    let out = dir.join("room.png");
+    let o = render_small(&out, &[]);
     assert!(o.status.success(), "{}", stderr(&o));
     let img = image::open(&out).unwrap();
     assert_eq!((img.width(), img.height()), (64, 36));
@@ -171,28 +181,14 @@ fn bad_scene_exits_2_with_the_field_and_leaves_no_file() {
 #[test]
 fn stats_json_has_the_summary_figures_and_every_ray_count() {
     let dir = scratch_dir("stats");
-    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/seed-room.json");
     let run = |name: &str, extra: &[&str]| {
         let (out, stats) = (
             dir.join(format!("{name}.png")),
             dir.join(format!("{name}.json")),
         );
-        let mut args = vec![
-            "render",
-            scene,
-            "-o",
-            out.to_str().unwrap(),
-            "--stats",
-            stats.to_str().unwrap(),
-            "--width",
-            "64",
-            "--height",
-            "36",
-            "--shadow-rays",
-            "16",
-        ];
+        let mut args = vec!["--stats", stats.to_str().unwrap()];
         args.extend_from_slice(extra);
-        let o = penumbra(&args);
+        let o = render_small(&out, &args);
         assert!(o.status.success(), "{}", stderr(&o));
         let json: serde_json::Value =
             serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
@@ -236,20 +232,7 @@ fn stats_json_has_the_summary_figures_and_every_ray_count() {
     // `-`: standard output, the JSON alone there (the line goes to
     // standard error).
     let out = dir.join("stdout.png");
-    let o = penumbra(&[
-        "render",
-        scene,
-        "-o",
-        out.to_str().unwrap(),
-        "--stats",
-        "-",
-        "--width",
-        "64",
-        "--height",
-        "36",
-        "--shadow-rays",
-        "16",
-    ]);
+    let o = render_small(&out, &["--stats", "-"]);
     assert!(o.status.success(), "{}", stderr(&o));
     let printed: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(printed["rays"], on["rays"], "the same counts on stdout");
@@ -260,18 +243,7 @@ fn stats_json_has_the_summary_figures_and_every_ray_count() {
         let (target, link) = (dir.join("target.json"), dir.join("link.json"));
         std::fs::write(&target, "{}").unwrap();
         std::os::unix::fs::symlink(&target, &link).unwrap();
-        let o = penumbra(&[
-            "render",
-            scene,
-            "-o",
-            out.to_str().unwrap(),
-            "--stats",
-            link.to_str().unwrap(),
-            "--width",
-            "8",
-            "--height",
-            "8",
-        ]);
+        let o = render_small(&out, &["--stats", link.to_str().unwrap()]);
         assert!(o.status.success(), "{}", stderr(&o));
         assert!(
             std::fs::symlink_metadata(&link)
@@ -281,7 +253,7 @@ fn stats_json_has_the_summary_figures_and_every_ray_count() {
         );
         let json: serde_json::Value =
             serde_json::from_str(&std::fs::read_to_string(&target).unwrap()).unwrap();
-        assert_eq!(json["rays"]["camera"], 64);
+        assert_eq!(json["rays"], on["rays"]);
     }
 
     // A stats file that would replace the image, a folder, or a file in a

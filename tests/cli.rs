@@ -334,3 +334,57 @@ fn one_side_alone_keeps_the_scene_aspect_ratio() {
     );
     assert!(!out.exists());
 }
+
+/// Outputs through a symbolic link replace the file it leads to and keep
+/// the link (an image, and a stats file through a chain of two links to
+/// a file not there yet); a FIFO is written in place, not replaced.
+#[cfg(unix)]
+#[test]
+fn outputs_go_through_links_and_into_fifos() {
+    let dir = scratch_dir("links");
+    let (image, link) = (dir.join("image.png"), dir.join("link.png"));
+    std::fs::write(&image, b"old").unwrap();
+    std::os::unix::fs::symlink("image.png", &link).unwrap();
+    let (stats, hop, first) = (
+        dir.join("stats.json"),
+        dir.join("hop.json"),
+        dir.join("first.json"),
+    );
+    std::os::unix::fs::symlink(&hop, &first).unwrap();
+    std::os::unix::fs::symlink("stats.json", &hop).unwrap();
+    let o = render_small(&link, &["--stats", first.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    for l in [&link, &first, &hop] {
+        let kind = std::fs::symlink_metadata(l).unwrap().file_type();
+        assert!(kind.is_symlink(), "{} stays a link", l.display());
+    }
+    assert_eq!(image::open(&image).unwrap().width(), 64);
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
+    assert_eq!(json["rays"]["camera"], 64 * 36);
+
+    let fifo = dir.join("stats.fifo");
+    let made = std::process::Command::new("mkfifo").arg(&fifo).status();
+    if !made.is_ok_and(|s| s.success()) {
+        return; // no mkfifo here: the links were the test
+    }
+    // Opened for reading first, without waiting for a writer: the JSON
+    // waits in the pipe, and a FIFO replaced instead of written leaves
+    // this end empty (no hang).
+    let mut reader = {
+        use std::os::unix::fs::OpenOptionsExt;
+        std::fs::OpenOptions::new()
+            .read(true)
+            .custom_flags(libc::O_NONBLOCK)
+            .open(&fifo)
+            .unwrap()
+    };
+    let o = render_small(&dir.join("fifo.png"), &["--stats", fifo.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let mut text = String::new();
+    std::io::Read::read_to_string(&mut reader, &mut text).unwrap();
+    let json: serde_json::Value = serde_json::from_str(&text).unwrap();
+    assert_eq!(json["rays"]["camera"], 64 * 36);
+    let kind = std::fs::symlink_metadata(&fifo).unwrap().file_type();
+    assert!(std::os::unix::fs::FileTypeExt::is_fifo(&kind));
+}

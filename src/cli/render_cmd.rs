@@ -42,25 +42,17 @@ pub fn load_scene(
     // A side that followed the other's option at the scene's aspect ratio
     // is named as such where it is out of range.
     let followed = match (o.width, o.height) {
-        (Some(w), None) => Some((
-            "camera.height",
-            format!(
-                " (the height that --width {w} gives at the scene's aspect ratio; give --height too)"
-            ),
-        )),
-        (None, Some(h)) => Some((
-            "camera.width",
-            format!(
-                " (the width that --height {h} gives at the scene's aspect ratio; give --width too)"
-            ),
-        )),
+        (Some(w), None) => Some(("height", "--width", w, "--height")),
+        (None, Some(h)) => Some(("width", "--height", h, "--width")),
         _ => None,
     };
     let loaded = Loaded::new(&desc).map_err(|mut e| {
-        if let Some((field, why)) = &followed
-            && e.path == *field
+        if let Some((side, option, value, other)) = followed
+            && e.path == format!("camera.{side}")
         {
-            e.message += why;
+            e.message += &format!(
+                " (the {side} that {option} {value} gives at the scene's aspect ratio; give {other} too)"
+            );
         }
         e.message += &moved;
         e
@@ -283,29 +275,16 @@ pub fn render(args: &RenderArgs) -> Result<(), CliError> {
     Ok(())
 }
 
-/// Writes the `--stats` JSON: to standard output for `-`; through a
-/// symbolic link or into an existing file that is not a regular one
-/// (`/dev/stdout`, a FIFO), where a rename would replace the link or the
-/// file itself; else atomically, as the images are.
+/// Writes the `--stats` JSON: to standard output for `-`, else as the
+/// images are written.
 fn write_stats(path: &Path, json: &serde_json::Value) -> Result<(), CliError> {
     let text = serde_json::to_string_pretty(json).map_err(CliError::other)? + "\n";
-    let fail = |e: std::io::Error| CliError::other(format!("{}: --stats: {e}", path.display()));
     if path.as_os_str() == "-" {
         let mut out = std::io::stdout().lock();
         return out
             .write_all(text.as_bytes())
             .and_then(|()| out.flush())
-            .map_err(fail);
-    }
-    let linked = std::fs::symlink_metadata(path).is_ok_and(|m| m.file_type().is_symlink());
-    if linked || std::fs::metadata(path).is_ok_and(|m| !m.is_file()) {
-        let mut file = std::fs::OpenOptions::new()
-            .write(true)
-            .create(true)
-            .truncate(true)
-            .open(path)
-            .map_err(fail)?;
-        return file.write_all(text.as_bytes()).map_err(fail);
+            .map_err(|e| CliError::other(format!("--stats: standard output: {e}")));
     }
     write_atomic(path, |w| {
         w.write_all(text.as_bytes()).map_err(|e| e.to_string())

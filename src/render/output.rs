@@ -4,7 +4,7 @@
 //! and never touches an existing one.
 
 use std::io::{BufWriter, Cursor, Seek, SeekFrom, Write};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, AtomicPtr, Ordering};
 
@@ -192,15 +192,22 @@ fn os_message(e: &std::io::Error) -> String {
     e.kind().to_string()
 }
 
-/// Writes `path` atomically with the bytes `write` produces.
+/// Writes `path` atomically with the bytes `write` produces. A symbolic
+/// link is written through (the file it leads to is replaced, the link
+/// stays); an existing file that is not a regular one (a FIFO,
+/// `/dev/stdout`) is written in place, which a rename would replace.
 pub fn write_atomic(
-    path: &Path,
+    user_path: &Path,
     write: impl FnOnce(&mut BufWriter<AtomicFile>) -> Result<(), String>,
 ) -> Result<(), ImageError> {
     let fail = |message: String| ImageError::Write {
-        path: path.to_owned(),
+        path: user_path.to_owned(),
         message,
     };
+    if std::fs::metadata(user_path).is_ok_and(|m| !m.is_file() && !m.is_dir()) {
+        return write_in_place(user_path, write).map_err(fail);
+    }
+    let path = &through_links(user_path);
     let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
@@ -276,6 +283,41 @@ pub fn write_atomic(
     put_in_place(tmp, path).map_err(|e| fail(os_message(&e)))?;
     drop(registered);
     Ok(())
+}
+
+/// Where a write to `path` lands: the file a chain of symbolic links
+/// leads to (the last link's target, which may not exist yet), else
+/// `path` itself.
+fn through_links(path: &Path) -> PathBuf {
+    let mut p = path.to_path_buf();
+    // The kernel's own limit on a chain of links (a loop ends there, and
+    // the write then fails as the kernel says).
+    for _ in 0..40 {
+        match std::fs::read_link(&p) {
+            // Relative to the link's folder (an absolute target replaces it).
+            Ok(target) => p = p.parent().unwrap_or(Path::new("")).join(target),
+            Err(_) => break,
+        }
+    }
+    p
+}
+
+/// [`write_atomic`] into an existing file that is not a regular one, in
+/// place.
+fn write_in_place(
+    path: &Path,
+    write: impl FnOnce(&mut BufWriter<AtomicFile>) -> Result<(), String>,
+) -> Result<(), String> {
+    let file = std::fs::OpenOptions::new()
+        .write(true)
+        .open(path)
+        .map_err(|e| os_message(&e))?;
+    let mut out = BufWriter::new(AtomicFile {
+        file,
+        first_error: None,
+    });
+    write(&mut out)?;
+    out.flush().map_err(|e| os_message(&e))
 }
 
 /// Moves the finished temporary file to `path`. An existing file is

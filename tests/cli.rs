@@ -178,6 +178,46 @@ fn bad_scene_exits_2_with_the_field_and_leaves_no_file() {
 
 /// `--stats FILE`: the summary line's figures and every ray count as JSON,
 /// consistent with the line and with a render that skips nothing.
+/// Scripts that time penumbra against other renderers read the summary
+/// line's first part: `W×H in R s: C camera, S shadow, F reflected rays
+/// traced; K shadow rays answered without tracing; M Mray/s traced`, with R
+/// the rendering alone, as the last line of standard error. The whole
+/// command's time, loading and writing follow it.
+#[test]
+fn summary_line_keeps_the_form_scripts_read() {
+    let dir = scratch_dir("summary-form");
+    let (out, stats) = (dir.join("room.png"), dir.join("room.json"));
+    let o = render_small(&out, &["--stats", stats.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
+    let (rays, seconds) = (&json["rays"], &json["seconds"]);
+    let count = |k: &str| rays[k].as_u64().unwrap();
+    let secs = |k: &str| seconds[k].as_f64().unwrap();
+    let rendering = secs("rendering");
+    let start = format!(
+        "64×36 in {:.3} s: {} camera, {} shadow, {} reflected rays traced; {} shadow rays answered without tracing; {:.1} Mray/s traced",
+        rendering,
+        count("camera"),
+        count("shadow"),
+        count("reflected"),
+        count("shadow_skipped"),
+        count("traced") as f64 / rendering / 1e6,
+    );
+    let err = stderr(&o);
+    let line = err.trim_end().lines().last().unwrap();
+    assert!(line.starts_with(&start), "{start}\n{line}");
+    let end = format!(
+        "; {:.3} s in all with {:.3} s loading and ",
+        secs("total"),
+        secs("loading")
+    );
+    assert!(
+        line.contains(&end) && line.ends_with(" s writing"),
+        "{end}\n{line}"
+    );
+}
+
 #[test]
 fn stats_json_has_the_summary_figures_and_every_ray_count() {
     let dir = scratch_dir("stats");

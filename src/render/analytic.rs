@@ -234,33 +234,40 @@ fn clip_2d(quad: &[DVec2; 4], a: DVec2, b: f64) -> ([DVec2; 5], usize) {
 /// ∫_Ω (a·x + b)/√(|x|² + h²) dx over a counter-clockwise convex polygon, by
 /// the edge sum derived in [`diffuse_area_average`].
 fn edge_sum(poly: &[DVec2], a: DVec2, b: f64, h: f64) -> f64 {
-    let ah = h.abs();
     let k = poly.len();
     let mut total = 0.0;
     for i in 0..k {
-        let (p, q) = (poly[i], poly[(i + 1) % k]);
-        let e = q - p;
-        let len = e.length();
-        if len == 0.0 {
-            continue;
-        }
-        let t = e / len;
-        let nu = DVec2::new(t.y, -t.x);
-        let d = p.dot(nu);
-        let c2 = d * d + ah * ah;
-        let c = c2.sqrt();
-        let an = a.dot(nu);
-        let g = |tau: f64| {
-            let r = (tau * tau + c2).sqrt();
-            // asinh(τ/c) only ever appears multiplied by c² or d, both zero
-            // when c is.
-            let ash = if c > 0.0 { (tau / c).asinh() } else { 0.0 };
-            let phi = (-tau * d * (tau * tau + d * d) / (r + ah)).atan2(d * d * r + ah * tau * tau);
-            an * (tau * r + c2 * ash) * 0.5 + b * (d * ash + ah * phi)
-        };
-        total += g(q.dot(t)) - g(p.dot(t));
+        total += edge_term(poly[i], poly[(i + 1) % k], a, b, h);
     }
     total
+}
+
+/// One edge p → q of [`edge_sum`]: G(τ_q) − G(τ_p), with G's inverse
+/// hyperbolic sine and arctangent taken at each end (0 for an edge of
+/// length 0). The exact model's edge terms are tested against it.
+#[inline]
+pub(crate) fn edge_term(p: DVec2, q: DVec2, a: DVec2, b: f64, h: f64) -> f64 {
+    let ah = h.abs();
+    let e = q - p;
+    let len = e.length();
+    if len == 0.0 {
+        return 0.0;
+    }
+    let t = e / len;
+    let nu = DVec2::new(t.y, -t.x);
+    let d = p.dot(nu);
+    let c2 = d * d + ah * ah;
+    let c = c2.sqrt();
+    let an = a.dot(nu);
+    let g = |tau: f64| {
+        let r = (tau * tau + c2).sqrt();
+        // asinh(τ/c) only ever appears multiplied by c² or d, both zero
+        // when c is.
+        let ash = if c > 0.0 { (tau / c).asinh() } else { 0.0 };
+        let phi = (-tau * d * (tau * tau + d * d) / (r + ah)).atan2(d * d * r + ah * tau * tau);
+        an * (tau * r + c2 * ash) * 0.5 + b * (d * ash + ah * phi)
+    };
+    g(q.dot(t)) - g(p.dot(t))
 }
 
 /// 4-point Gauss–Legendre nodes and weights on [0, 1].

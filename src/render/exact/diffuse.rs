@@ -390,23 +390,7 @@ mod tests {
 
     /// `analytic.rs`'s form of one edge: G at each end, asinh and atan2 of
     /// each.
-    fn two_ended(p: DVec2, q: DVec2, a: DVec2, b: f64, h: f64) -> f64 {
-        let ah = h.abs();
-        let e = q - p;
-        let t = e / e.length();
-        let nu = DVec2::new(t.y, -t.x);
-        let d = p.dot(nu);
-        let c2 = d * d + ah * ah;
-        let c = c2.sqrt();
-        let an = a.dot(nu);
-        let g = |tau: f64| {
-            let r = (tau * tau + c2).sqrt();
-            let ash = if c > 0.0 { (tau / c).asinh() } else { 0.0 };
-            let phi = (-tau * d * (tau * tau + d * d) / (r + ah)).atan2(d * d * r + ah * tau * tau);
-            an * (tau * r + c2 * ash) * 0.5 + b * (d * ash + ah * phi)
-        };
-        g(q.dot(t)) - g(p.dot(t))
-    }
+    use crate::render::analytic::edge_term as two_ended;
 
     /// The one-logarithm, one-arctangent edge against the two-ended form
     /// on random edges (either side of the foot of the perpendicular,

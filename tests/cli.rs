@@ -36,6 +36,11 @@ fn render_small(out: &Path, extra: &[&str]) -> Output {
     penumbra(&args)
 }
 
+/// The JSON a `--stats` file holds.
+fn stats_at(path: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+}
+
 #[test]
 fn render_writes_a_png_of_the_requested_size_and_a_summary() {
     let dir = scratch_dir("render");
@@ -176,8 +181,6 @@ fn bad_scene_exits_2_with_the_field_and_leaves_no_file() {
     }
 }
 
-/// `--stats FILE`: the summary line's figures and every ray count as JSON,
-/// consistent with the line and with a render that skips nothing.
 /// Scripts that time penumbra against other renderers read the summary
 /// line's first part: `W×H in R s: C camera, S shadow, F reflected rays
 /// traced; K shadow rays answered without tracing; M Mray/s traced`, with R
@@ -189,8 +192,7 @@ fn summary_line_keeps_the_form_scripts_read() {
     let (out, stats) = (dir.join("room.png"), dir.join("room.json"));
     let o = render_small(&out, &["--stats", stats.to_str().unwrap()]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let json: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
+    let json = stats_at(&stats);
     let (rays, seconds) = (&json["rays"], &json["seconds"]);
     let count = |k: &str| rays[k].as_u64().unwrap();
     let secs = |k: &str| seconds[k].as_f64().unwrap();
@@ -218,6 +220,8 @@ fn summary_line_keeps_the_form_scripts_read() {
     );
 }
 
+/// `--stats FILE`: the summary line's figures and every ray count as JSON,
+/// consistent with the line and with a render that skips nothing.
 #[test]
 fn stats_json_has_the_summary_figures_and_every_ray_count() {
     let dir = scratch_dir("stats");
@@ -230,8 +234,7 @@ fn stats_json_has_the_summary_figures_and_every_ray_count() {
         args.extend_from_slice(extra);
         let o = render_small(&out, &args);
         assert!(o.status.success(), "{}", stderr(&o));
-        let json: serde_json::Value =
-            serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
+        let json = stats_at(&stats);
         (json, stderr(&o))
     };
     let (on, line) = run("on", &[]);
@@ -291,8 +294,7 @@ fn stats_json_has_the_summary_figures_and_every_ray_count() {
                 .file_type()
                 .is_symlink()
         );
-        let json: serde_json::Value =
-            serde_json::from_str(&std::fs::read_to_string(&target).unwrap()).unwrap();
+        let json = stats_at(&target);
         assert_eq!(json["rays"], on["rays"]);
     }
 
@@ -333,7 +335,7 @@ fn stats_json_has_the_summary_figures_and_every_ray_count() {
 #[test]
 fn one_side_alone_keeps_the_scene_aspect_ratio() {
     let dir = scratch_dir("aspect");
-    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/seed-room.json");
+    let scene = SEED_ROOM;
     let render = |name: &str, size: &[&str]| {
         let out = dir.join(name);
         let mut args = vec!["render", scene, "-o", out.to_str().unwrap()];
@@ -399,8 +401,7 @@ fn outputs_go_through_links_and_into_fifos() {
         assert!(kind.is_symlink(), "{} stays a link", l.display());
     }
     assert_eq!(image::open(&image).unwrap().width(), 64);
-    let json: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
+    let json = stats_at(&stats);
     assert_eq!(json["rays"]["camera"], 64 * 36);
 
     let fifo = dir.join("stats.fifo");

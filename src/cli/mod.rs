@@ -184,9 +184,9 @@ pub struct RenderArgs {
     /// stitches such parts into the image a whole render gives.
     #[arg(long, value_name = "X,Y,W,H", value_parser = parse_region, conflicts_with = "progressive")]
     pub region: Option<TileRect>,
-    /// Also write the render's times and ray counts to FILE as JSON, for
-    /// scripts (`-`: standard output; the line on standard error is
-    /// written for people, and its wording may change).
+    /// Also write the render's times and every ray count to FILE as JSON,
+    /// for scripts (`-`: standard output). Of the line on standard error,
+    /// only the first part, `W×H in R s: C camera, …`, stays fixed.
     #[arg(long, value_name = "FILE")]
     pub stats: Option<PathBuf>,
 }

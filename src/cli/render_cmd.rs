@@ -8,8 +8,7 @@ use super::{CliError, RenderArgs, SceneOverrides};
 use crate::render::output::{FileKind, PngCodes, write_atomic, write_film, writes_interrupted};
 use crate::render::region::{Part, check_region, fingerprint, write_part};
 use crate::render::{
-    CancelToken, Loaded, RenderOptions, RenderReport, Scene, SceneDesc, TileRect, TileUpdate,
-    on_threads,
+    CancelToken, Loaded, RenderOptions, Scene, SceneDesc, TileRect, TileUpdate, on_threads,
 };
 
 /// Loads and builds a scene (the built-in seed room for `None`) with
@@ -257,19 +256,18 @@ pub fn render(args: &RenderArgs) -> Result<(), CliError> {
         Ok((report, rayon::current_num_threads()))
     })
     .ok_or_else(|| CliError::other("cannot start the worker threads"))??;
-    let total = start.elapsed();
-    let line = summary(&scene, &report, Some(threads), loading, total);
+    let times = Times {
+        total: start.elapsed(),
+        loading,
+        rendering: report.elapsed,
+    };
+    let line = summary(&scene, &report.stats, threads, &times);
     match args.region {
         Some(r) => eprintln!("region {},{},{},{} of {line}", r.x, r.y, r.w, r.h),
         None => eprintln!("{line}"),
     }
     if let Some(path) = &args.stats {
-        let times = Times {
-            total,
-            loading,
-            rendering: report.elapsed,
-        };
-        let json = stats_json(args, &scene, &report.stats, threads, times);
+        let json = stats_json(args, &scene, &report.stats, threads, &times);
         write_stats(path, &json)?;
     }
     Ok(())
@@ -340,7 +338,7 @@ fn stats_json(
     scene: &Scene,
     s: &crate::render::RayStats,
     threads: usize,
-    t: Times,
+    t: &Times,
 ) -> serde_json::Value {
     let rendering = t.rendering.as_secs_f64();
     let per_second = |rays: u64| {
@@ -395,16 +393,8 @@ fn stats_json(
 /// rays answered without tracing; M Mray/s traced`, with R the rendering
 /// alone: scripts that compare penumbra with other renderers read that
 /// part (see `tests/cli.rs`, `summary_line_keeps_the_form_scripts_read`).
-pub fn summary(
-    scene: &Scene,
-    report: &RenderReport,
-    threads: Option<usize>,
-    loading: Duration,
-    total: Duration,
-) -> String {
-    let s = &report.stats;
-    let secs = report.elapsed.as_secs_f64();
-    let threads = threads.unwrap_or_else(rayon::current_num_threads);
+fn summary(scene: &Scene, s: &crate::render::RayStats, threads: usize, t: &Times) -> String {
+    let secs = t.rendering.as_secs_f64();
     let exact = if s.exact_hits + s.exact_fallbacks > 0 {
         format!(
             "; exact model: {} hit points exact, {} fell back to the analytic estimate",
@@ -415,7 +405,10 @@ pub fn summary(
     };
     // What the command took besides rendering (a large scene's loading can
     // dwarf its render).
-    let writing = total.saturating_sub(loading).saturating_sub(report.elapsed);
+    let writing = t
+        .total
+        .saturating_sub(t.loading)
+        .saturating_sub(t.rendering);
     format!(
         "{}×{} in {:.3} s: {} camera, {} shadow, {} reflected rays traced; {} shadow rays answered without tracing; {:.1} Mray/s traced ({:.1} Mray/s with skipped) on {} threads{exact}; {:.3} s in all with {:.3} s loading and {:.3} s writing",
         scene.camera.width,
@@ -428,8 +421,8 @@ pub fn summary(
         s.traced() as f64 / secs / 1e6,
         s.effective() as f64 / secs / 1e6,
         threads,
-        total.as_secs_f64(),
-        loading.as_secs_f64(),
+        t.total.as_secs_f64(),
+        t.loading.as_secs_f64(),
         writing.as_secs_f64(),
     )
 }

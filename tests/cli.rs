@@ -210,14 +210,12 @@ fn summary_line_keeps_the_form_scripts_read() {
     let line = err.trim_end().lines().last().unwrap();
     assert!(line.starts_with(&start), "{start}\n{line}");
     let end = format!(
-        "; {:.3} s in all with {:.3} s loading and ",
+        "; {:.3} s in all with {:.3} s loading and {:.3} s writing",
         secs("total"),
-        secs("loading")
+        secs("loading"),
+        secs("writing")
     );
-    assert!(
-        line.contains(&end) && line.ends_with(" s writing"),
-        "{end}\n{line}"
-    );
+    assert!(line.ends_with(&end), "{end}\n{line}");
 }
 
 /// `--stats FILE`: the summary line's figures and every ray count as JSON,
@@ -263,6 +261,12 @@ fn stats_json_has_the_summary_figures_and_every_ray_count() {
     let seconds = |k: &str| on["seconds"][k].as_f64().unwrap();
     assert!(seconds("rendering") > 0.0 && seconds("rendering") <= seconds("total"));
     assert!(seconds("loading") <= seconds("total"));
+    // The three parts are measured one after the other, inside the whole.
+    let parts = seconds("loading") + seconds("rendering") + seconds("writing");
+    assert!(
+        seconds("writing") > 0.0 && parts <= seconds("total"),
+        "{on}"
+    );
 
     // Skipping answers exactly the rays it leaves untraced: with it off,
     // the same rays are all traced.

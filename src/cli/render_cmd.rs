@@ -218,7 +218,7 @@ pub fn render(args: &RenderArgs) -> Result<(), CliError> {
             bar.inc(1);
         }
     };
-    let (report, threads) = on_threads(threads, || {
+    let (report, writing, threads) = on_threads(threads, || {
         let report = match args.region {
             Some(region) => loaded.render_region(region, &options, &cancel, &on_tile),
             None => loaded.render(&options, &cancel, &on_tile),
@@ -230,6 +230,7 @@ pub fn render(args: &RenderArgs) -> Result<(), CliError> {
         if cancel.is_cancelled() {
             return Err(CliError::other("interrupted: no image written"));
         }
+        let writing = Instant::now();
         let written = match args.region {
             Some(region) => {
                 let part = Part {
@@ -253,13 +254,14 @@ pub fn render(args: &RenderArgs) -> Result<(), CliError> {
                 CliError::other(e)
             }
         })?;
-        Ok((report, rayon::current_num_threads()))
+        Ok((report, writing.elapsed(), rayon::current_num_threads()))
     })
     .ok_or_else(|| CliError::other("cannot start the worker threads"))??;
     let times = Times {
         total: start.elapsed(),
         loading,
         rendering: report.elapsed,
+        writing,
     };
     let line = summary(&scene, &report.stats, threads, &times);
     match args.region {
@@ -324,11 +326,13 @@ fn check_stats_path(stats: &Path, args: &RenderArgs) -> Result<(), CliError> {
 }
 
 /// Wall times of one `penumbra render`: in all, reading and building the
-/// scene, and rendering (the rest is writing).
+/// scene, rendering, and writing the image (the rest is starting the
+/// worker threads and the film's memory).
 struct Times {
     total: Duration,
     loading: Duration,
     rendering: Duration,
+    writing: Duration,
 }
 
 /// What `--stats` writes: the summary line's figures, and every count of
@@ -360,6 +364,7 @@ fn stats_json(
             "total": t.total.as_secs_f64(),
             "loading": t.loading.as_secs_f64(),
             "rendering": rendering,
+            "writing": t.writing.as_secs_f64(),
         },
         "rays": {
             "camera": s.camera,
@@ -403,12 +408,6 @@ fn summary(scene: &Scene, s: &crate::render::RayStats, threads: usize, t: &Times
     } else {
         String::new()
     };
-    // What the command took besides rendering (a large scene's loading can
-    // dwarf its render).
-    let writing = t
-        .total
-        .saturating_sub(t.loading)
-        .saturating_sub(t.rendering);
     format!(
         "{}×{} in {:.3} s: {} camera, {} shadow, {} reflected rays traced; {} shadow rays answered without tracing; {:.1} Mray/s traced ({:.1} Mray/s with skipped) on {} threads{exact}; {:.3} s in all with {:.3} s loading and {:.3} s writing",
         scene.camera.width,
@@ -423,6 +422,6 @@ fn summary(scene: &Scene, s: &crate::render::RayStats, threads: usize, t: &Times
         threads,
         t.total.as_secs_f64(),
         t.loading.as_secs_f64(),
-        writing.as_secs_f64(),
+        t.writing.as_secs_f64(),
     )
 }

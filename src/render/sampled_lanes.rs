@@ -171,6 +171,30 @@ impl SampledLanes {
         self.index.len() == LANES
     }
 
+    /// [`Self::push`] with the hit's visibility given as bits (bit j: point
+    /// j, some set) and its light points `a`, `b`; fewer than
+    /// [`LANE_POINTS`] points.
+    #[inline(always)]
+    pub fn push_bits(
+        &mut self,
+        index: usize,
+        hit: LaneHit,
+        visible: u64,
+        a: &[f32],
+        b: &[f32],
+    ) -> bool {
+        debug_assert!(!self.rows.is_used() && self.bits.len() == 1);
+        let h = self.index.len();
+        self.index.push((index, hit.specular));
+        self.hits
+            .set(h, hit.to_corner, hit.normal, hit.view, hit.shininess);
+        self.bits[0][h] = visible;
+        if !self.points.is_fixed() {
+            self.points.set_lane(h, a, b);
+        }
+        self.index.len() == LANES
+    }
+
     /// Drops the waiting hits (a cancelled tile).
     pub fn discard(&mut self) {
         self.index.clear();

@@ -22,11 +22,11 @@ use super::scene::{HitTarget, Scene};
 use super::scene_file::AreaLightModel;
 use super::settings::RenderSettings;
 use super::shading::{
-    LightTerms, Lit, Needs, PhongColours, ShadingPoint, any_visible, light_points_generic,
-    light_terms, model_terms, nearest_point_specular_direction,
+    Facing, LightTerms, Lit, Needs, PhongColours, ShadingPoint, any_visible, facing_light_points,
+    light_points_generic, light_terms, model_terms, nearest_point_specular_direction,
 };
 use super::shading_params::ShadingParams;
-use super::shadow::{ShadowBuffers, ShadowQuery};
+use super::shadow::{HitLanes, LANE_RAYS, ShadowBuffers, ShadowQuery, lanes_fit};
 use super::stats::RayStats;
 use super::tile_frustum::{TileTargets, camera_objects};
 
@@ -115,6 +115,9 @@ pub struct Tracer<'a> {
     filter: Option<PixelFilter>,
     /// Each material's needs and colours, computed once instead of per hit.
     material_terms: Vec<MaterialTerms>,
+    /// Whether [`Tracer::tile`] traces the shadow rays of its hits side by
+    /// side ([`HitLanes`]): few light points per hit, few objects.
+    shadows_in_lanes: bool,
 }
 
 /// What [`Tracer::tile`] multiplies a material's light factors by, and
@@ -137,6 +140,10 @@ pub struct TraceScratch {
     factors: Vec<LightTerms>,
     /// A recording sink's index of each waiting hit.
     factor_hits: Vec<u32>,
+    /// [`Tracer::tile`]'s hits waiting for their shadow rays, and their
+    /// index in `factors` and lane data.
+    shadow_lanes: HitLanes,
+    shadow_waiting: Vec<(usize, LaneHit)>,
     /// What [`Tracer::tile`]'s camera rays test.
     camera_objects: TileTargets,
     /// One row of a tile's camera rays.
@@ -152,11 +159,19 @@ impl<'a> Tracer<'a> {
         shading: &'a ShadingParams,
         shadow_rays: u32,
     ) -> Tracer<'a> {
+        let pattern = Pattern::new(settings.sampling, shadow_rays);
+        let shadows_in_lanes = settings.model == AreaLightModel::Sampled
+            && settings.skip
+            && settings.shadows
+            && !settings.adaptive
+            && pattern.count() <= LANE_RAYS
+            && lanes_fit(scene);
         Tracer {
             scene,
             settings,
             shading,
-            pattern: Pattern::new(settings.sampling, shadow_rays),
+            pattern,
+            shadows_in_lanes,
             filter: (settings.samples_per_pixel > 1).then(|| PixelFilter::new(settings.filter)),
             material_terms: shading
                 .materials
@@ -182,6 +197,8 @@ impl<'a> Tracer<'a> {
             terms: Vec::new(),
             factors: Vec::new(),
             factor_hits: Vec::new(),
+            shadow_lanes: HitLanes::default(),
+            shadow_waiting: Vec::new(),
             camera_objects: TileTargets::default(),
             camera_rays: Vec::new(),
         }
@@ -547,6 +564,7 @@ fn tile_in_lanes_generic<S: PathSink>(
     }
     scratch.camera_rays = rays;
     if finished {
+        colour.trace_waiting_shadows(tracer, scratch);
         colour.flush();
         // Only a recording sink's waiting hits have entries in `hits`.
         for (&hit, &factors) in colour.hits.iter().zip(&colour.factors) {
@@ -570,6 +588,8 @@ fn tile_in_lanes_generic<S: PathSink>(
         }
     } else {
         colour.lanes.discard();
+        scratch.shadow_lanes.clear();
+        scratch.shadow_waiting.clear();
     }
     scratch.lanes = colour.lanes;
     scratch.terms = colour.terms;
@@ -711,6 +731,64 @@ impl Deferred {
         self.lanes
             .flush(self.edges.0, self.edges.1, |i, f| factors[i] = f);
     }
+
+    /// A hit whose light points face it, its shadow rays left to
+    /// [`HitLanes`] ([`Tracer::shadows_in_lanes`]): its colour waits for
+    /// its factors, which wait for its rays.
+    #[inline(always)]
+    fn wait_for_shadows(
+        &mut self,
+        tracer: &Tracer,
+        sp: &ShadingPoint,
+        needs: Needs,
+        scratch: &mut TraceScratch,
+        weight: f32,
+    ) {
+        let index = self.factors.len();
+        self.factors.push(LightTerms::default());
+        self.terms.push(Term::new(
+            TermColour::Waiting {
+                material: sp.material_index,
+                factors: index as u32,
+            },
+            weight,
+        ));
+        let hit = LaneHit {
+            to_corner: (tracer.scene.light.shape.corner - sp.shadow.point).as_vec3(),
+            normal: sp.normal.as_vec3(),
+            view: sp.view.as_vec3(),
+            shininess: sp.material.shininess,
+            specular: needs.specular,
+        };
+        scratch.shadow_waiting.push((index, hit));
+        let count = tracer.pattern.count();
+        if scratch
+            .shadow_lanes
+            .push(&sp.shadow, &scratch.shadow, count)
+        {
+            self.trace_waiting_shadows(tracer, scratch);
+        }
+    }
+
+    /// Traces the shadow rays of the hits waiting in [`HitLanes`], then
+    /// hands each hit with a light point in view on to the lanes, as the
+    /// hit-by-hit path does; the others keep their zero factors (what the
+    /// `sampled` sums of no visible point are).
+    #[inline(always)]
+    fn trace_waiting_shadows(&mut self, tracer: &Tracer, scratch: &mut TraceScratch) {
+        if scratch.shadow_lanes.len() == 0 {
+            return;
+        }
+        scratch.shadow_lanes.trace(tracer.scene);
+        for (h, &(index, hit)) in scratch.shadow_waiting.iter().enumerate() {
+            let (visible, a, b) = scratch.shadow_lanes.visible(h);
+            if visible != 0 && self.lanes.push_bits(index, hit, visible, &a, &b) {
+                self.flush();
+            }
+        }
+        scratch.shadow_lanes.clear();
+        scratch.shadow_waiting.clear();
+    }
 }
 
 impl PathColour for Deferred {
@@ -739,6 +817,25 @@ impl PathColour for Deferred {
         // A record serves any later colour: every factor.
         let needs = if S::RECORD { Needs::ALL } else { terms.needs };
         let count = tracer.pattern.count();
+        if !S::RECORD && tracer.shadows_in_lanes {
+            let buf = &mut scratch.shadow;
+            let stats = &mut scratch.stats;
+            let pattern = &tracer.pattern;
+            let factors = match facing_light_points(scene, s, sp, needs, pattern, rng, buf, stats) {
+                Facing::Known(f) => f,
+                Facing::None => model_terms(scene, s, sp, needs, count, buf),
+                Facing::Some(facing) => {
+                    scratch.stats.shadow += facing;
+                    self.wait_for_shadows(tracer, sp, needs, scratch, weight);
+                    return;
+                }
+            };
+            self.terms.push(Term::new(
+                TermColour::Known(terms.colours.colour(factors)),
+                weight,
+            ));
+            return;
+        }
         let buf = &mut scratch.shadow;
         if S::RECORD {
             // So that a point behind the light records as invisible.
@@ -882,7 +979,8 @@ mod tests {
     use crate::render::scene_file::Sampling;
 
     /// A tile (its camera rays testing the tile's objects, its hits shaded
-    /// side by side) has, pixel for pixel, the bits of the
+    /// side by side, with few light points their shadow rays too) has,
+    /// pixel for pixel, the bits of the
     /// pixels traced one at a time: floor, walls, both boxes and the mirror
     /// sphere (reflected paths), the image's corners, several patterns and
     /// counts, with and without cut-away.
@@ -912,6 +1010,9 @@ mod tests {
             let tracer = Tracer::new(&loaded.scene, &settings, &loaded.shading, rays);
             assert!(tracer.traces_tiles());
             assert!(tracer.shades_in_lanes());
+            // Up to four light points with skipping on, the hits' shadow
+            // rays are traced side by side too.
+            assert_eq!(tracer.shadows_in_lanes, skip && rays <= 4);
             let mut scratch = tracer.scratch();
             let mut tile = Vec::new();
             // Every fourth pixel, so that the test stays quick.

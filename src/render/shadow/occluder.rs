@@ -234,26 +234,8 @@ impl BoxSlabs<'_> {
             exact,
         } = *self;
         let n = vis.len();
-        // (blocked, unsure): an unsure ray enters and leaves within
-        // rounding of each other (or of the segment's ends); it is decided
-        // in f64, and `blocked` is then false.
-        let lane = |x: f32, y: f32, z: f32| {
-            let (lx, lz) = (x * cos - z * sin, x * sin + z * cos);
-            let (ix, iy, iz) = (1.0 / lx, 1.0 / y, 1.0 / lz);
-            let (ax, bx) = (lo.x * ix, hi.x * ix);
-            let (ay, by) = (lo.y * iy, hi.y * iy);
-            let (az, bz) = (lo.z * iz, hi.z * iz);
-            let near = max(max(max(min(ax, bx), min(ay, by)), min(az, bz)), 0.0);
-            let far = min(min(min(max(ax, bx), max(ay, by)), max(az, bz)), RAY_END);
-            let bound = unsure.x * ix * ix + unsure.y * iy * iy + unsure.z * iz * iz;
-            let unsure = (far - near).abs() <= bound;
-            // The box is closed, as its triangles are (edges inclusive): a
-            // ray that enters and leaves at the same t runs through an edge
-            // or corner and is blocked; the segment stays open (t in
-            // (0, RAY_END)).
-            let blocked = near <= far && far > 0.0 && near < RAY_END;
-            (blocked & !unsure, unsure)
-        };
+        let lane =
+            |x: f32, y: f32, z: f32| slab_lane(lo, hi, (cos, sin), unsure, (min, max), (x, y, z));
         // Unsure rays are left to a second, scalar pass: rare, and kept out
         // of the vector loop, which marks them (see `decide_marked`).
         let mut any_unsure = false;
@@ -270,6 +252,37 @@ impl BoxSlabs<'_> {
             });
         }
     }
+}
+
+/// One ray (x, y, z) against a box's slabs `lo`, `hi` (in its frame,
+/// rotated by `rotation` = (cos, sin) about y), with the rounding bound
+/// `unsure`, the minimum and maximum given (see [`BoxSlabs::block`]):
+/// (blocked, unsure). An unsure ray enters and leaves within rounding of
+/// each other (or of the segment's ends); it is decided in f64, and
+/// `blocked` is then false.
+#[inline(always)]
+pub(super) fn slab_lane(
+    lo: Vec3,
+    hi: Vec3,
+    (cos, sin): (f32, f32),
+    unsure: Vec3,
+    (min, max): (impl Fn(f32, f32) -> f32, impl Fn(f32, f32) -> f32),
+    (x, y, z): (f32, f32, f32),
+) -> (bool, bool) {
+    let (lx, lz) = (x * cos - z * sin, x * sin + z * cos);
+    let (ix, iy, iz) = (1.0 / lx, 1.0 / y, 1.0 / lz);
+    let (ax, bx) = (lo.x * ix, hi.x * ix);
+    let (ay, by) = (lo.y * iy, hi.y * iy);
+    let (az, bz) = (lo.z * iz, hi.z * iz);
+    let near = max(max(max(min(ax, bx), min(ay, by)), min(az, bz)), 0.0);
+    let far = min(min(min(max(ax, bx), max(ay, by)), max(az, bz)), RAY_END);
+    let bound = unsure.x * ix * ix + unsure.y * iy * iy + unsure.z * iz * iz;
+    let unsure = (far - near).abs() <= bound;
+    // The box is closed, as its triangles are (edges inclusive): a ray that
+    // enters and leaves at the same t runs through an edge or corner and is
+    // blocked; the segment stays open (t in (0, RAY_END)).
+    let blocked = near <= far && far > 0.0 && near < RAY_END;
+    (blocked & !unsure, unsure)
 }
 
 /// A ray's visibility `v` after a test that found it `blocked` (0), or
@@ -304,7 +317,7 @@ fn decide_marked(vis: &mut [f32], blocks: impl Fn(usize) -> bool) {
 /// The rounding bound of the f32 slab test, relative to the box's half
 /// size plus the origin's distance from its centre, and the ray's length
 /// (see [`Occluder::new`]).
-const SLAB_ROUNDING: f32 = 1.0 / (1 << 18) as f32;
+pub(super) const SLAB_ROUNDING: f32 = 1.0 / (1 << 18) as f32;
 
 /// Whether the ray (x, y, z) from the hit point meets the sphere (centre
 /// `oc` from the hit point, radius² `r2`) before [`RAY_END`]. One lane of

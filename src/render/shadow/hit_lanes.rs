@@ -1,0 +1,444 @@
+//! The shadow rays of many hit points side by side, one hit point per
+//! vector lane: for hits of a few light points in a scene of a few objects.
+//!
+//! One hit at a time, a hit with one light point pays for its culling (its
+//! cube's list, the pyramid, each candidate seen from it in f64) about as
+//! much as for the rest of its shading, to test a single ray. Here
+//! [`HIT_LANES`] hits wait together; then each object is seen from all of
+//! them at once (its set-up lane by lane) and tests their rays in one
+//! vector. Nothing is culled: every ray meets the tests it meets with
+//! skipping off (`--no-skip`), the same operations lane by lane, and
+//! skipping only leaves out what can block nothing, so the same bits.
+
+use glam::{DVec3, Vec3};
+
+use super::RAY_END;
+use super::buffers::ShadowBuffers;
+use super::occluder::{SLAB_ROUNDING, slab_lane, sphere_blocks};
+use super::visibility::{ShadowQuery, longest_ray};
+use crate::render::geometry::{Cuboid, Primitive, Shape};
+use crate::render::scene::Scene;
+
+/// Hit points traced side by side.
+pub(crate) const HIT_LANES: usize = 16;
+
+/// Most light points per hit for which waiting in lanes pays: from four
+/// on, a hit's own rays share its culling (and the umbra test starts).
+pub(crate) const LANE_RAYS: usize = 4;
+
+/// Most objects tested without culling: beyond, a hit's culling leaves out
+/// more than it costs.
+const LANE_OBJECTS: usize = 16;
+
+/// Whether `scene`'s shadow rays may be traced in lanes: a few objects,
+/// none of them a triangle (no BVH, no mesh).
+pub(crate) fn lanes_fit(scene: &Scene) -> bool {
+    let mut ids = scene.unbounded.iter().chain(scene.bounded.iter());
+    scene.bvh.is_empty()
+        && scene.shadow_bvh.is_none()
+        && ids.clone().count() <= LANE_OBJECTS
+        && ids.all(|&i| {
+            i < 32 &&
+            matches!(scene.primitive(i), Primitive::Shape(s) if !matches!(s, Shape::Triangle(_)))
+        })
+}
+
+/// The factor of a visibility (1 or +0) after a test: +0 if `blocked`,
+/// else 1 (the visibility unchanged). A product, not a select of 0 or the
+/// old value: written back in place, such a select becomes a masked store,
+/// microcoded and slow on some CPUs (AMD's).
+#[inline(always)]
+fn cleared(blocked: bool) -> f32 {
+    if blocked { 0.0 } else { 1.0 }
+}
+
+/// Hit points waiting for their shadow rays (per thread, reused).
+#[derive(Debug, Clone)]
+pub(crate) struct HitLanes {
+    len: usize,
+    /// Light points per hit.
+    count: usize,
+    /// Each hit's shadow point, object, and whether it was hit from inside.
+    p: [[f64; HIT_LANES]; 3],
+    object: [u32; HIT_LANES],
+    inside: [bool; HIT_LANES],
+    /// Ray k of every hit: its light point, direction and visibility.
+    a: [[f32; HIT_LANES]; LANE_RAYS],
+    b: [[f32; HIT_LANES]; LANE_RAYS],
+    dx: [[f32; HIT_LANES]; LANE_RAYS],
+    dy: [[f32; HIT_LANES]; LANE_RAYS],
+    dz: [[f32; HIT_LANES]; LANE_RAYS],
+    vis: [[f32; HIT_LANES]; LANE_RAYS],
+}
+
+impl Default for HitLanes {
+    fn default() -> HitLanes {
+        let rays = [[0.0; HIT_LANES]; LANE_RAYS];
+        HitLanes {
+            len: 0,
+            count: 0,
+            p: [[0.0; HIT_LANES]; 3],
+            object: [u32::MAX; HIT_LANES],
+            inside: [false; HIT_LANES],
+            a: rays,
+            b: rays,
+            dx: rays,
+            dy: rays,
+            dz: rays,
+            vis: rays,
+        }
+    }
+}
+
+impl HitLanes {
+    /// Waiting hits.
+    pub(crate) fn len(&self) -> usize {
+        self.len
+    }
+
+    /// Drops the waiting hits.
+    pub(crate) fn clear(&mut self) {
+        self.len = 0;
+    }
+
+    /// Adds hit `q`, whose `count` light points, directions and facing
+    /// `buf` holds (`facing_points`); true once the lanes are full.
+    #[inline(always)]
+    pub(crate) fn push(&mut self, q: &ShadowQuery, buf: &ShadowBuffers, count: usize) -> bool {
+        debug_assert!(count <= LANE_RAYS && self.len < HIT_LANES);
+        debug_assert!(self.len == 0 || self.count == count);
+        let h = self.len;
+        self.count = count;
+        for k in 0..3 {
+            self.p[k][h] = q.point[k];
+        }
+        self.object[h] = q.object;
+        self.inside[h] = q.inside;
+        for j in 0..count {
+            self.a[j][h] = buf.a[j];
+            self.b[j][h] = buf.b[j];
+            self.dx[j][h] = buf.dx[j];
+            self.dy[j][h] = buf.dy[j];
+            self.dz[j][h] = buf.dz[j];
+            self.vis[j][h] = buf.vis[j];
+        }
+        self.len += 1;
+        self.len == HIT_LANES
+    }
+
+    /// Waiting hit `h`'s visibility after [`Self::trace`] (bit j: light
+    /// point j visible) and its light points' offsets along the light's
+    /// edges.
+    #[inline(always)]
+    pub(crate) fn visible(&self, h: usize) -> (u64, [f32; LANE_RAYS], [f32; LANE_RAYS]) {
+        let mut bits = 0;
+        let (mut a, mut b) = ([0.0; LANE_RAYS], [0.0; LANE_RAYS]);
+        for j in 0..self.count {
+            bits |= u64::from(self.vis[j][h] != 0.0) << j;
+            (a[j], b[j]) = (self.a[j][h], self.b[j][h]);
+        }
+        (bits, a, b)
+    }
+
+    #[inline(always)]
+    fn point(&self, h: usize) -> DVec3 {
+        DVec3::new(self.p[0][h], self.p[1][h], self.p[2][h])
+    }
+
+    /// Clears the visibility of every waiting ray that an object of
+    /// `scene` blocks (needs [`lanes_fit`]). Lanes past the waiting hits
+    /// hold leftovers and are computed but not read. Each lane's values
+    /// are kept in arrays of their own, one per coordinate, so that the
+    /// loops over the lanes run as vectors.
+    #[inline(always)]
+    #[allow(clippy::needless_range_loop)] // Lane loops: one index, several arrays.
+    pub(crate) fn trace(&mut self, scene: &Scene) {
+        let corners = scene.light.shape.corners();
+        let mut reach = [0.0f32; HIT_LANES];
+        for (h, r) in reach.iter_mut().enumerate() {
+            *r = longest_ray(self.point(h), &corners);
+        }
+        // Which lanes' hits lie on each object, and which of them inside
+        // it (`lanes_fit`: object ids below 32; a point on none has none).
+        let (mut own, mut own_inside) = ([0u32; 32], [0u32; 32]);
+        for h in 0..self.len {
+            let o = self.object[h] as usize;
+            if o < own.len() {
+                own[o] |= 1 << h;
+                own_inside[o] |= u32::from(self.inside[h]) << h;
+            }
+        }
+        for &id in scene.unbounded.iter().chain(scene.bounded.iter()) {
+            let Primitive::Shape(shape) = scene.primitive(id) else {
+                unreachable!("lanes_fit leaves meshes out");
+            };
+            // As the candidates of one hit: its own object left out where
+            // it cannot block its rays (`Shape::skips_itself`); met from
+            // inside, only its exit counts. Lane h is bit h.
+            let (own, inside) = (own[id as usize], own_inside[id as usize]);
+            let skip = match (shape.flat(), shape.convex()) {
+                (true, _) => own,
+                (false, true) => own & !inside,
+                (false, false) => 0,
+            };
+            let inside = |h: usize| (inside >> h) & 1 != 0;
+            match shape {
+                Shape::Plane(pl) => {
+                    let normal = pl.normal.as_vec3();
+                    let mut dist = [0.0f32; HIT_LANES];
+                    for (h, d) in dist.iter_mut().enumerate() {
+                        *d = pl.signed_distance(self.point(h)) as f32;
+                    }
+                    self.each_ray(skip, |h, x, y, z| {
+                        let end = dist[h] + (normal.x * x + normal.y * y + normal.z * z) * RAY_END;
+                        dist[h] * end < 0.0
+                    });
+                }
+                Shape::Sphere(s) => {
+                    let r2 = (s.radius * s.radius) as f32;
+                    let mut oc = [[0.0f32; HIT_LANES]; 3];
+                    for h in 0..HIT_LANES {
+                        let c = (s.centre - self.point(h)).as_vec3();
+                        (oc[0][h], oc[1][h], oc[2][h]) = (c.x, c.y, c.z);
+                    }
+                    self.each_ray(skip, |h, x, y, z| {
+                        let c = Vec3::new(oc[0][h], oc[1][h], oc[2][h]);
+                        sphere_blocks(c, r2, inside(h), x, y, z)
+                    });
+                }
+                Shape::Parallelogram(r) => {
+                    let (normal, dual_u, dual_v) =
+                        (r.normal.as_vec3(), r.dual_u.as_vec3(), r.dual_v.as_vec3());
+                    let mut to_corner = [[0.0f32; HIT_LANES]; 3];
+                    let mut dist = [0.0f32; HIT_LANES];
+                    for h in 0..HIT_LANES {
+                        let c = r.corner - self.point(h);
+                        let c32 = c.as_vec3();
+                        (to_corner[0][h], to_corner[1][h], to_corner[2][h]) = (c32.x, c32.y, c32.z);
+                        dist[h] = r.normal.dot(c) as f32;
+                    }
+                    self.each_ray(skip, |h, x, y, z| {
+                        let d = Vec3::new(x, y, z);
+                        let to_corner =
+                            Vec3::new(to_corner[0][h], to_corner[1][h], to_corner[2][h]);
+                        let t = dist[h] / normal.dot(d);
+                        let q = d * t - to_corner;
+                        let (a, b) = (q.dot(dual_u), q.dot(dual_v));
+                        t > 0.0
+                            && t < RAY_END
+                            && (0.0..=1.0).contains(&a)
+                            && (0.0..=1.0).contains(&b)
+                    });
+                }
+                Shape::Cuboid(c) => self.block_by_box(c, &reach, skip),
+                Shape::Triangle(_) => unreachable!("lanes_fit leaves triangles out"),
+            }
+        }
+    }
+
+    /// Clears ray k of lane h wherever `blocks(h, x, y, z)` (its direction)
+    /// says so, unless bit h of `skip` is set.
+    #[inline(always)]
+    fn each_ray(&mut self, skip: u32, blocks: impl Fn(usize, f32, f32, f32) -> bool) {
+        for k in 0..self.count {
+            for h in 0..HIT_LANES {
+                let skipped = (skip >> h) & 1 != 0;
+                let blocked = blocks(h, self.dx[k][h], self.dy[k][h], self.dz[k][h]) && !skipped;
+                self.vis[k][h] *= cleared(blocked);
+            }
+        }
+    }
+
+    /// The box's slab test from every lane's point, with its rounding
+    /// bound (`reach`: each lane's longest ray); the rays within it decided
+    /// in f64 (as `Occluder::Cuboid`).
+    #[inline(always)]
+    #[allow(clippy::needless_range_loop)]
+    fn block_by_box(&mut self, c: &Cuboid, reach: &[f32; HIT_LANES], skip: u32) {
+        let (half, rotation) = (c.half.as_vec3(), (c.cos as f32, c.sin as f32));
+        let mut origin = [[0.0f64; HIT_LANES]; 3];
+        let (mut lo, mut hi, mut unsure) = (
+            [[0.0f32; HIT_LANES]; 3],
+            [[0.0f32; HIT_LANES]; 3],
+            [[0.0f32; HIT_LANES]; 3],
+        );
+        for h in 0..HIT_LANES {
+            let o = c.to_local(self.point(h) - c.centre);
+            let u = (c.half + o.abs()).as_vec3() * (reach[h] * SLAB_ROUNDING);
+            let o32 = o.as_vec3();
+            let (l, g) = (-half - o32, half - o32);
+            for i in 0..3 {
+                origin[i][h] = o[i];
+                lo[i][h] = l[i];
+                hi[i][h] = g[i];
+                unsure[i][h] = u[i];
+            }
+        }
+        let lane = |a: &[[f32; HIT_LANES]; 3], h: usize| Vec3::new(a[0][h], a[1][h], a[2][h]);
+        for k in 0..self.count {
+            let mut undecided = 0u32;
+            for h in 0..HIT_LANES {
+                let d = (self.dx[k][h], self.dy[k][h], self.dz[k][h]);
+                let (blocked, uncertain) = slab_lane(
+                    lane(&lo, h),
+                    lane(&hi, h),
+                    rotation,
+                    lane(&unsure, h),
+                    (f32::min, f32::max),
+                    d,
+                );
+                let skipped = (skip >> h) & 1 != 0;
+                let v = self.vis[k][h];
+                self.vis[k][h] = v * cleared(blocked && !skipped);
+                undecided |= u32::from(uncertain & !skipped & (v != 0.0)) << h;
+            }
+            undecided &= (1u32 << self.len) - 1;
+            if undecided != 0 {
+                self.decide_box(c, &origin, k, undecided);
+            }
+        }
+    }
+
+    /// Ray k of the lanes in `lanes` (bits), each within the rounding of
+    /// the box's f32 test, decided in f64.
+    #[cold]
+    #[inline(never)]
+    fn decide_box(&mut self, c: &Cuboid, origin: &[[f64; HIT_LANES]; 3], k: usize, mut lanes: u32) {
+        while lanes != 0 {
+            let h = lanes.trailing_zeros() as usize;
+            lanes &= lanes - 1;
+            let d = Vec3::new(self.dx[k][h], self.dy[k][h], self.dz[k][h]).as_dvec3();
+            let o = DVec3::new(origin[0][h], origin[1][h], origin[2][h]);
+            if c.segment_meets(o, d, RAY_END as f64) {
+                self.vis[k][h] = 0.0;
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::render::rng::Rng;
+    use crate::render::scene::Loaded;
+    use crate::render::shadow::{facing_points, visibility};
+    use crate::render::stats::RayStats;
+
+    /// Planes, a turned box, a sphere and a tilted rect under a light.
+    const ROOM: &str = r#"{
+      "format": 1,
+      "camera": { "position": [0, 4, -14], "look_at": [0, 3.5, 0], "up": [0, 1, 0],
+                  "fov_y_deg": 36, "width": 64, "height": 36 },
+      "render": { "shadow_rays": 4, "sampling": "random", "max_depth": 2, "seed": 1,
+                  "area_light_model": "sampled",
+                  "terms": { "ambient": 1.0, "diffuse": 1.0, "specular": 1.0 },
+                  "background": [0, 0, 0] },
+      "light": { "corner": [-1, 7.99, -1], "edge_u": [2, 0, 0], "edge_v": [0, 0, 2],
+                 "ambient": [0.1, 0.1, 0.1], "diffuse": [0.9, 0.9, 0.9], "specular": [1, 1, 1] },
+      "materials": { "m": { "ambient": [0.5, 0.5, 0.5], "diffuse": [0.5, 0.5, 0.5],
+                            "specular": [0.3, 0.3, 0.3], "shininess": 20, "reflectivity": 0.0 } },
+      "objects": [
+        { "type": "plane", "point": [0, 0, 0], "normal": [0, 1, 0], "material": "m" },
+        { "type": "plane", "point": [0, 8, 0], "normal": [0, -1, 0], "material": "m" },
+        { "type": "plane", "point": [5, 0, 0], "normal": [-1, 0, 0], "material": "m" },
+        { "type": "box", "min": [-1, 0, -1], "max": [1, 3, 1], "rotate_y_deg": 30,
+          "translate": [1, 0, 1], "material": "m" },
+        { "type": "sphere", "center": [-2, 2.5, 0], "radius": 1, "material": "m" },
+        { "type": "rect", "corner": [-1, 5, -2], "edge_u": [2, 0, 0.5], "edge_v": [0, 0.4, 2],
+          "material": "m" }
+      ]
+    }"#;
+
+    /// Hit points waiting in lanes get, ray for ray, the visibility that
+    /// each gets alone with its culling (skipping on): points anywhere in
+    /// the room, on the floor, on the sphere from outside and from inside,
+    /// inside the box, on either side of the rect; 1 to 4 random light
+    /// points each, full lanes and part-filled ones.
+    #[test]
+    fn hits_in_lanes_see_what_each_sees_alone() {
+        let loaded = Loaded::from_json(ROOM).expect("the test room");
+        let (scene, settings) = (&loaded.scene, &loaded.settings);
+        assert!(settings.skip && lanes_fit(scene));
+        let mut rng = Rng::new(7);
+        let unit = |rng: &mut Rng| {
+            let v = DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64()) * 2.0 - 1.0;
+            v.normalize()
+        };
+        let (mut lanes, mut buf, mut alone) = (
+            HitLanes::default(),
+            ShadowBuffers::with_capacity(LANE_RAYS),
+            ShadowBuffers::with_capacity(LANE_RAYS),
+        );
+        let mut stats = RayStats::default();
+        let (mut blocked, mut visible) = (0, 0);
+        for round in 0..400 {
+            let count = 1 + round % LANE_RAYS;
+            let mut expected = Vec::new();
+            for h in 0..HIT_LANES - round % 5 {
+                let u = unit(&mut rng);
+                let r = |rng: &mut Rng, lo: f64, hi: f64| lo + (hi - lo) * rng.next_f64();
+                let q = match h % 6 {
+                    0 => (
+                        DVec3::new(
+                            r(&mut rng, -5.0, 5.0),
+                            r(&mut rng, 0.0, 8.0),
+                            r(&mut rng, -5.0, 5.0),
+                        ),
+                        u,
+                        u32::MAX,
+                        false,
+                    ),
+                    1 => (
+                        DVec3::new(r(&mut rng, -5.0, 5.0), 0.0, r(&mut rng, -5.0, 5.0)),
+                        DVec3::Y,
+                        0,
+                        false,
+                    ),
+                    2 => (DVec3::new(-2.0, 2.5, 0.0) + u, u, 4, false),
+                    3 => (DVec3::new(-2.0, 2.5, 0.0) + u, -u, 4, true),
+                    4 => (DVec3::new(1.0, 1.5, 1.0) + u * 0.5, u, 3, true),
+                    _ => {
+                        let (a, b) = (rng.next_f64(), rng.next_f64());
+                        let p = DVec3::new(-1.0, 5.0, -2.0)
+                            + DVec3::new(2.0, 0.0, 0.5) * a
+                            + DVec3::new(0.0, 0.4, 2.0) * b;
+                        let n = DVec3::new(2.0, 0.0, 0.5)
+                            .cross(DVec3::new(0.0, 0.4, 2.0))
+                            .normalize();
+                        (p, if a < 0.5 { n } else { -n }, 5, false)
+                    }
+                };
+                let q = ShadowQuery {
+                    point: q.0,
+                    normal: q.1,
+                    object: q.2,
+                    inside: q.3,
+                };
+                for j in 0..count {
+                    (buf.a[j], buf.b[j]) = (rng.next_f32(), rng.next_f32());
+                    (alone.a[j], alone.b[j]) = (buf.a[j], buf.b[j]);
+                }
+                facing_points(scene, &q, count, &mut buf, &mut stats);
+                assert!(!lanes.push(&q, &buf, count) || h + 1 == HIT_LANES);
+                visibility(scene, settings, &q, count, &mut alone, &mut stats);
+                let bits = (0..count).fold(0u64, |m, j| m | u64::from(alone.vis[j] != 0.0) << j);
+                let facing = (0..count).filter(|&j| buf.vis[j] != 0.0).count() as u32;
+                (blocked, visible) = (
+                    blocked + facing - bits.count_ones(),
+                    visible + bits.count_ones(),
+                );
+                expected.push(bits);
+            }
+            lanes.trace(scene);
+            for (h, &bits) in expected.iter().enumerate() {
+                assert_eq!(lanes.visible(h).0, bits, "round {round}, lane {h}");
+            }
+            lanes.clear();
+        }
+        // Both answers occur often: the test sees shadows.
+        assert!(
+            blocked > 1000 && visible > 1000,
+            "{blocked} blocked, {visible} visible"
+        );
+    }
+}

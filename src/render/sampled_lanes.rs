@@ -643,9 +643,11 @@ fn lane_sums(
             for h in 0..LANES {
                 // The tracer multiplies by the visibility (1 or 0): the
                 // term, or +0 (both are finite and not negative).
-                let visible = (word[h] >> l) & 1 != 0;
-                diffuse[h] += if visible { f[i][h] } else { 0.0 };
-                specular[h] += if visible { s[i][h] } else { 0.0 };
+                // The term or +0 by a mask of its bits, not a select: the
+                // select became a masked store, slow on AMD's CPUs.
+                let keep = 0u32.wrapping_sub(((word[h] >> l) & 1) as u32);
+                diffuse[h] += f32::from_bits(f[i][h].to_bits() & keep);
+                specular[h] += f32::from_bits(s[i][h].to_bits() & keep);
             }
         }
         start += len;

@@ -14,7 +14,7 @@ use glam::{DVec3, Vec3};
 
 use super::RAY_END;
 use super::buffers::ShadowBuffers;
-use super::occluder::{SLAB_ROUNDING, slab_lane, sphere_blocks};
+use super::occluder::{SLAB_ROUNDING, cleared, slab_lane, sphere_blocks};
 use super::visibility::{ShadowQuery, longest_ray};
 use crate::render::geometry::{Cuboid, Primitive, Shape};
 use crate::render::scene::Scene;
@@ -41,15 +41,6 @@ pub(crate) fn lanes_fit(scene: &Scene) -> bool {
             i < 32 &&
             matches!(scene.primitive(i), Primitive::Shape(s) if !matches!(s, Shape::Triangle(_)))
         })
-}
-
-/// The factor of a visibility (1 or +0) after a test: +0 if `blocked`,
-/// else 1 (the visibility unchanged). A product, not a select of 0 or the
-/// old value: written back in place, such a select becomes a masked store,
-/// microcoded and slow on some CPUs (AMD's).
-#[inline(always)]
-fn cleared(blocked: bool) -> f32 {
-    if blocked { 0.0 } else { 1.0 }
 }
 
 /// Hit points waiting for their shadow rays (per thread, reused).

@@ -231,24 +231,14 @@ pub(crate) fn light_points_generic(
     Lit::Points
 }
 
-/// What [`facing_light_points`] found of a hit's light points.
-pub(crate) enum Facing {
-    /// The factors, without light points (unlit, or no factor needed).
-    Known(LightTerms),
-    /// Light points drawn, none in front of the surface: no shadow ray.
-    None,
-    /// Light points drawn, this many in front of the surface: their shadow
-    /// rays are still to be traced.
-    Some(u64),
-}
-
-/// [`light_points_generic`] under the `sampled` model with shadows on, but
-/// stopping before the shadow rays: the light points drawn, their
-/// directions and facing in `buf` (the same values), the rays left to the
-/// caller (`shadow::HitLanes`).
+/// [`light_points_generic`] under the `sampled` model with shadows on, up
+/// to its light points: `None` once they are drawn into `buf.a`/`buf.b`
+/// (their directions, facing and shadow rays left to the caller,
+/// `shadow::HitLanes`), or the factors known without them (unlit, or no
+/// factor needed).
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-pub(crate) fn facing_light_points(
+pub(crate) fn drawn_light_points(
     scene: &Scene,
     s: &RenderSettings,
     sp: &ShadingPoint,
@@ -257,21 +247,17 @@ pub(crate) fn facing_light_points(
     rng: &mut Rng,
     buf: &mut ShadowBuffers,
     stats: &mut RayStats,
-) -> Facing {
+) -> Option<LightTerms> {
     debug_assert!(s.model == AreaLightModel::Sampled && s.shadows);
     if !scene.light.illuminates(sp.point) {
-        return Facing::Known(LightTerms::default());
+        return Some(LightTerms::default());
     }
-    let count = pattern.count();
     if !(needs.diffuse || needs.specular) && s.skip {
-        stats.shadow_unneeded += count as u64;
-        return Facing::Known(LightTerms::default());
+        stats.shadow_unneeded += pattern.count() as u64;
+        return Some(LightTerms::default());
     }
     fill_light_points(pattern, rng, buf);
-    match shadow::facing_points(scene, &sp.shadow, count, buf, stats) {
-        0 => Facing::None,
-        facing => Facing::Some(facing),
-    }
+    None
 }
 
 /// The second part of [`light_terms`]: the factors of the model from the

@@ -22,7 +22,7 @@ use super::scene::{HitTarget, Scene};
 use super::scene_file::AreaLightModel;
 use super::settings::RenderSettings;
 use super::shading::{
-    Facing, LightTerms, Lit, Needs, PhongColours, ShadingPoint, any_visible, facing_light_points,
+    LightTerms, Lit, Needs, PhongColours, ShadingPoint, any_visible, drawn_light_points,
     light_points_generic, light_terms, model_terms, nearest_point_specular_direction,
 };
 use super::shading_params::ShadingParams;
@@ -732,9 +732,9 @@ impl Deferred {
             .flush(self.edges.0, self.edges.1, |i, f| factors[i] = f);
     }
 
-    /// A hit whose light points face it, its shadow rays left to
-    /// [`HitLanes`] ([`Tracer::shadows_in_lanes`]): its colour waits for
-    /// its factors, which wait for its rays.
+    /// A hit whose light points are drawn, their directions, facing and
+    /// shadow rays left to [`HitLanes`] ([`Tracer::shadows_in_lanes`]): its
+    /// colour waits for its factors, which wait for its rays.
     #[inline(always)]
     fn wait_for_shadows(
         &mut self,
@@ -762,9 +762,10 @@ impl Deferred {
         };
         scratch.shadow_waiting.push((index, hit));
         let count = tracer.pattern.count();
+        let buf = &scratch.shadow;
         if scratch
             .shadow_lanes
-            .push(&sp.shadow, &scratch.shadow, count)
+            .push(&sp.shadow, &buf.a[..count], &buf.b[..count])
         {
             self.trace_waiting_shadows(tracer, scratch);
         }
@@ -773,13 +774,13 @@ impl Deferred {
     /// Traces the shadow rays of the hits waiting in [`HitLanes`], then
     /// hands each hit with a light point in view on to the lanes, as the
     /// hit-by-hit path does; the others keep their zero factors (what the
-    /// `sampled` sums of no visible point are).
+    /// `sampled` sums of no visible point are, facing or not).
     #[inline(always)]
     fn trace_waiting_shadows(&mut self, tracer: &Tracer, scratch: &mut TraceScratch) {
         if scratch.shadow_lanes.len() == 0 {
             return;
         }
-        scratch.shadow_lanes.trace(tracer.scene);
+        scratch.shadow_lanes.trace(tracer.scene, &mut scratch.stats);
         for (h, &(index, hit)) in scratch.shadow_waiting.iter().enumerate() {
             let (visible, a, b) = scratch.shadow_lanes.visible(h);
             if visible != 0 && self.lanes.push_bits(index, hit, visible, &a, &b) {
@@ -821,14 +822,10 @@ impl PathColour for Deferred {
             let buf = &mut scratch.shadow;
             let stats = &mut scratch.stats;
             let pattern = &tracer.pattern;
-            let factors = match facing_light_points(scene, s, sp, needs, pattern, rng, buf, stats) {
-                Facing::Known(f) => f,
-                Facing::None => model_terms(scene, s, sp, needs, count, buf),
-                Facing::Some(facing) => {
-                    scratch.stats.shadow += facing;
-                    self.wait_for_shadows(tracer, sp, needs, scratch, weight);
-                    return;
-                }
+            let Some(factors) = drawn_light_points(scene, s, sp, needs, pattern, rng, buf, stats)
+            else {
+                self.wait_for_shadows(tracer, sp, needs, scratch, weight);
+                return;
             };
             self.terms.push(Term::new(
                 TermColour::Known(terms.colours.colour(factors)),

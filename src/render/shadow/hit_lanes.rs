@@ -13,11 +13,11 @@
 use glam::{DVec3, Vec3};
 
 use super::RAY_END;
-use super::buffers::ShadowBuffers;
 use super::occluder::{SLAB_ROUNDING, cleared, slab_lane, sphere_blocks};
 use super::visibility::{ShadowQuery, longest_ray};
 use crate::render::geometry::{Cuboid, Primitive, Shape};
 use crate::render::scene::Scene;
+use crate::render::stats::RayStats;
 
 /// Hit points traced side by side.
 pub(crate) const HIT_LANES: usize = 16;
@@ -49,8 +49,10 @@ pub(crate) struct HitLanes {
     len: usize,
     /// Light points per hit.
     count: usize,
-    /// Each hit's shadow point, object, and whether it was hit from inside.
+    /// Each hit's shadow point, geometric normal, object, and whether it
+    /// was hit from inside.
     p: [[f64; HIT_LANES]; 3],
+    normal: [[f64; HIT_LANES]; 3],
     object: [u32; HIT_LANES],
     inside: [bool; HIT_LANES],
     /// Ray k of every hit: its light point, direction and visibility.
@@ -69,6 +71,7 @@ impl Default for HitLanes {
             len: 0,
             count: 0,
             p: [[0.0; HIT_LANES]; 3],
+            normal: [[0.0; HIT_LANES]; 3],
             object: [u32::MAX; HIT_LANES],
             inside: [false; HIT_LANES],
             a: rays,
@@ -92,29 +95,71 @@ impl HitLanes {
         self.len = 0;
     }
 
-    /// Adds hit `q`, whose `count` light points, directions and facing
-    /// `buf` holds (`facing_points`); true once the lanes are full.
+    /// Adds hit `q`, whose light points are at offsets `a`, `b` along the
+    /// light's edges (as many for every waiting hit); true once the lanes
+    /// are full.
     #[inline(always)]
-    pub(crate) fn push(&mut self, q: &ShadowQuery, buf: &ShadowBuffers, count: usize) -> bool {
+    pub(crate) fn push(&mut self, q: &ShadowQuery, a: &[f32], b: &[f32]) -> bool {
+        let count = a.len();
         debug_assert!(count <= LANE_RAYS && self.len < HIT_LANES);
         debug_assert!(self.len == 0 || self.count == count);
         let h = self.len;
         self.count = count;
         for k in 0..3 {
             self.p[k][h] = q.point[k];
+            self.normal[k][h] = q.normal[k];
         }
         self.object[h] = q.object;
         self.inside[h] = q.inside;
         for j in 0..count {
-            self.a[j][h] = buf.a[j];
-            self.b[j][h] = buf.b[j];
-            self.dx[j][h] = buf.dx[j];
-            self.dy[j][h] = buf.dy[j];
-            self.dz[j][h] = buf.dz[j];
-            self.vis[j][h] = buf.vis[j];
+            self.a[j][h] = a[j];
+            self.b[j][h] = b[j];
         }
         self.len += 1;
         self.len == HIT_LANES
+    }
+
+    /// Each lane's directions to its light points, and 1 in `vis` for
+    /// those in front of its surface (as `light_directions` computes them,
+    /// the same operations lane by lane); counts the waiting hits' points
+    /// facing and not facing the light in `stats`.
+    #[inline(always)]
+    #[allow(clippy::needless_range_loop)]
+    fn facing(&mut self, scene: &Scene, stats: &mut RayStats) {
+        let light = &scene.light.shape;
+        let (eu, ev) = (light.edge_u.as_vec3(), light.edge_v.as_vec3());
+        let mut to_corner = [[0.0f32; HIT_LANES]; 3];
+        let mut n = [[0.0f32; HIT_LANES]; 3];
+        for h in 0..HIT_LANES {
+            let c = (light.corner - self.point(h)).as_vec3();
+            let normal = DVec3::new(self.normal[0][h], self.normal[1][h], self.normal[2][h]);
+            let m = normal.as_vec3();
+            for i in 0..3 {
+                to_corner[i][h] = c[i];
+                n[i][h] = m[i];
+            }
+        }
+        let mut facing = 0;
+        for k in 0..self.count {
+            let (a, b) = (&self.a[k], &self.b[k]);
+            let mut front_lanes = 0u32;
+            for h in 0..HIT_LANES {
+                let (x, y, z) = (
+                    to_corner[0][h] + eu.x * a[h] + ev.x * b[h],
+                    to_corner[1][h] + eu.y * a[h] + ev.y * b[h],
+                    to_corner[2][h] + eu.z * a[h] + ev.z * b[h],
+                );
+                self.dx[k][h] = x;
+                self.dy[k][h] = y;
+                self.dz[k][h] = z;
+                let front = n[0][h] * x + n[1][h] * y + n[2][h] * z > 0.0;
+                self.vis[k][h] = if front { 1.0 } else { 0.0 };
+                front_lanes |= u32::from(front) << h;
+            }
+            facing += u64::from((front_lanes & ((1u32 << self.len) - 1)).count_ones());
+        }
+        stats.shadow_backfacing += (self.len * self.count) as u64 - facing;
+        stats.shadow += facing;
     }
 
     /// Waiting hit `h`'s visibility after [`Self::trace`] (bit j: light
@@ -136,14 +181,16 @@ impl HitLanes {
         DVec3::new(self.p[0][h], self.p[1][h], self.p[2][h])
     }
 
-    /// Clears the visibility of every waiting ray that an object of
-    /// `scene` blocks (needs [`lanes_fit`]). Lanes past the waiting hits
-    /// hold leftovers and are computed but not read. Each lane's values
-    /// are kept in arrays of their own, one per coordinate, so that the
-    /// loops over the lanes run as vectors.
+    /// The waiting hits' shadow rays: each one's directions and facing,
+    /// then its visibility, every ray facing the light traced (counted in
+    /// `stats`) against every object of `scene` (needs [`lanes_fit`]).
+    /// Lanes past the waiting hits hold leftovers and are computed but not
+    /// read. Each lane's values are kept in arrays of their own, one per
+    /// coordinate, so that the loops over the lanes run as vectors.
     #[inline(always)]
     #[allow(clippy::needless_range_loop)] // Lane loops: one index, several arrays.
-    pub(crate) fn trace(&mut self, scene: &Scene) {
+    pub(crate) fn trace(&mut self, scene: &Scene, stats: &mut RayStats) {
+        self.facing(scene, stats);
         let corners = scene.light.shape.corners();
         let mut reach = [0.0f32; HIT_LANES];
         for (h, r) in reach.iter_mut().enumerate() {
@@ -312,7 +359,7 @@ mod tests {
     use super::*;
     use crate::render::rng::Rng;
     use crate::render::scene::Loaded;
-    use crate::render::shadow::{facing_points, visibility};
+    use crate::render::shadow::{ShadowBuffers, visibility};
     use crate::render::stats::RayStats;
 
     /// Planes, a turned box, a sphere and a tilted rect under a light.
@@ -355,12 +402,8 @@ mod tests {
             let v = DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64()) * 2.0 - 1.0;
             v.normalize()
         };
-        let (mut lanes, mut buf, mut alone) = (
-            HitLanes::default(),
-            ShadowBuffers::with_capacity(LANE_RAYS),
-            ShadowBuffers::with_capacity(LANE_RAYS),
-        );
-        let mut stats = RayStats::default();
+        let (mut lanes, mut alone) = (HitLanes::default(), ShadowBuffers::with_capacity(LANE_RAYS));
+        let (mut stats, mut lane_stats) = (RayStats::default(), RayStats::default());
         let (mut blocked, mut visible) = (0, 0);
         for round in 0..400 {
             let count = 1 + round % LANE_RAYS;
@@ -406,21 +449,19 @@ mod tests {
                     inside: q.3,
                 };
                 for j in 0..count {
-                    (buf.a[j], buf.b[j]) = (rng.next_f32(), rng.next_f32());
-                    (alone.a[j], alone.b[j]) = (buf.a[j], buf.b[j]);
+                    (alone.a[j], alone.b[j]) = (rng.next_f32(), rng.next_f32());
                 }
-                facing_points(scene, &q, count, &mut buf, &mut stats);
-                assert!(!lanes.push(&q, &buf, count) || h + 1 == HIT_LANES);
+                let full = lanes.push(&q, &alone.a[..count], &alone.b[..count]);
+                assert_eq!(full, h + 1 == HIT_LANES);
+                let backfacing = stats.shadow_backfacing;
                 visibility(scene, settings, &q, count, &mut alone, &mut stats);
                 let bits = (0..count).fold(0u64, |m, j| m | u64::from(alone.vis[j] != 0.0) << j);
-                let facing = (0..count).filter(|&j| buf.vis[j] != 0.0).count() as u32;
-                (blocked, visible) = (
-                    blocked + facing - bits.count_ones(),
-                    visible + bits.count_ones(),
-                );
+                let facing = count as u64 - (stats.shadow_backfacing - backfacing);
+                blocked += facing - u64::from(bits.count_ones());
+                visible += bits.count_ones();
                 expected.push(bits);
             }
-            lanes.trace(scene);
+            lanes.trace(scene, &mut lane_stats);
             for (h, &bits) in expected.iter().enumerate() {
                 assert_eq!(lanes.visible(h).0, bits, "round {round}, lane {h}");
             }
@@ -431,5 +472,10 @@ mod tests {
             blocked > 1000 && visible > 1000,
             "{blocked} blocked, {visible} visible"
         );
+        // The lanes count the points facing the light and not as the hits
+        // alone do, and trace every facing one.
+        assert_eq!(lane_stats.shadow_backfacing, stats.shadow_backfacing);
+        let facing = stats.shadow + stats.shadow_unoccluded + stats.shadow_umbra;
+        assert_eq!(lane_stats.shadow, facing);
     }
 }

@@ -47,7 +47,7 @@ pub(crate) use hit_lanes::{HitLanes, LANE_RAYS, lanes_fit};
 pub use light_frame::OccluderBvh;
 pub(crate) use packet::live_rays;
 pub use visibility::ShadowQuery;
-pub(crate) use visibility::{facing_points, possible_occluders, visibility, visibility_inline};
+pub(crate) use visibility::{possible_occluders, visibility, visibility_inline};
 
 /// Shadow rays end at this fraction of the way to their light point: a
 /// surface the light lies in (a light flush with a ceiling) must not block

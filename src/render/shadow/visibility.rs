@@ -87,7 +87,19 @@ pub(crate) fn visibility_inline(
     buf: &mut ShadowBuffers,
     stats: &mut RayStats,
 ) {
-    let facing = facing_points(scene, q, count, buf, stats);
+    let light = &scene.light.shape;
+    let to_corner = (light.corner - q.point).as_vec3();
+    let (eu, ev) = (light.edge_u.as_vec3(), light.edge_v.as_vec3());
+    let n = q.normal.as_vec3();
+    // Below sixteen points, inlined: this kernel is compiled for the same
+    // CPU features as the eight-lane one it would call (the same bits,
+    // without two calls and a dispatch per hit point).
+    let facing = if count < WIDE_POINTS {
+        light_directions_generic(to_corner, eu, ev, n, count, buf)
+    } else {
+        light_directions(to_corner, eu, ev, n, count, buf)
+    };
+    stats.shadow_backfacing += count as u64 - facing;
     if facing == 0 {
         return;
     }
@@ -95,7 +107,6 @@ pub(crate) fn visibility_inline(
         stats.shadow_disabled += facing;
         return;
     }
-    let light = &scene.light.shape;
 
     let skip = settings.skip;
     // The objects that may block a ray from p's cube of space (all of
@@ -355,34 +366,6 @@ pub(crate) fn visibility_inline(
     let tested = trace(rays, facing, bins);
     stats.shadow += tested;
     stats.shadow_unoccluded += facing - tested;
-}
-
-/// The first part of [`visibility_inline`]: fills `buf.dx/dy/dz` from
-/// `buf.a/b`, and `buf.vis` with 1 for the light points in front of the
-/// surface, 0 for the others (counted as backfacing); returns how many are
-/// in front.
-#[inline(always)]
-pub(crate) fn facing_points(
-    scene: &Scene,
-    q: &ShadowQuery,
-    count: usize,
-    buf: &mut ShadowBuffers,
-    stats: &mut RayStats,
-) -> u64 {
-    let light = &scene.light.shape;
-    let to_corner = (light.corner - q.point).as_vec3();
-    let (eu, ev) = (light.edge_u.as_vec3(), light.edge_v.as_vec3());
-    let n = q.normal.as_vec3();
-    // Below sixteen points, inlined: this kernel is compiled for the same
-    // CPU features as the eight-lane one it would call (the same bits,
-    // without two calls and a dispatch per hit point).
-    let facing = if count < WIDE_POINTS {
-        light_directions_generic(to_corner, eu, ev, n, count, buf)
-    } else {
-        light_directions(to_corner, eu, ev, n, count, buf)
-    };
-    stats.shadow_backfacing += count as u64 - facing;
-    facing
 }
 
 /// The pyramid from a hit point to the light, built when first asked for:

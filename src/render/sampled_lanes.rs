@@ -171,28 +171,31 @@ impl SampledLanes {
         self.index.len() == LANES
     }
 
-    /// [`Self::push`] with the hit's visibility given as bits (bit j: point
-    /// j, some set) and its light points `a`, `b`; fewer than
-    /// [`LANE_POINTS`] points.
+    /// Takes [`LANES`] hits at once (none may be waiting; fewer than
+    /// [`LANE_POINTS`] points): lane h is the caller's hit `index[h].0`
+    /// (wanting the specular factor if `index[h].1`) with lane h of
+    /// `inputs`, visibility `visible[h]` (bit j: point j) and, for a pattern
+    /// drawn per hit, points `a[j][h]`, `b[j][h]`. A hit with no point
+    /// visible gets +0 sums, as its own hit-by-hit factors are. Lanes past
+    /// `index` are computed but not read out.
     #[inline(always)]
-    pub fn push_bits(
+    pub(crate) fn push_lanes(
         &mut self,
-        index: usize,
-        hit: LaneHit,
-        visible: u64,
-        a: &[f32],
-        b: &[f32],
-    ) -> bool {
-        debug_assert!(!self.rows.is_used() && self.bits.len() == 1);
-        let h = self.index.len();
-        self.index.push((index, hit.specular));
-        self.hits
-            .set(h, hit.to_corner, hit.normal, hit.view, hit.shininess);
-        self.bits[0][h] = visible;
+        index: &[(usize, bool)],
+        inputs: &LaneInputs,
+        visible: &[u64; LANES],
+        a: &[[f32; LANES]],
+        b: &[[f32; LANES]],
+    ) {
+        debug_assert!(self.index.is_empty() && !self.rows.is_used() && self.bits.len() == 1);
+        self.index.extend_from_slice(index);
+        self.hits = *inputs;
+        self.bits[0] = *visible;
         if !self.points.is_fixed() {
-            self.points.set_lane(h, a, b);
+            let count = self.points.count();
+            self.points.lane_a[..count].copy_from_slice(&a[..count]);
+            self.points.lane_b[..count].copy_from_slice(&b[..count]);
         }
-        self.index.len() == LANES
     }
 
     /// Drops the waiting hits (a cancelled tile).

@@ -16,7 +16,7 @@ use super::math::avx2_dispatch;
 use super::pixel_filter::PixelFilter;
 use super::progressive::{CancelToken, TileRect};
 use super::rng::Rng;
-use super::sampled_lanes::{LaneHit, SampledLanes};
+use super::sampled_lanes::{LaneHit, LaneInputs, SampledLanes};
 use super::sampling::Pattern;
 use super::scene::{HitTarget, Scene};
 use super::scene_file::AreaLightModel;
@@ -143,7 +143,8 @@ pub struct TraceScratch {
     /// [`Tracer::tile`]'s hits waiting for their shadow rays, and their
     /// index in `factors` and lane data.
     shadow_lanes: HitLanes,
-    shadow_waiting: Vec<(usize, LaneHit)>,
+    shadow_index: Vec<(usize, bool)>,
+    shadow_inputs: LaneInputs,
     /// What [`Tracer::tile`]'s camera rays test.
     camera_objects: TileTargets,
     /// One row of a tile's camera rays.
@@ -198,7 +199,8 @@ impl<'a> Tracer<'a> {
             factors: Vec::new(),
             factor_hits: Vec::new(),
             shadow_lanes: HitLanes::default(),
-            shadow_waiting: Vec::new(),
+            shadow_index: Vec::new(),
+            shadow_inputs: LaneInputs::default(),
             camera_objects: TileTargets::default(),
             camera_rays: Vec::new(),
         }
@@ -589,7 +591,7 @@ fn tile_in_lanes_generic<S: PathSink>(
     } else {
         colour.lanes.discard();
         scratch.shadow_lanes.clear();
-        scratch.shadow_waiting.clear();
+        scratch.shadow_index.clear();
     }
     scratch.lanes = colour.lanes;
     scratch.terms = colour.terms;
@@ -753,14 +755,15 @@ impl Deferred {
             },
             weight,
         ));
-        let hit = LaneHit {
-            to_corner: (tracer.scene.light.shape.corner - sp.shadow.point).as_vec3(),
-            normal: sp.normal.as_vec3(),
-            view: sp.view.as_vec3(),
-            shininess: sp.material.shininess,
-            specular: needs.specular,
-        };
-        scratch.shadow_waiting.push((index, hit));
+        // What the lanes' light factors need, as `LaneHit` has it.
+        scratch.shadow_inputs.set(
+            scratch.shadow_index.len(),
+            (tracer.scene.light.shape.corner - sp.shadow.point).as_vec3(),
+            sp.normal.as_vec3(),
+            sp.view.as_vec3(),
+            sp.material.shininess,
+        );
+        scratch.shadow_index.push((index, needs.specular));
         let count = tracer.pattern.count();
         let buf = &scratch.shadow;
         if scratch
@@ -772,23 +775,27 @@ impl Deferred {
     }
 
     /// Traces the shadow rays of the hits waiting in [`HitLanes`], then
-    /// hands each hit with a light point in view on to the lanes, as the
-    /// hit-by-hit path does; the others keep their zero factors (what the
-    /// `sampled` sums of no visible point are, facing or not).
+    /// computes their light factors lane for lane, as the lanes compute
+    /// those of hits traced one by one (a hit with no point in view gets
+    /// the +0 factors of the `sampled` sums of no visible point).
     #[inline(always)]
     fn trace_waiting_shadows(&mut self, tracer: &Tracer, scratch: &mut TraceScratch) {
         if scratch.shadow_lanes.len() == 0 {
             return;
         }
-        scratch.shadow_lanes.trace(tracer.scene, &mut scratch.stats);
-        for (h, &(index, hit)) in scratch.shadow_waiting.iter().enumerate() {
-            let (visible, a, b) = scratch.shadow_lanes.visible(h);
-            if visible != 0 && self.lanes.push_bits(index, hit, visible, &a, &b) {
-                self.flush();
-            }
-        }
-        scratch.shadow_lanes.clear();
-        scratch.shadow_waiting.clear();
+        let lanes = &mut scratch.shadow_lanes;
+        lanes.trace(tracer.scene, &mut scratch.stats);
+        let (visible, a, b) = lanes.visible();
+        self.lanes.push_lanes(
+            &scratch.shadow_index,
+            &scratch.shadow_inputs,
+            &visible,
+            a,
+            b,
+        );
+        self.flush();
+        lanes.clear();
+        scratch.shadow_index.clear();
     }
 }
 

@@ -162,18 +162,18 @@ impl HitLanes {
         stats.shadow += facing;
     }
 
-    /// Waiting hit `h`'s visibility after [`Self::trace`] (bit j: light
-    /// point j visible) and its light points' offsets along the light's
-    /// edges.
+    /// Each lane's visibility after [`Self::trace`] (bit j: light point
+    /// j visible), and the lanes' light points (`a[j][h]`, `b[j][h]`).
     #[inline(always)]
-    pub(crate) fn visible(&self, h: usize) -> (u64, [f32; LANE_RAYS], [f32; LANE_RAYS]) {
-        let mut bits = 0;
-        let (mut a, mut b) = ([0.0; LANE_RAYS], [0.0; LANE_RAYS]);
-        for j in 0..self.count {
-            bits |= u64::from(self.vis[j][h] != 0.0) << j;
-            (a[j], b[j]) = (self.a[j][h], self.b[j][h]);
+    #[allow(clippy::type_complexity)]
+    pub(crate) fn visible(&self) -> ([u64; HIT_LANES], &[[f32; HIT_LANES]], &[[f32; HIT_LANES]]) {
+        let mut bits = [0u64; HIT_LANES];
+        for k in 0..self.count {
+            for (h, bits) in bits.iter_mut().enumerate() {
+                *bits |= u64::from(self.vis[k][h] != 0.0) << k;
+            }
         }
-        (bits, a, b)
+        (bits, &self.a[..self.count], &self.b[..self.count])
     }
 
     #[inline(always)]
@@ -463,7 +463,7 @@ mod tests {
             }
             lanes.trace(scene, &mut lane_stats);
             for (h, &bits) in expected.iter().enumerate() {
-                assert_eq!(lanes.visible(h).0, bits, "round {round}, lane {h}");
+                assert_eq!(lanes.visible().0[h], bits, "round {round}, lane {h}");
             }
             lanes.clear();
         }

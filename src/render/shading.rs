@@ -141,7 +141,17 @@ pub fn light_terms(
     buf: &mut ShadowBuffers,
     stats: &mut RayStats,
 ) -> LightTerms {
-    match light_points(scene, s, sp, needs, pattern, rng, buf, stats) {
+    match light_points(
+        scene,
+        s,
+        sp,
+        needs,
+        pattern,
+        rng,
+        buf,
+        stats,
+        Shadows::Traced,
+    ) {
         Lit::Known(factors) => factors,
         Lit::Points => model_terms(scene, s, sp, needs, pattern.count(), buf),
     }
@@ -152,9 +162,18 @@ pub(crate) enum Lit {
     /// The factors, without light points (behind the light, not needed,
     /// or the `exact` model).
     Known(LightTerms),
-    /// The light points and their visibility are in the buffers, for
-    /// [`model_terms`].
+    /// The light points are in the buffers, and with [`Shadows::Traced`]
+    /// their visibility, for [`model_terms`].
     Points,
+}
+
+/// Whether [`light_points`] traces the shadow rays of the points it draws.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Shadows {
+    Traced,
+    /// Left to the caller (`shadow::HitLanes`: the `sampled` model with
+    /// shadows on).
+    Later,
 }
 
 avx2_dispatch!(
@@ -173,6 +192,7 @@ avx2_dispatch!(
         rng: &mut Rng,
         buf: &mut ShadowBuffers,
         stats: &mut RayStats,
+        shadows: Shadows,
     ) -> Lit => light_points_generic
 );
 
@@ -189,6 +209,7 @@ pub(crate) fn light_points_generic(
     rng: &mut Rng,
     buf: &mut ShadowBuffers,
     stats: &mut RayStats,
+    shadows: Shadows,
 ) -> Lit {
     let m = sp.material;
     let query = &sp.shadow;
@@ -227,37 +248,11 @@ pub(crate) fn light_points_generic(
     }
 
     fill_light_points(pattern, rng, buf);
-    shadow::visibility_inline(scene, s, query, count, buf, stats);
+    match shadows {
+        Shadows::Traced => shadow::visibility_inline(scene, s, query, count, buf, stats),
+        Shadows::Later => debug_assert!(s.model == AreaLightModel::Sampled && s.shadows),
+    }
     Lit::Points
-}
-
-/// [`light_points_generic`] under the `sampled` model with shadows on, up
-/// to its light points: `None` once they are drawn into `buf.a`/`buf.b`
-/// (their directions, facing and shadow rays left to the caller,
-/// `shadow::HitLanes`), or the factors known without them (unlit, or no
-/// factor needed).
-#[inline(always)]
-#[allow(clippy::too_many_arguments)]
-pub(crate) fn drawn_light_points(
-    scene: &Scene,
-    s: &RenderSettings,
-    sp: &ShadingPoint,
-    needs: Needs,
-    pattern: &Pattern,
-    rng: &mut Rng,
-    buf: &mut ShadowBuffers,
-    stats: &mut RayStats,
-) -> Option<LightTerms> {
-    debug_assert!(s.model == AreaLightModel::Sampled && s.shadows);
-    if !scene.light.illuminates(sp.point) {
-        return Some(LightTerms::default());
-    }
-    if !(needs.diffuse || needs.specular) && s.skip {
-        stats.shadow_unneeded += pattern.count() as u64;
-        return Some(LightTerms::default());
-    }
-    fill_light_points(pattern, rng, buf);
-    None
 }
 
 /// The second part of [`light_terms`]: the factors of the model from the

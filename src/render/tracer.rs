@@ -22,8 +22,8 @@ use super::scene::{HitTarget, Scene};
 use super::scene_file::AreaLightModel;
 use super::settings::RenderSettings;
 use super::shading::{
-    LightTerms, Lit, Needs, PhongColours, ShadingPoint, any_visible, drawn_light_points,
-    light_points_generic, light_terms, model_terms, nearest_point_specular_direction,
+    LightTerms, Lit, Needs, PhongColours, ShadingPoint, Shadows, any_visible, light_points_generic,
+    light_terms, model_terms, nearest_point_specular_direction,
 };
 use super::shading_params::ShadingParams;
 use super::shadow::{HitLanes, LANE_RAYS, ShadowBuffers, ShadowQuery, lanes_fit};
@@ -825,21 +825,11 @@ impl PathColour for Deferred {
         // A record serves any later colour: every factor.
         let needs = if S::RECORD { Needs::ALL } else { terms.needs };
         let count = tracer.pattern.count();
-        if !S::RECORD && tracer.shadows_in_lanes {
-            let buf = &mut scratch.shadow;
-            let stats = &mut scratch.stats;
-            let pattern = &tracer.pattern;
-            let Some(factors) = drawn_light_points(scene, s, sp, needs, pattern, rng, buf, stats)
-            else {
-                self.wait_for_shadows(tracer, sp, needs, scratch, weight);
-                return;
-            };
-            self.terms.push(Term::new(
-                TermColour::Known(terms.colours.colour(factors)),
-                weight,
-            ));
-            return;
-        }
+        let shadows = if !S::RECORD && tracer.shadows_in_lanes {
+            Shadows::Later
+        } else {
+            Shadows::Traced
+        };
         let buf = &mut scratch.shadow;
         if S::RECORD {
             // So that a point behind the light records as invisible.
@@ -854,9 +844,13 @@ impl PathColour for Deferred {
             rng,
             buf,
             &mut scratch.stats,
+            shadows,
         );
         let factors = match lit {
             Lit::Known(f) => f,
+            Lit::Points if shadows == Shadows::Later => {
+                return self.wait_for_shadows(tracer, sp, needs, scratch, weight);
+            }
             Lit::Points if !any_visible(buf, count) => model_terms(scene, s, sp, needs, count, buf),
             Lit::Points => {
                 let index = self.factors.len();

@@ -22,8 +22,9 @@ use crate::render::stats::RayStats;
 /// Hit points traced side by side.
 pub(crate) const HIT_LANES: usize = 16;
 
-/// Most light points per hit for which waiting in lanes pays: from four
-/// on, a hit's own rays share its culling (and the umbra test starts).
+/// Most light points per hit that wait in lanes: one (a frame's base
+/// cost) to four (the viewer's first passes), where culling hit by hit
+/// costs most per ray.
 pub(crate) const LANE_RAYS: usize = 4;
 
 /// Most objects tested without culling: beyond, a hit's culling leaves out
@@ -33,18 +34,20 @@ const LANE_OBJECTS: usize = 16;
 /// Whether `scene`'s shadow rays may be traced in lanes: a few objects,
 /// none of them a triangle (no BVH, no mesh).
 pub(crate) fn lanes_fit(scene: &Scene) -> bool {
-    let mut ids = scene.unbounded.iter().chain(scene.bounded.iter());
+    let ids = || scene.unbounded.iter().chain(scene.bounded.iter());
+    // Ids below 32: the lanes on an object are the bits of a mask.
+    let fits = |&i: &u32| match scene.primitive(i) {
+        Primitive::Shape(Shape::Triangle(_)) | Primitive::Face { .. } => false,
+        Primitive::Shape(_) => i < 32,
+    };
     scene.bvh.is_empty()
         && scene.shadow_bvh.is_none()
-        && ids.clone().count() <= LANE_OBJECTS
-        && ids.all(|&i| {
-            i < 32 &&
-            matches!(scene.primitive(i), Primitive::Shape(s) if !matches!(s, Shape::Triangle(_)))
-        })
+        && ids().count() <= LANE_OBJECTS
+        && ids().all(fits)
 }
 
 /// Hit points waiting for their shadow rays (per thread, reused).
-#[derive(Debug, Clone)]
+#[derive(Debug)]
 pub(crate) struct HitLanes {
     len: usize,
     /// Light points per hit.

@@ -450,7 +450,7 @@ fn render_tile(
     scratch: &mut TraceScratch,
     out: &mut Vec<Vec3>,
 ) -> bool {
-    if block == 1 && tracer.traces_tiles() {
+    if block == 1 {
         return tracer.tile(rect, cancel, scratch, out);
     }
     out.clear();

@@ -243,8 +243,10 @@ impl<'a> Tracer<'a> {
         sum * (1.0 / spp as f32)
     }
 
-    /// Whether [`Tracer::tile`] renders this tracer's tiles: one camera
-    /// sample per pixel.
+    /// Whether [`Tracer::trace_rect`] traces its pixels as tiles (their
+    /// camera rays tested against the tile's objects, a recording sink's
+    /// hits shaded side by side): one camera sample per pixel.
+    /// [`Tracer::tile`] takes any number.
     pub fn traces_tiles(&self) -> bool {
         self.filter.is_none()
     }
@@ -263,8 +265,10 @@ impl<'a> Tracer<'a> {
     /// with [`Tracer::shades_in_lanes`] the paths' hits wait for their light
     /// factors in [`SampledLanes`] and are shaded
     /// [`LANES`](super::sampled_lanes::LANES) at a time, the colours then
-    /// summed path by path in their order. Needs [`Tracer::traces_tiles`];
-    /// false if cancelled part-way.
+    /// summed path by path in their order. With several camera samples per
+    /// pixel their rays search the whole scene, as [`Tracer::trace`]'s do,
+    /// and each pixel's paths are summed and averaged as there. False if
+    /// cancelled part-way.
     pub fn tile(
         &self,
         rect: TileRect,
@@ -272,7 +276,6 @@ impl<'a> Tracer<'a> {
         scratch: &mut TraceScratch,
         out: &mut Vec<Vec3>,
     ) -> bool {
-        debug_assert!(self.traces_tiles());
         if !self.shades_in_lanes() {
             return self.trace_rect(rect, cancel, scratch, &mut (), out);
         }
@@ -558,10 +561,25 @@ fn tile_in_lanes_generic<S: PathSink>(
             finished = false;
             break;
         }
+        // Several samples a pixel: placed by the filter, as `Tracer::trace`
+        // places them.
+        if let Some(filter) = &tracer.filter {
+            let s = tracer.settings;
+            for x in rect.x..rect.x + rect.w {
+                let pixel_seed = Rng::for_sample(s.seed, x, y, 0, 0).next_u64() as u32;
+                for sample in 0..s.samples_per_pixel {
+                    let (px, py) = filter.position(x, y, sample, pixel_seed);
+                    let ray = camera.ray(px, py);
+                    tracer.trace_path(x, y, sample, ray, None, scratch, sink, &mut colour);
+                    colour.end_path();
+                }
+            }
+            continue;
+        }
         camera.row_rays(rect.x, y, rect.w, &mut rays);
         for (x, &ray) in (rect.x..).zip(&rays) {
             tracer.trace_path(x, y, 0, ray, Some(objects), scratch, sink, &mut colour);
-            colour.end_pixel();
+            colour.end_path();
         }
     }
     scratch.camera_rays = rays;
@@ -573,7 +591,11 @@ fn tile_in_lanes_generic<S: PathSink>(
             sink.set_factors(hit as usize, factors);
         }
         out.clear();
-        let mut sum = Vec3::ZERO;
+        // Each path's terms in its order; with several samples a pixel,
+        // the pixel's paths summed from zero and averaged (the sums of
+        // `Tracer::trace`).
+        let spp = tracer.samples();
+        let (mut path, mut pixel, mut paths) = (Vec3::ZERO, Vec3::ZERO, 0);
         for term in &colour.terms {
             let local = match term.colour {
                 TermColour::Known(c) => c,
@@ -582,11 +604,21 @@ fn tile_in_lanes_generic<S: PathSink>(
                     tracer.material_terms[material as usize].colours.colour(f)
                 }
             };
-            sum += local * term.weight;
-            if term.pixel_end {
-                out.push(sum);
-                sum = Vec3::ZERO;
+            path += local * term.weight;
+            if !term.path_end {
+                continue;
             }
+            if spp == 1 {
+                out.push(path);
+            } else {
+                pixel += path;
+                paths += 1;
+                if paths == spp {
+                    out.push(pixel * (1.0 / spp as f32));
+                    (pixel, paths) = (Vec3::ZERO, 0);
+                }
+            }
+            path = Vec3::ZERO;
         }
     } else {
         colour.lanes.discard();
@@ -675,9 +707,9 @@ impl PathColour for Sum {
 struct Term {
     colour: TermColour,
     weight: f32,
-    /// The pixel's last term: a mark in the same place for every kind of
+    /// The path's last term: a mark in the same place for every kind of
     /// term (set without looking at the kind), not a term of its own.
-    pixel_end: bool,
+    path_end: bool,
 }
 
 /// The colour a [`Term`]'s weight multiplies.
@@ -698,7 +730,7 @@ impl Term {
         Term {
             colour,
             weight,
-            pixel_end: false,
+            path_end: false,
         }
     }
 }
@@ -716,14 +748,14 @@ struct Deferred {
 }
 
 impl Deferred {
-    /// Marks the last term as the end of its pixel (every path adds at
+    /// Marks the last term as the end of its path (every path adds at
     /// least one term: its end's colour or a hit's).
     #[inline(always)]
-    fn end_pixel(&mut self) {
+    fn end_path(&mut self) {
         self.terms
             .last_mut()
             .expect("a path adds at least one term")
-            .pixel_end = true;
+            .path_end = true;
     }
 
     /// Computes the waiting hits' factors.
@@ -981,7 +1013,8 @@ mod tests {
     /// pixel for pixel, the bits of the
     /// pixels traced one at a time: floor, walls, both boxes and the mirror
     /// sphere (reflected paths), the image's corners, several patterns and
-    /// counts, with and without cut-away.
+    /// counts, with and without cut-away, with one camera sample a pixel
+    /// and several.
     #[test]
     fn a_tile_in_lanes_gives_the_bits_of_each_pixel() {
         let loaded = Loaded::seed_room();
@@ -991,22 +1024,27 @@ mod tests {
             w: 400,
             h: 300,
         };
-        for (sampling, rays, skip, cutaway) in [
-            (Sampling::Grid, 1, true, false),
-            (Sampling::Grid, 1, false, false),
-            (Sampling::Grid, 1, true, true),
-            (Sampling::Grid, 4, true, false),
-            (Sampling::Random, 3, true, false),
-            (Sampling::Stratified, 9, true, false),
-            (Sampling::Grid, 64, true, true),
+        for (sampling, rays, skip, cutaway, spp) in [
+            (Sampling::Grid, 1, true, false, 1),
+            (Sampling::Grid, 1, false, false, 1),
+            (Sampling::Grid, 1, true, true, 1),
+            (Sampling::Grid, 4, true, false, 1),
+            (Sampling::Random, 3, true, false, 1),
+            (Sampling::Stratified, 9, true, false, 1),
+            (Sampling::Grid, 64, true, true, 1),
+            // Several camera samples a pixel, placed by the filter.
+            (Sampling::Grid, 1, true, false, 4),
+            (Sampling::Random, 2, true, true, 3),
+            (Sampling::Grid, 16, true, false, 2),
         ] {
             let mut settings = loaded.settings.clone();
             settings.sampling = sampling;
             settings.shadow_rays = rays;
             settings.skip = skip;
             settings.cutaway = cutaway;
+            settings.samples_per_pixel = spp;
             let tracer = Tracer::new(&loaded.scene, &settings, &loaded.shading, rays);
-            assert!(tracer.traces_tiles());
+            assert_eq!(tracer.traces_tiles(), spp == 1);
             assert!(tracer.shades_in_lanes());
             // Up to four light points with skipping on, the hits' shadow
             // rays are traced side by side too.
@@ -1062,7 +1100,7 @@ mod tests {
                     assert_eq!(
                         c.to_array().map(f32::to_bits),
                         want.to_array().map(f32::to_bits),
-                        "{sampling:?} {rays} skip {skip}: pixel ({x}, {y})"
+                        "{sampling:?} {rays} skip {skip} spp {spp}: pixel ({x}, {y})"
                     );
                 }
             }

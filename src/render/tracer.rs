@@ -243,6 +243,15 @@ impl<'a> Tracer<'a> {
         sum * (1.0 / spp as f32)
     }
 
+    /// Camera paths per pixel: the samples placed by the filter, or one
+    /// through the pixel's centre.
+    fn paths_per_pixel(&self) -> u32 {
+        match self.filter {
+            Some(_) => self.settings.samples_per_pixel,
+            None => 1,
+        }
+    }
+
     /// Whether [`Tracer::trace_rect`] traces its pixels as tiles (their
     /// camera rays tested against the tile's objects, a recording sink's
     /// hits shaded side by side): one camera sample per pixel.
@@ -561,24 +570,44 @@ fn tile_in_lanes_generic<S: PathSink>(
             finished = false;
             break;
         }
-        // Several samples a pixel: placed by the filter, as `Tracer::trace`
-        // places them.
-        if let Some(filter) = &tracer.filter {
-            let s = tracer.settings;
-            for x in rect.x..rect.x + rect.w {
-                let pixel_seed = Rng::for_sample(s.seed, x, y, 0, 0).next_u64() as u32;
-                for sample in 0..s.samples_per_pixel {
-                    let (px, py) = filter.position(x, y, sample, pixel_seed);
-                    let ray = camera.ray(px, py);
-                    tracer.trace_path(x, y, sample, ray, None, scratch, sink, &mut colour);
-                    colour.end_path();
+        // One sample a pixel: its ray through the pixel's centre. Several:
+        // placed by the filter, as `Tracer::trace` places them, pixel by
+        // pixel (the paths in `rays` run `spp` to a pixel).
+        let spp = tracer.paths_per_pixel();
+        match &tracer.filter {
+            None => camera.row_rays(rect.x, y, rect.w, &mut rays),
+            Some(filter) => {
+                rays.clear();
+                for x in rect.x..rect.x + rect.w {
+                    let seed = tracer.settings.seed;
+                    let pixel_seed = Rng::for_sample(seed, x, y, 0, 0).next_u64() as u32;
+                    rays.extend((0..spp).map(|sample| {
+                        let (px, py) = filter.position(x, y, sample, pixel_seed);
+                        camera.ray(px, py)
+                    }));
                 }
             }
-            continue;
         }
-        camera.row_rays(rect.x, y, rect.w, &mut rays);
-        for (x, &ray) in (rect.x..).zip(&rays) {
-            tracer.trace_path(x, y, 0, ray, Some(objects), scratch, sink, &mut colour);
+        // Jittered rays may leave the cone of the tile's centre rays: they
+        // search the whole scene.
+        let camera_objects = (spp == 1).then_some(objects);
+        for (k, &ray) in (0..).zip(&rays) {
+            // (No division for one sample a pixel: it would cost more than
+            // a whole pixel's camera ray.)
+            let (x, sample) = match spp {
+                1 => (rect.x + k, 0),
+                _ => (rect.x + k / spp, k % spp),
+            };
+            tracer.trace_path(
+                x,
+                y,
+                sample,
+                ray,
+                camera_objects,
+                scratch,
+                sink,
+                &mut colour,
+            );
             colour.end_path();
         }
     }
@@ -594,7 +623,7 @@ fn tile_in_lanes_generic<S: PathSink>(
         // Each path's terms in its order; with several samples a pixel,
         // the pixel's paths summed from zero and averaged (the sums of
         // `Tracer::trace`).
-        let spp = tracer.samples();
+        let spp = tracer.paths_per_pixel();
         let (mut path, mut pixel, mut paths) = (Vec3::ZERO, Vec3::ZERO, 0);
         for term in &colour.terms {
             let local = match term.colour {

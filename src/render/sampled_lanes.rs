@@ -645,9 +645,9 @@ fn lane_sums(
             let (word, l) = (&bits[j / 64], j % 64);
             for h in 0..LANES {
                 // The tracer multiplies by the visibility (1 or 0): the
-                // term, or +0 (both are finite and not negative).
-                // The term or +0 by a mask of its bits, not a select: the
-                // select became a masked store, slow on AMD's CPUs.
+                // term, or +0 (both are finite and not negative), here by
+                // a mask of the term's bits (a select became a masked
+                // store, slow on AMD's CPUs).
                 let keep = 0u32.wrapping_sub(((word[h] >> l) & 1) as u32);
                 diffuse[h] += f32::from_bits(f[i][h].to_bits() & keep);
                 specular[h] += f32::from_bits(s[i][h].to_bits() & keep);

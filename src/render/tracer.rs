@@ -230,17 +230,28 @@ impl<'a> Tracer<'a> {
             self.trace_path(x, y, 0, ray, None, scratch, sink, &mut colour);
             return colour.0;
         };
-        let spp = self.settings.samples_per_pixel;
-        let pixel_seed = Rng::for_sample(self.settings.seed, x, y, 0, 0).next_u64() as u32;
         let mut sum = Vec3::ZERO;
-        for sample in 0..spp {
-            let (px, py) = filter.position(x, y, sample, pixel_seed);
+        for (sample, ray) in (0..).zip(self.sample_rays(filter, x, y)) {
             let mut colour = Sum(Vec3::ZERO);
-            let ray = camera.ray(px, py);
             self.trace_path(x, y, sample, ray, None, scratch, sink, &mut colour);
             sum += colour.0;
         }
-        sum * (1.0 / spp as f32)
+        sum * (1.0 / self.settings.samples_per_pixel as f32)
+    }
+
+    /// The camera rays of pixel (x, y)'s samples, in order, placed by the
+    /// filter.
+    fn sample_rays<'s>(
+        &'s self,
+        filter: &'s PixelFilter,
+        x: u32,
+        y: u32,
+    ) -> impl Iterator<Item = Ray> + 's {
+        let pixel_seed = Rng::for_sample(self.settings.seed, x, y, 0, 0).next_u64() as u32;
+        (0..self.settings.samples_per_pixel).map(move |sample| {
+            let (px, py) = filter.position(x, y, sample, pixel_seed);
+            self.scene.camera.ray(px, py)
+        })
     }
 
     /// Camera paths per pixel: the samples placed by the filter, or one
@@ -564,6 +575,7 @@ fn tile_in_lanes_generic<S: PathSink>(
     // be compiled without this function's CPU features.
     let camera = &tracer.scene.camera;
     let mut rays = std::mem::take(&mut scratch.camera_rays);
+    let spp = tracer.paths_per_pixel();
     let mut finished = true;
     for y in rect.y..rect.y + rect.h {
         if cancel.is_cancelled() {
@@ -572,42 +584,31 @@ fn tile_in_lanes_generic<S: PathSink>(
         }
         // One sample a pixel: its ray through the pixel's centre. Several:
         // placed by the filter, as `Tracer::trace` places them, pixel by
-        // pixel (the paths in `rays` run `spp` to a pixel).
-        let spp = tracer.paths_per_pixel();
+        // pixel (`spp` rays to a pixel).
         match &tracer.filter {
             None => camera.row_rays(rect.x, y, rect.w, &mut rays),
             Some(filter) => {
                 rays.clear();
                 for x in rect.x..rect.x + rect.w {
-                    let seed = tracer.settings.seed;
-                    let pixel_seed = Rng::for_sample(seed, x, y, 0, 0).next_u64() as u32;
-                    rays.extend((0..spp).map(|sample| {
-                        let (px, py) = filter.position(x, y, sample, pixel_seed);
-                        camera.ray(px, py)
-                    }));
+                    rays.extend(tracer.sample_rays(filter, x, y));
                 }
             }
         }
+        // Two loops, so that a one-sample path's camera search is known
+        // where it is inlined (a choice per path cost 2 % of a frame's
+        // instructions), with no division to find its pixel.
+        if spp == 1 {
+            for (x, &ray) in (rect.x..).zip(&rays) {
+                tracer.trace_path(x, y, 0, ray, Some(objects), scratch, sink, &mut colour);
+                colour.end_path();
+            }
+            continue;
+        }
         // Jittered rays may leave the cone of the tile's centre rays: they
         // search the whole scene.
-        let camera_objects = (spp == 1).then_some(objects);
         for (k, &ray) in (0..).zip(&rays) {
-            // (No division for one sample a pixel: it would cost more than
-            // a whole pixel's camera ray.)
-            let (x, sample) = match spp {
-                1 => (rect.x + k, 0),
-                _ => (rect.x + k / spp, k % spp),
-            };
-            tracer.trace_path(
-                x,
-                y,
-                sample,
-                ray,
-                camera_objects,
-                scratch,
-                sink,
-                &mut colour,
-            );
+            let (x, sample) = (rect.x + k / spp, k % spp);
+            tracer.trace_path(x, y, sample, ray, None, scratch, sink, &mut colour);
             colour.end_path();
         }
     }
@@ -623,7 +624,6 @@ fn tile_in_lanes_generic<S: PathSink>(
         // Each path's terms in its order; with several samples a pixel,
         // the pixel's paths summed from zero and averaged (the sums of
         // `Tracer::trace`).
-        let spp = tracer.paths_per_pixel();
         let (mut path, mut pixel, mut paths) = (Vec3::ZERO, Vec3::ZERO, 0);
         for term in &colour.terms {
             let local = match term.colour {
@@ -730,6 +730,18 @@ impl PathColour for Sum {
     }
 }
 
+/// What the light-factor lanes need of hit `sp`.
+#[inline(always)]
+fn lane_hit(scene: &Scene, sp: &ShadingPoint, needs: Needs) -> LaneHit {
+    LaneHit {
+        to_corner: (scene.light.shape.corner - sp.shadow.point).as_vec3(),
+        normal: sp.normal.as_vec3(),
+        view: sp.view.as_vec3(),
+        shininess: sp.material.shininess,
+        specular: needs.specular,
+    }
+}
+
 /// One term of a tile's path colours, in the order of [`Tracer::trace`]'s
 /// sum.
 #[derive(Debug, Clone, Copy)]
@@ -795,6 +807,22 @@ impl Deferred {
             .flush(self.edges.0, self.edges.1, |i, f| factors[i] = f);
     }
 
+    /// Adds hit `sp`'s term, its colour waiting for its light factors:
+    /// their index in `factors`, returned.
+    #[inline(always)]
+    fn wait_for_factors(&mut self, sp: &ShadingPoint, weight: f32) -> usize {
+        let index = self.factors.len();
+        self.factors.push(LightTerms::default());
+        self.terms.push(Term::new(
+            TermColour::Waiting {
+                material: sp.material_index,
+                factors: index as u32,
+            },
+            weight,
+        ));
+        index
+    }
+
     /// A hit whose light points are drawn, their directions, facing and
     /// shadow rays left to [`HitLanes`] ([`Tracer::shadows_in_lanes`]): its
     /// colour waits for its factors, which wait for its rays.
@@ -807,24 +835,13 @@ impl Deferred {
         scratch: &mut TraceScratch,
         weight: f32,
     ) {
-        let index = self.factors.len();
-        self.factors.push(LightTerms::default());
-        self.terms.push(Term::new(
-            TermColour::Waiting {
-                material: sp.material_index,
-                factors: index as u32,
-            },
-            weight,
-        ));
-        // What the lanes' light factors need, as `LaneHit` has it.
-        scratch.shadow_inputs.set(
-            scratch.shadow_index.len(),
-            (tracer.scene.light.shape.corner - sp.shadow.point).as_vec3(),
-            sp.normal.as_vec3(),
-            sp.view.as_vec3(),
-            sp.material.shininess,
-        );
-        scratch.shadow_index.push((index, needs.specular));
+        let index = self.wait_for_factors(sp, weight);
+        let hit = lane_hit(tracer.scene, sp, needs);
+        let h = scratch.shadow_index.len();
+        scratch
+            .shadow_inputs
+            .set(h, hit.to_corner, hit.normal, hit.view, hit.shininess);
+        scratch.shadow_index.push((index, hit.specular));
         let count = tracer.pattern.count();
         let buf = &scratch.shadow;
         if scratch
@@ -914,26 +931,12 @@ impl PathColour for Deferred {
             }
             Lit::Points if !any_visible(buf, count) => model_terms(scene, s, sp, needs, count, buf),
             Lit::Points => {
-                let index = self.factors.len();
-                self.factors.push(LightTerms::default());
+                let index = self.wait_for_factors(sp, weight);
                 if S::RECORD {
                     let open = tracer.hit_record(sp, t, LightTerms::default());
                     self.hits.push(sink.hit(open, buf, count) as u32);
                 }
-                self.terms.push(Term::new(
-                    TermColour::Waiting {
-                        material: sp.material_index,
-                        factors: index as u32,
-                    },
-                    weight,
-                ));
-                let hit = LaneHit {
-                    to_corner: (scene.light.shape.corner - sp.shadow.point).as_vec3(),
-                    normal: sp.normal.as_vec3(),
-                    view: sp.view.as_vec3(),
-                    shininess: sp.material.shininess,
-                    specular: needs.specular,
-                };
+                let hit = lane_hit(scene, sp, needs);
                 if self.lanes.push(index, hit, buf) {
                     self.flush();
                 }

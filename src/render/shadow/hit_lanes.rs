@@ -13,8 +13,10 @@
 use glam::{DVec3, Vec3};
 
 use super::RAY_END;
-use super::occluder::{SLAB_ROUNDING, cleared, slab_lane, sphere_blocks};
-use super::visibility::{ShadowQuery, longest_ray};
+use super::occluder::{
+    box_seen_from, cleared, plane_blocks, rect_blocks, slab_bounds, slab_lane, sphere_blocks,
+};
+use super::visibility::{ShadowQuery, light_direction, longest_ray};
 use crate::render::geometry::{Cuboid, Primitive, Shape};
 use crate::render::scene::Scene;
 use crate::render::stats::RayStats;
@@ -44,6 +46,12 @@ pub(crate) fn lanes_fit(scene: &Scene) -> bool {
         && scene.shadow_bvh.is_none()
         && ids().count() <= LANE_OBJECTS
         && ids().all(fits)
+}
+
+/// Lane h of a vector kept as one array per coordinate.
+#[inline(always)]
+fn lane(v: &[[f32; HIT_LANES]; 3], h: usize) -> Vec3 {
+    Vec3::new(v[0][h], v[1][h], v[2][h])
 }
 
 /// Hit points waiting for their shadow rays (per thread, reused).
@@ -147,15 +155,11 @@ impl HitLanes {
             let (a, b) = (&self.a[k], &self.b[k]);
             let mut front_lanes = 0u32;
             for h in 0..HIT_LANES {
-                let (x, y, z) = (
-                    to_corner[0][h] + eu.x * a[h] + ev.x * b[h],
-                    to_corner[1][h] + eu.y * a[h] + ev.y * b[h],
-                    to_corner[2][h] + eu.z * a[h] + ev.z * b[h],
-                );
+                let ((x, y, z), front) =
+                    light_direction(lane(&to_corner, h), (eu, ev), lane(&n, h), (a[h], b[h]));
                 self.dx[k][h] = x;
                 self.dy[k][h] = y;
                 self.dz[k][h] = z;
-                let front = n[0][h] * x + n[1][h] * y + n[2][h] * z > 0.0;
                 self.vis[k][h] = if front { 1.0 } else { 0.0 };
                 front_lanes |= u32::from(front) << h;
             }
@@ -230,10 +234,7 @@ impl HitLanes {
                     for (h, d) in dist.iter_mut().enumerate() {
                         *d = pl.signed_distance(self.point(h)) as f32;
                     }
-                    self.each_ray(skip, |h, x, y, z| {
-                        let end = dist[h] + (normal.x * x + normal.y * y + normal.z * z) * RAY_END;
-                        dist[h] * end < 0.0
-                    });
+                    self.each_ray(skip, |h, x, y, z| plane_blocks(normal, dist[h], x, y, z));
                 }
                 Shape::Sphere(s) => {
                     let r2 = (s.radius * s.radius) as f32;
@@ -243,8 +244,7 @@ impl HitLanes {
                         (oc[0][h], oc[1][h], oc[2][h]) = (c.x, c.y, c.z);
                     }
                     self.each_ray(skip, |h, x, y, z| {
-                        let c = Vec3::new(oc[0][h], oc[1][h], oc[2][h]);
-                        sphere_blocks(c, r2, inside(h), x, y, z)
+                        sphere_blocks(lane(&oc, h), r2, inside(h), x, y, z)
                     });
                 }
                 Shape::Parallelogram(r) => {
@@ -260,15 +260,7 @@ impl HitLanes {
                     }
                     self.each_ray(skip, |h, x, y, z| {
                         let d = Vec3::new(x, y, z);
-                        let to_corner =
-                            Vec3::new(to_corner[0][h], to_corner[1][h], to_corner[2][h]);
-                        let t = dist[h] / normal.dot(d);
-                        let q = d * t - to_corner;
-                        let (a, b) = (q.dot(dual_u), q.dot(dual_v));
-                        t > 0.0
-                            && t < RAY_END
-                            && (0.0..=1.0).contains(&a)
-                            && (0.0..=1.0).contains(&b)
+                        rect_blocks(lane(&to_corner, h), normal, (dual_u, dual_v), dist[h], d)
                     });
                 }
                 Shape::Cuboid(c) => self.block_by_box(c, &reach, skip),
@@ -304,10 +296,8 @@ impl HitLanes {
             [[0.0f32; HIT_LANES]; 3],
         );
         for h in 0..HIT_LANES {
-            let o = c.to_local(self.point(h) - c.centre);
-            let u = (c.half + o.abs()).as_vec3() * (reach[h] * SLAB_ROUNDING);
-            let o32 = o.as_vec3();
-            let (l, g) = (-half - o32, half - o32);
+            let (o, u) = box_seen_from(c, self.point(h), reach[h]);
+            let (l, g) = slab_bounds(half, o.as_vec3());
             for i in 0..3 {
                 origin[i][h] = o[i];
                 lo[i][h] = l[i];
@@ -315,7 +305,6 @@ impl HitLanes {
                 unsure[i][h] = u[i];
             }
         }
-        let lane = |a: &[[f32; HIT_LANES]; 3], h: usize| Vec3::new(a[0][h], a[1][h], a[2][h]);
         for k in 0..self.count {
             let mut undecided = 0u32;
             for h in 0..HIT_LANES {

@@ -55,13 +55,7 @@ impl Occluder {
                 inside,
             },
             Shape::Cuboid(c) => {
-                let origin = c.to_local(p - c.centre);
-                // A slab distance (±half − origin)/l is off by at most
-                // 7·2⁻²⁴·(half + |origin|)·|d|₁/l² (the rounding of the
-                // origin, half, rotation, reciprocal and product), and
-                // |d|₁ ≤ √3·reach; entry and exit may come from one axis:
-                // twice that, and room for the bound's own rounding.
-                let unsure = (c.half + origin.abs()).as_vec3() * (reach * SLAB_ROUNDING);
+                let (origin, unsure) = box_seen_from(c, p, reach);
                 Occluder::Cuboid {
                     origin: origin.as_vec3(),
                     half: c.half.as_vec3(),
@@ -115,9 +109,10 @@ impl Occluder {
                 unsure,
                 ref exact,
             } => {
+                let (lo, hi) = slab_bounds(half, origin);
                 let slabs = BoxSlabs {
-                    lo: -half - origin,
-                    hi: half - origin,
+                    lo,
+                    hi,
                     cos,
                     sin,
                     unsure,
@@ -138,21 +133,12 @@ impl Occluder {
             } => {
                 for j in 0..n {
                     let d = Vec3::new(dx[j], dy[j], dz[j]);
-                    let t = dist / normal.dot(d);
-                    let q = d * t - to_corner;
-                    let (a, b) = (q.dot(dual_u), q.dot(dual_v));
-                    let blocked = t > 0.0
-                        && t < RAY_END
-                        && (0.0..=1.0).contains(&a)
-                        && (0.0..=1.0).contains(&b);
-                    vis[j] *= cleared(blocked);
+                    vis[j] *= cleared(rect_blocks(to_corner, normal, (dual_u, dual_v), dist, d));
                 }
             }
             Occluder::Plane { normal, dist } => {
                 for j in 0..n {
-                    let end =
-                        dist + (normal.x * dx[j] + normal.y * dy[j] + normal.z * dz[j]) * RAY_END;
-                    vis[j] *= cleared(dist * end < 0.0);
+                    vis[j] *= cleared(plane_blocks(normal, dist, dx[j], dy[j], dz[j]));
                 }
             }
             // Borrowed: a copy would put the vertices the f64 recheck reads
@@ -254,6 +240,55 @@ impl BoxSlabs<'_> {
     }
 }
 
+/// Box `c` seen from `p`, for rays no longer than `reach`: `p` in the box's
+/// frame, and the rounding bound of the f32 slab test per axis (times the
+/// squared direction component, see [`slab_lane`]).
+#[inline(always)]
+pub(super) fn box_seen_from(c: &Cuboid, p: DVec3, reach: f32) -> (DVec3, Vec3) {
+    let origin = c.to_local(p - c.centre);
+    // A slab distance (±half − origin)/l is off by at most
+    // 7·2⁻²⁴·(half + |origin|)·|d|₁/l² (the rounding of the origin, half,
+    // rotation, reciprocal and product), and |d|₁ ≤ √3·reach; entry and
+    // exit may come from one axis: twice that, and room for the bound's
+    // own rounding.
+    let unsure = (c.half + origin.abs()).as_vec3() * (reach * SLAB_ROUNDING);
+    (origin, unsure)
+}
+
+/// A box's slab bounds from `origin` (in its frame, f32): −half − origin
+/// and half − origin.
+#[inline(always)]
+pub(super) fn slab_bounds(half: Vec3, origin: Vec3) -> (Vec3, Vec3) {
+    (-half - origin, half - origin)
+}
+
+/// Whether the ray (x, y, z) from a point at signed distance `dist` from a
+/// plane of unit normal `normal` crosses it before [`RAY_END`]. One lane of
+/// the vector loops.
+#[inline(always)]
+pub(super) fn plane_blocks(normal: Vec3, dist: f32, x: f32, y: f32, z: f32) -> bool {
+    let end = dist + (normal.x * x + normal.y * y + normal.z * z) * RAY_END;
+    dist * end < 0.0
+}
+
+/// Whether the ray `d` from a point meets a rect (corner − point
+/// `to_corner`, unit `normal`, `dual` rows of the pseudo-inverse of its
+/// edges, `dist` = normal · to_corner) before [`RAY_END`]. One lane of the
+/// vector loops.
+#[inline(always)]
+pub(super) fn rect_blocks(
+    to_corner: Vec3,
+    normal: Vec3,
+    (dual_u, dual_v): (Vec3, Vec3),
+    dist: f32,
+    d: Vec3,
+) -> bool {
+    let t = dist / normal.dot(d);
+    let q = d * t - to_corner;
+    let (a, b) = (q.dot(dual_u), q.dot(dual_v));
+    t > 0.0 && t < RAY_END && (0.0..=1.0).contains(&a) && (0.0..=1.0).contains(&b)
+}
+
 /// One ray (x, y, z) against a box's slabs `lo`, `hi` (in its frame,
 /// rotated by `rotation` = (cos, sin) about y), with the rounding bound
 /// `unsure`, the minimum and maximum given (see [`BoxSlabs::block`]):
@@ -321,7 +356,7 @@ fn decide_marked(vis: &mut [f32], blocks: impl Fn(usize) -> bool) {
 /// The rounding bound of the f32 slab test, relative to the box's half
 /// size plus the origin's distance from its centre, and the ray's length
 /// (see [`Occluder::new`]).
-pub(super) const SLAB_ROUNDING: f32 = 1.0 / (1 << 18) as f32;
+const SLAB_ROUNDING: f32 = 1.0 / (1 << 18) as f32;
 
 /// Whether the ray (x, y, z) from the hit point meets the sphere (centre
 /// `oc` from the hit point, radius² `r2`) before [`RAY_END`]. One lane of

@@ -605,17 +605,31 @@ fn light_directions_generic(
     // counts halve the vectorized loop's width.
     let mut facing = 0u32;
     for j in 0..count {
-        let (x, y, z) = (
-            to_corner.x + eu.x * a[j] + ev.x * b[j],
-            to_corner.y + eu.y * a[j] + ev.y * b[j],
-            to_corner.z + eu.z * a[j] + ev.z * b[j],
-        );
+        let ((x, y, z), front) = light_direction(to_corner, (eu, ev), n, (a[j], b[j]));
         dx[j] = x;
         dy[j] = y;
         dz[j] = z;
-        let front = n.x * x + n.y * y + n.z * z > 0.0;
         vis[j] = if front { 1.0 } else { 0.0 };
         facing += front as u32;
     }
     u64::from(facing)
+}
+
+/// The direction from a hit point (light corner − point `to_corner`) to
+/// the light point at offsets (a, b) along the light's edges `eu`, `ev`,
+/// and whether it lies in front of the surface of normal `n`. One lane of
+/// the vector loops.
+#[inline(always)]
+pub(super) fn light_direction(
+    to_corner: Vec3,
+    (eu, ev): (Vec3, Vec3),
+    n: Vec3,
+    (a, b): (f32, f32),
+) -> ((f32, f32, f32), bool) {
+    let (x, y, z) = (
+        to_corner.x + eu.x * a + ev.x * b,
+        to_corner.y + eu.y * a + ev.y * b,
+        to_corner.z + eu.z * a + ev.z * b,
+    );
+    ((x, y, z), n.x * x + n.y * y + n.z * z > 0.0)
 }

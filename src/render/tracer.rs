@@ -263,10 +263,10 @@ impl<'a> Tracer<'a> {
         }
     }
 
-    /// Whether [`Tracer::trace_rect`] traces its pixels as tiles (their
-    /// camera rays tested against the tile's objects, a recording sink's
-    /// hits shaded side by side): one camera sample per pixel.
-    /// [`Tracer::tile`] takes any number.
+    /// Whether [`Tracer::trace_rect`] traces the pixels of any sink as
+    /// tiles (their camera rays tested against the tile's objects): one
+    /// camera sample per pixel. [`Tracer::tile`], and `trace_rect` of a
+    /// recording sink under the `sampled` model, take any number.
     pub fn traces_tiles(&self) -> bool {
         self.filter.is_none()
     }
@@ -324,13 +324,14 @@ impl<'a> Tracer<'a> {
     }
 
     /// The pixels of `rect` (rows packed) into `out`, each path given to
-    /// `sink`, as [`Tracer::trace`] gives them (the same bits); with one
-    /// camera sample per pixel the camera rays test only the tile's
-    /// [`camera_objects`], as [`Tracer::tile`]'s do, and a recording sink's
-    /// hits under the `sampled` model are shaded side by side as there
-    /// ([`tile_in_lanes`]); every tile's hit points check the thread's
-    /// occluder lists once ([`Tracer::per_tile`]). False if cancelled
-    /// part-way.
+    /// `sink`, as [`Tracer::trace`] gives them (the same bits): a
+    /// recording sink's paths under the `sampled` model, with any number
+    /// of camera samples, as [`Tracer::tile`] traces them
+    /// ([`tile_in_lanes`]); otherwise with one camera sample per pixel the
+    /// camera rays test only the tile's [`camera_objects`], and with
+    /// several each pixel is traced alone. Every tile's hit points check
+    /// the thread's occluder lists once ([`Tracer::per_tile`]). False if
+    /// cancelled part-way.
     pub fn trace_rect<S: PathSink>(
         &self,
         rect: TileRect,
@@ -340,6 +341,11 @@ impl<'a> Tracer<'a> {
         out: &mut Vec<Vec3>,
     ) -> bool {
         out.clear();
+        if S::RECORD && self.shades_in_lanes() {
+            return self.per_tile(rect, scratch, |objects, scratch| {
+                tile_in_lanes(self, rect, objects, cancel, scratch, sink, out)
+            });
+        }
         if !self.traces_tiles() {
             for y in rect.y..rect.y + rect.h {
                 if cancel.is_cancelled() {
@@ -352,9 +358,6 @@ impl<'a> Tracer<'a> {
             return true;
         }
         self.per_tile(rect, scratch, |objects, scratch| {
-            if S::RECORD && self.shades_in_lanes() {
-                return tile_in_lanes(self, rect, objects, cancel, scratch, sink, out);
-            }
             self.each_camera_ray(rect, cancel, scratch, |x, y, ray, scratch| {
                 let mut colour = Sum(Vec3::ZERO);
                 self.trace_path(x, y, 0, ray, Some(objects), scratch, sink, &mut colour);

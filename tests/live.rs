@@ -224,6 +224,45 @@ fn anti_aliased_frames_recombine_and_reshade_exactly() {
 }
 
 #[test]
+fn frames_of_few_shadow_rays_reshade_and_relight_exactly() {
+    // Up to four light points a hit, a frame's shadow rays are traced
+    // sixteen hits at a time, after the hits are recorded: their
+    // visibility reaches the records later, and a new shininess re-shades
+    // from it.
+    for (sampling, rays, spp) in [
+        (Sampling::Grid, 1, 1),
+        (Sampling::Random, 3, 1),
+        (Sampling::Grid, 4, 1),
+        (Sampling::Stratified, 2, 2),
+    ] {
+        let what = format!("{} × {rays}, {spp} spp", sampling.name());
+        let mut live = LiveRender::default();
+        let mut d = room(48, 27);
+        d.render.sampling = sampling;
+        d.render.shadow_rays = rays;
+        d.render.samples_per_pixel = spp;
+        step(&mut live, &d, &what);
+        d.render.shininess_override = Some(3.0);
+        let r = step(&mut live, &d, &format!("{what}, shininess 3"));
+        assert_eq!(
+            (r.class, r.stats.traced()),
+            (EditClass::Reshade, 0),
+            "{what}"
+        );
+        d.light.corner[0] += 0.3;
+        let r = step(&mut live, &d, &format!("{what}, light moved"));
+        assert_eq!(r.class, EditClass::Relight, "{what}");
+        d.render.shininess_override = Some(40.0);
+        let r = step(&mut live, &d, &format!("{what}, shininess 40"));
+        assert_eq!(
+            (r.class, r.stats.traced()),
+            (EditClass::Reshade, 0),
+            "{what}"
+        );
+    }
+}
+
+#[test]
 fn shadow_packets_of_a_crowded_room_reshade_exactly() {
     // From 256 objects on, shadow rays walk the light-frame BVH as packets.
     let mut d = generate(300, 5, Layout::Volume);

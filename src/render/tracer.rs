@@ -89,6 +89,10 @@ pub trait PathSink {
     /// The factors of hit `index`, recorded before they were known (the
     /// hits a tile shades side by side, see [`Tracer::trace_rect`]).
     fn set_factors(&mut self, index: usize, factors: LightTerms);
+    /// The visibility of hit `index`'s light points (bit j: point j; at
+    /// most 64), recorded before its shadow rays were traced (the hits
+    /// whose rays a tile traces side by side, [`HitLanes`]), as 0.
+    fn set_visible(&mut self, index: usize, bits: u64);
     fn end(&mut self, end: PathEnd);
 }
 
@@ -101,6 +105,8 @@ impl PathSink for () {
     }
     #[inline(always)]
     fn set_factors(&mut self, _: usize, _: LightTerms) {}
+    #[inline(always)]
+    fn set_visible(&mut self, _: usize, _: u64) {}
     #[inline(always)]
     fn end(&mut self, _: PathEnd) {}
 }
@@ -140,6 +146,9 @@ pub struct TraceScratch {
     factors: Vec<LightTerms>,
     /// A recording sink's index of each waiting hit.
     factor_hits: Vec<u32>,
+    /// A recording sink's hits traced in [`HitLanes`], with their
+    /// visibility bits.
+    hit_visibility: Vec<(u32, u64)>,
     /// [`Tracer::tile`]'s hits waiting for their shadow rays, and their
     /// index in `factors` and lane data.
     shadow_lanes: HitLanes,
@@ -201,6 +210,7 @@ impl<'a> Tracer<'a> {
             shadow_lanes: HitLanes::default(),
             shadow_index: Vec::new(),
             shadow_inputs: LaneInputs::default(),
+            hit_visibility: Vec::new(),
             camera_objects: TileTargets::default(),
             camera_rays: Vec::new(),
         }
@@ -566,6 +576,7 @@ fn tile_in_lanes_generic<S: PathSink>(
         terms: std::mem::take(&mut scratch.terms),
         factors: std::mem::take(&mut scratch.factors),
         hits: std::mem::take(&mut scratch.factor_hits),
+        visible: std::mem::take(&mut scratch.hit_visibility),
         edges: (
             tracer.scene.light.shape.edge_u.as_vec3(),
             tracer.scene.light.shape.edge_v.as_vec3(),
@@ -574,6 +585,7 @@ fn tile_in_lanes_generic<S: PathSink>(
     colour.terms.clear();
     colour.factors.clear();
     colour.hits.clear();
+    colour.visible.clear();
     // The rows written out, not through `each_camera_ray`: a closure would
     // be compiled without this function's CPU features.
     let camera = &tracer.scene.camera;
@@ -619,9 +631,13 @@ fn tile_in_lanes_generic<S: PathSink>(
     if finished {
         colour.trace_waiting_shadows(tracer, scratch);
         colour.flush();
-        // Only a recording sink's waiting hits have entries in `hits`.
+        // Only a recording sink's waiting hits have entries in `hits` and
+        // `visible`.
         for (&hit, &factors) in colour.hits.iter().zip(&colour.factors) {
             sink.set_factors(hit as usize, factors);
+        }
+        for &(hit, bits) in &colour.visible {
+            sink.set_visible(hit as usize, bits);
         }
         out.clear();
         // Each path's terms in its order; with several samples a pixel,
@@ -661,6 +677,7 @@ fn tile_in_lanes_generic<S: PathSink>(
     scratch.terms = colour.terms;
     scratch.factors = colour.factors;
     scratch.factor_hits = colour.hits;
+    scratch.hit_visibility = colour.visible;
     finished
 }
 
@@ -787,6 +804,9 @@ struct Deferred {
     factors: Vec<LightTerms>,
     /// A recording sink's index of the hit each of `factors` belongs to.
     hits: Vec<u32>,
+    /// A recording sink's hits whose shadow rays [`HitLanes`] traced, and
+    /// the visibility bits it found.
+    visible: Vec<(u32, u64)>,
     /// The light's edges, as the light points' directions take them.
     edges: (Vec3, Vec3),
 }
@@ -867,6 +887,13 @@ impl Deferred {
         let lanes = &mut scratch.shadow_lanes;
         lanes.trace(tracer.scene, &mut scratch.stats);
         let (visible, a, b) = lanes.visible();
+        // A recording sink's hits (each waiting hit has its index in
+        // `hits`) learn their visibility.
+        if !self.hits.is_empty() {
+            for (&(factors, _), &bits) in scratch.shadow_index.iter().zip(&visible) {
+                self.visible.push((self.hits[factors], bits));
+            }
+        }
         self.lanes.push_lanes(
             &scratch.shadow_index,
             &scratch.shadow_inputs,
@@ -907,23 +934,35 @@ impl PathColour for Deferred {
         let needs = if S::RECORD { Needs::ALL } else { terms.needs };
         let count = tracer.pattern.count();
         let (pattern, buf, stats) = (&tracer.pattern, &mut scratch.shadow, &mut scratch.stats);
+        if S::RECORD {
+            // So that a point behind the light records as invisible (and
+            // one whose rays wait in lanes as 0 until they are traced).
+            buf.vis[..count].fill(0.0);
+        }
         // A call of its own, its `Shadows` known where it is inlined: one
         // chosen at run time cost the hit-by-hit path 3.6 % more
         // instructions with skipping off (its candidates copied through
         // memory).
-        if !S::RECORD && tracer.shadows_in_lanes {
+        if tracer.shadows_in_lanes {
             let later = Shadows::Later;
             match light_points_generic(scene, s, sp, needs, pattern, rng, buf, stats, later) {
-                Lit::Known(f) => self.add(terms.colours.colour(f), weight),
-                Lit::Points => self.wait_for_shadows(tracer, sp, needs, scratch, weight),
+                Lit::Known(f) => {
+                    if S::RECORD {
+                        sink.hit(tracer.hit_record(sp, t, f), buf, count);
+                    }
+                    self.add(terms.colours.colour(f), weight)
+                }
+                Lit::Points => {
+                    if S::RECORD {
+                        let open = tracer.hit_record(sp, t, LightTerms::default());
+                        self.hits.push(sink.hit(open, buf, count) as u32);
+                    }
+                    self.wait_for_shadows(tracer, sp, needs, scratch, weight)
+                }
             }
             return;
         }
         let buf = &mut scratch.shadow;
-        if S::RECORD {
-            // So that a point behind the light records as invisible.
-            buf.vis[..count].fill(0.0);
-        }
         let lit = light_points_generic(
             scene,
             s,

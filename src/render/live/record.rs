@@ -225,6 +225,16 @@ impl PathSink for TileRecorder<'_> {
         self.record.hits[index].factors = factors;
     }
 
+    #[inline(always)]
+    fn set_visible(&mut self, index: usize, bits: u64) {
+        let r = &mut *self.record;
+        if let Some(s) = &mut r.shapes {
+            // One word a hit (at most 64 light points).
+            debug_assert_eq!(s.visible.len(), r.hits.len());
+            s.visible[index] = bits;
+        }
+    }
+
     #[inline]
     fn end(&mut self, end: PathEnd) {
         let r = &mut *self.record;

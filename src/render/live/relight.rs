@@ -106,6 +106,11 @@ impl PathSink for Relighter<'_> {
         self.recorder.set_factors(index, factors);
     }
 
+    #[inline(always)]
+    fn set_visible(&mut self, index: usize, bits: u64) {
+        self.recorder.set_visible(index, bits);
+    }
+
     #[inline]
     fn end(&mut self, end: PathEnd) {
         self.recorder.end(end);

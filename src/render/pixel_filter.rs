@@ -54,6 +54,9 @@ pub struct PixelFilter {
     /// Offsets (in pixels, from the centre) at cumulative probability
     /// k / TABLE, k = 0..=TABLE.
     inverse_cdf: Vec<f32>,
+    /// Half the filter's width: no sample lies further from its pixel's
+    /// centre along either axis.
+    half: f32,
 }
 
 impl PixelFilter {
@@ -96,7 +99,17 @@ impl PixelFilter {
             };
             inverse_cdf.push((xs[j] + f * (xs[j + 1] - xs[j])) as f32);
         }
-        PixelFilter { inverse_cdf }
+        PixelFilter {
+            inverse_cdf,
+            half: half as f32,
+        }
+    }
+
+    /// A bound, in pixels, on how far a sample lies from its pixel's centre
+    /// along either axis: half the width, and room for the table's f32
+    /// rounding.
+    pub fn reach(&self) -> f64 {
+        self.half as f64 + 1e-3
     }
 
     /// Offset from the pixel centre, in pixels, of a uniform `u` ∈ [0, 1).

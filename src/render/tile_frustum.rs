@@ -151,20 +151,25 @@ impl TileTargets {
     }
 }
 
-/// Writes into `out` what a camera ray through a pixel centre of `rect`
-/// may meet.
-pub(crate) fn camera_objects(scene: &Scene, rect: TileRect, out: &mut TileTargets) {
+/// Writes into `out` what a camera ray through a point of a pixel of
+/// `rect` within `reach` pixels of its centre along either axis (0: the
+/// centres; a filter's reach for the samples it places) may meet.
+pub(crate) fn camera_objects(scene: &Scene, rect: TileRect, reach: f64, out: &mut TileTargets) {
     let out_objects = &mut out.objects;
     out_objects.clear();
     let camera = &scene.camera;
     let origin = camera.origin;
-    // (An empty rectangle, which no caller passes, counts as its corner.)
+    // The rays through the corners of the square `reach` around the
+    // corner pixels' centres (an empty rectangle, which no caller passes,
+    // counts as its corner): every ray of the tile is a positive
+    // combination of them.
+    let centre_of = |p: u32| p as f64 + 0.5;
+    let (x0, y0) = (centre_of(rect.x) - reach, centre_of(rect.y) - reach);
     let (x1, y1) = (
-        rect.x + rect.w.saturating_sub(1),
-        rect.y + rect.h.saturating_sub(1),
+        centre_of(rect.x + rect.w.saturating_sub(1)) + reach,
+        centre_of(rect.y + rect.h.saturating_sub(1)) + reach,
     );
-    let dirs = [(rect.x, rect.y), (x1, rect.y), (x1, y1), (rect.x, y1)]
-        .map(|(x, y)| camera.pixel_ray(x, y).dir);
+    let dirs = [(x0, y0), (x1, y0), (x1, y1), (x0, y1)].map(|(x, y)| camera.ray(x, y).dir);
     let centre = dirs.iter().sum::<DVec3>();
     // The cone's sides, normals pointing in (zero for a tile one pixel
     // wide or high: such a side culls nothing).
@@ -251,7 +256,7 @@ mod tests {
         let mut lit_tiles = 0;
         let (mut kept, mut all) = (0, 0);
         for rect in tiles_of(whole, 32) {
-            camera_objects(scene, rect, &mut listed);
+            camera_objects(scene, rect, 0.0, &mut listed);
             lit_tiles += listed.light as usize;
             kept += listed.objects.len();
             all += scene.unbounded.len() + scene.bounded.len();
@@ -292,7 +297,7 @@ mod tests {
             w: 32,
             h: 32,
         };
-        camera_objects(scene, top_right, &mut listed);
+        camera_objects(scene, top_right, 0.0, &mut listed);
         assert!(!listed.objects.contains(&0), "the floor: {listed:?}");
         assert!(
             !listed.objects.contains(&2),
@@ -309,7 +314,8 @@ mod tests {
     /// A tile's camera rays find, bit for bit, the hit of
     /// [`Scene::camera_hit`] (with and without cut-away): the seed room, a
     /// camera outside it (cut-away passes walls), and a room of 40
-    /// spheres (found through the BVH).
+    /// spheres (found through the BVH); rays through pixel centres, and
+    /// with a reach, rays as far from them as it lets samples lie.
     #[test]
     fn a_tile_s_camera_rays_meet_what_each_ray_meets() {
         let mut outside = Loaded::seed_room();
@@ -325,14 +331,26 @@ mod tests {
             let scene = &loaded.scene;
             let whole = TileRect::whole(&scene.camera);
             let mut hits = 0;
-            for rect in tiles_of(whole, 32) {
-                camera_objects(scene, rect, &mut listed);
+            for (rect, reach) in tiles_of(whole, 32)
+                .into_iter()
+                .zip([0.0, 0.75, 2.5].repeat(1000))
+            {
+                camera_objects(scene, rect, reach, &mut listed);
                 for y in (rect.y..rect.y + rect.h).step_by(5) {
                     for x in (rect.x..rect.x + rect.w).step_by(5) {
-                        let ray = scene.camera.pixel_ray(x, y);
-                        for cutaway in [false, true] {
-                            let want = scene.camera_hit(&ray, cutaway);
-                            let got = listed.nearest(scene, &ray, cutaway);
+                        // The centre, and with a reach the corners of its
+                        // square (a filter's samples lie within).
+                        let (cx, cy) = (x as f64 + 0.5, y as f64 + 0.5);
+                        let rays = [
+                            (0.0, 0.0),
+                            (-reach, -reach),
+                            (reach, reach),
+                            (-reach, reach),
+                        ]
+                        .map(|(dx, dy)| scene.camera.ray(cx + dx, cy + dy));
+                        for (ray, cutaway) in rays.iter().flat_map(|r| [(r, false), (r, true)]) {
+                            let want = scene.camera_hit(ray, cutaway);
+                            let got = listed.nearest(scene, ray, cutaway);
                             let bits =
                                 |h: Option<(HitTarget, f64)>| h.map(|(o, t)| (o, t.to_bits()));
                             assert_eq!(

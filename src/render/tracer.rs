@@ -296,9 +296,9 @@ impl<'a> Tracer<'a> {
     /// factors in [`SampledLanes`] and are shaded
     /// [`LANES`](super::sampled_lanes::LANES) at a time, the colours then
     /// summed path by path in their order. With several camera samples per
-    /// pixel their rays search the whole scene, as [`Tracer::trace`]'s do,
-    /// and each pixel's paths are summed and averaged as there. False if
-    /// cancelled part-way.
+    /// pixel the tile's objects are those the filter's reach around its
+    /// pixels may meet, and each pixel's paths are summed and averaged as
+    /// [`Tracer::trace`] sums them. False if cancelled part-way.
     pub fn tile(
         &self,
         rect: TileRect,
@@ -325,7 +325,8 @@ impl<'a> Tracer<'a> {
         work: impl FnOnce(&TileTargets, &mut TraceScratch) -> R,
     ) -> R {
         let mut objects = std::mem::take(&mut scratch.camera_objects);
-        camera_objects(self.scene, rect, &mut objects);
+        let reach = self.filter.as_ref().map_or(0.0, PixelFilter::reach);
+        camera_objects(self.scene, rect, reach, &mut objects);
         scratch.shadow.start_tile(self.scene);
         let result = work(&objects, scratch);
         scratch.shadow.end_tile();
@@ -619,11 +620,11 @@ fn tile_in_lanes_generic<S: PathSink>(
             }
             continue;
         }
-        // Jittered rays may leave the cone of the tile's centre rays: they
-        // search the whole scene.
+        // The tile's objects are those of the filter's reach around its
+        // pixels.
         for (k, &ray) in (0..).zip(&rays) {
             let (x, sample) = (rect.x + k / spp, k % spp);
-            tracer.trace_path(x, y, sample, ray, None, scratch, sink, &mut colour);
+            tracer.trace_path(x, y, sample, ray, Some(objects), scratch, sink, &mut colour);
             colour.end_path();
         }
     }

@@ -630,7 +630,7 @@ fn tile_in_lanes_generic<S: PathSink>(
     }
     scratch.camera_rays = rays;
     if finished {
-        colour.trace_waiting_shadows(tracer, scratch);
+        colour.trace_waiting_shadows::<S>(tracer, scratch);
         colour.flush();
         // Only a recording sink's waiting hits have entries in `hits` and
         // `visible`.
@@ -851,7 +851,7 @@ impl Deferred {
     /// shadow rays left to [`HitLanes`] ([`Tracer::shadows_in_lanes`]): its
     /// colour waits for its factors, which wait for its rays.
     #[inline(always)]
-    fn wait_for_shadows(
+    fn wait_for_shadows<S: PathSink>(
         &mut self,
         tracer: &Tracer,
         sp: &ShadingPoint,
@@ -872,7 +872,7 @@ impl Deferred {
             .shadow_lanes
             .push(&sp.shadow, &buf.a[..count], &buf.b[..count])
         {
-            self.trace_waiting_shadows(tracer, scratch);
+            self.trace_waiting_shadows::<S>(tracer, scratch);
         }
     }
 
@@ -881,7 +881,7 @@ impl Deferred {
     /// those of hits traced one by one (a hit with no point in view gets
     /// the +0 factors of the `sampled` sums of no visible point).
     #[inline(always)]
-    fn trace_waiting_shadows(&mut self, tracer: &Tracer, scratch: &mut TraceScratch) {
+    fn trace_waiting_shadows<S: PathSink>(&mut self, tracer: &Tracer, scratch: &mut TraceScratch) {
         if scratch.shadow_lanes.len() == 0 {
             return;
         }
@@ -890,7 +890,7 @@ impl Deferred {
         let (visible, a, b) = lanes.visible();
         // A recording sink's hits (each waiting hit has its index in
         // `hits`) learn their visibility.
-        if !self.hits.is_empty() {
+        if S::RECORD {
             for (&(factors, _), &bits) in scratch.shadow_index.iter().zip(&visible) {
                 self.visible.push((self.hits[factors], bits));
             }
@@ -935,35 +935,42 @@ impl PathColour for Deferred {
         let needs = if S::RECORD { Needs::ALL } else { terms.needs };
         let count = tracer.pattern.count();
         let (pattern, buf, stats) = (&tracer.pattern, &mut scratch.shadow, &mut scratch.stats);
-        if S::RECORD {
-            // So that a point behind the light records as invisible (and
-            // one whose rays wait in lanes as 0 until they are traced).
-            buf.vis[..count].fill(0.0);
-        }
         // A call of its own, its `Shadows` known where it is inlined: one
         // chosen at run time cost the hit-by-hit path 3.6 % more
         // instructions with skipping off (its candidates copied through
         // memory).
-        if tracer.shadows_in_lanes {
+        if !S::RECORD && tracer.shadows_in_lanes {
+            let later = Shadows::Later;
+            match light_points_generic(scene, s, sp, needs, pattern, rng, buf, stats, later) {
+                Lit::Known(f) => self.add(terms.colours.colour(f), weight),
+                Lit::Points => self.wait_for_shadows::<S>(tracer, sp, needs, scratch, weight),
+            }
+            return;
+        }
+        // A recording sink's hit is recorded at once, its visibility (0
+        // until then) and factors once its rays are traced.
+        if S::RECORD && tracer.shadows_in_lanes {
+            // So that a point behind the light records as invisible.
+            buf.vis[..count].fill(0.0);
             let later = Shadows::Later;
             match light_points_generic(scene, s, sp, needs, pattern, rng, buf, stats, later) {
                 Lit::Known(f) => {
-                    if S::RECORD {
-                        sink.hit(tracer.hit_record(sp, t, f), buf, count);
-                    }
+                    sink.hit(tracer.hit_record(sp, t, f), buf, count);
                     self.add(terms.colours.colour(f), weight)
                 }
                 Lit::Points => {
-                    if S::RECORD {
-                        let open = tracer.hit_record(sp, t, LightTerms::default());
-                        self.hits.push(sink.hit(open, buf, count) as u32);
-                    }
-                    self.wait_for_shadows(tracer, sp, needs, scratch, weight)
+                    let open = tracer.hit_record(sp, t, LightTerms::default());
+                    self.hits.push(sink.hit(open, buf, count) as u32);
+                    self.wait_for_shadows::<S>(tracer, sp, needs, scratch, weight)
                 }
             }
             return;
         }
         let buf = &mut scratch.shadow;
+        if S::RECORD {
+            // So that a point behind the light records as invisible.
+            buf.vis[..count].fill(0.0);
+        }
         let lit = light_points_generic(
             scene,
             s,

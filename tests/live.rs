@@ -242,23 +242,21 @@ fn frames_of_few_shadow_rays_reshade_and_relight_exactly() {
         d.render.shadow_rays = rays;
         d.render.samples_per_pixel = spp;
         step(&mut live, &d, &what);
-        d.render.shininess_override = Some(3.0);
-        let r = step(&mut live, &d, &format!("{what}, shininess 3"));
-        assert_eq!(
-            (r.class, r.stats.traced()),
-            (EditClass::Reshade, 0),
-            "{what}"
-        );
+        // A new shininess, re-shaded from the recorded visibility alone.
+        let reshade = |d: &mut SceneDesc, shininess: f64, live: &mut LiveRender| {
+            d.render.shininess_override = Some(shininess);
+            let r = step(live, d, &format!("{what}, shininess {shininess}"));
+            assert_eq!(
+                (r.class, r.stats.traced()),
+                (EditClass::Reshade, 0),
+                "{what}"
+            );
+        };
+        reshade(&mut d, 3.0, &mut live);
         d.light.corner[0] += 0.3;
         let r = step(&mut live, &d, &format!("{what}, light moved"));
         assert_eq!(r.class, EditClass::Relight, "{what}");
-        d.render.shininess_override = Some(40.0);
-        let r = step(&mut live, &d, &format!("{what}, shininess 40"));
-        assert_eq!(
-            (r.class, r.stats.traced()),
-            (EditClass::Reshade, 0),
-            "{what}"
-        );
+        reshade(&mut d, 40.0, &mut live);
     }
 }
 

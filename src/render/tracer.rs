@@ -233,17 +233,39 @@ impl<'a> Tracer<'a> {
         scratch: &mut TraceScratch,
         sink: &mut S,
     ) -> Vec3 {
+        self.trace_among(x, y, None, scratch, sink)
+    }
+
+    /// [`Tracer::trace`], the camera rays testing `camera_objects` (what
+    /// they may meet, if known: the same hits).
+    fn trace_among<S: PathSink>(
+        &self,
+        x: u32,
+        y: u32,
+        camera_objects: Option<&TileTargets>,
+        scratch: &mut TraceScratch,
+        sink: &mut S,
+    ) -> Vec3 {
         let camera = &self.scene.camera;
         let Some(filter) = &self.filter else {
             let mut colour = Sum(Vec3::ZERO);
             let ray = camera.pixel_ray(x, y);
-            self.trace_path(x, y, 0, ray, None, scratch, sink, &mut colour);
+            self.trace_path(x, y, 0, ray, camera_objects, scratch, sink, &mut colour);
             return colour.0;
         };
         let mut sum = Vec3::ZERO;
         for (sample, ray) in (0..).zip(self.sample_rays(filter, x, y)) {
             let mut colour = Sum(Vec3::ZERO);
-            self.trace_path(x, y, sample, ray, None, scratch, sink, &mut colour);
+            self.trace_path(
+                x,
+                y,
+                sample,
+                ray,
+                camera_objects,
+                scratch,
+                sink,
+                &mut colour,
+            );
             sum += colour.0;
         }
         sum * (1.0 / self.settings.samples_per_pixel as f32)
@@ -273,10 +295,8 @@ impl<'a> Tracer<'a> {
         }
     }
 
-    /// Whether [`Tracer::trace_rect`] traces the pixels of any sink as
-    /// tiles (their camera rays tested against the tile's objects): one
-    /// camera sample per pixel. [`Tracer::tile`], and `trace_rect` of a
-    /// recording sink under the `sampled` model, take any number.
+    /// Whether a tile's camera rays are one a pixel, through its centre
+    /// (computed a row at once); otherwise the filter places several.
     pub fn traces_tiles(&self) -> bool {
         self.filter.is_none()
     }
@@ -336,13 +356,11 @@ impl<'a> Tracer<'a> {
 
     /// The pixels of `rect` (rows packed) into `out`, each path given to
     /// `sink`, as [`Tracer::trace`] gives them (the same bits): a
-    /// recording sink's paths under the `sampled` model, with any number
-    /// of camera samples, as [`Tracer::tile`] traces them
-    /// ([`tile_in_lanes`]); otherwise with one camera sample per pixel the
-    /// camera rays test only the tile's [`camera_objects`], and with
-    /// several each pixel is traced alone. Every tile's hit points check
-    /// the thread's occluder lists once ([`Tracer::per_tile`]). False if
-    /// cancelled part-way.
+    /// recording sink's paths under the `sampled` model as [`Tracer::tile`]
+    /// traces them ([`tile_in_lanes`]), others path by path. The camera
+    /// rays test only the tile's [`camera_objects`], and every tile's hit
+    /// points check the thread's occluder lists once
+    /// ([`Tracer::per_tile`]). False if cancelled part-way.
     pub fn trace_rect<S: PathSink>(
         &self,
         rect: TileRect,
@@ -357,18 +375,18 @@ impl<'a> Tracer<'a> {
                 tile_in_lanes(self, rect, objects, cancel, scratch, sink, out)
             });
         }
-        if !self.traces_tiles() {
-            for y in rect.y..rect.y + rect.h {
-                if cancel.is_cancelled() {
-                    return false;
-                }
-                for x in rect.x..rect.x + rect.w {
-                    out.push(self.trace(x, y, scratch, sink));
-                }
-            }
-            return true;
-        }
         self.per_tile(rect, scratch, |objects, scratch| {
+            if !self.traces_tiles() {
+                for y in rect.y..rect.y + rect.h {
+                    if cancel.is_cancelled() {
+                        return false;
+                    }
+                    for x in rect.x..rect.x + rect.w {
+                        out.push(self.trace_among(x, y, Some(objects), scratch, sink));
+                    }
+                }
+                return true;
+            }
             self.each_camera_ray(rect, cancel, scratch, |x, y, ray, scratch| {
                 let mut colour = Sum(Vec3::ZERO);
                 self.trace_path(x, y, 0, ray, Some(objects), scratch, sink, &mut colour);
@@ -939,28 +957,26 @@ impl PathColour for Deferred {
         // chosen at run time cost the hit-by-hit path 3.6 % more
         // instructions with skipping off (its candidates copied through
         // memory).
-        if !S::RECORD && tracer.shadows_in_lanes {
-            let later = Shadows::Later;
-            match light_points_generic(scene, s, sp, needs, pattern, rng, buf, stats, later) {
-                Lit::Known(f) => self.add(terms.colours.colour(f), weight),
-                Lit::Points => self.wait_for_shadows::<S>(tracer, sp, needs, scratch, weight),
-            }
-            return;
-        }
         // A recording sink's hit is recorded at once, its visibility (0
         // until then) and factors once its rays are traced.
-        if S::RECORD && tracer.shadows_in_lanes {
-            // So that a point behind the light records as invisible.
-            buf.vis[..count].fill(0.0);
+        if tracer.shadows_in_lanes {
+            if S::RECORD {
+                // So that a point behind the light records as invisible.
+                buf.vis[..count].fill(0.0);
+            }
             let later = Shadows::Later;
             match light_points_generic(scene, s, sp, needs, pattern, rng, buf, stats, later) {
                 Lit::Known(f) => {
-                    sink.hit(tracer.hit_record(sp, t, f), buf, count);
+                    if S::RECORD {
+                        sink.hit(tracer.hit_record(sp, t, f), buf, count);
+                    }
                     self.add(terms.colours.colour(f), weight)
                 }
                 Lit::Points => {
-                    let open = tracer.hit_record(sp, t, LightTerms::default());
-                    self.hits.push(sink.hit(open, buf, count) as u32);
+                    if S::RECORD {
+                        let open = tracer.hit_record(sp, t, LightTerms::default());
+                        self.hits.push(sink.hit(open, buf, count) as u32);
+                    }
                     self.wait_for_shadows::<S>(tracer, sp, needs, scratch, weight)
                 }
             }

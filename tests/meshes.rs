@@ -769,3 +769,356 @@ fn a_ray_grazing_a_box_edge_is_decided_as_by_its_triangles() {
         }
     }
 }
+
+// ------------------------------------------- malformed and unusual mesh files
+
+/// Base64 of `bytes` (for `data:` URIs).
+fn base64(bytes: &[u8]) -> String {
+    const A: &[u8] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    let mut out = String::new();
+    for c in bytes.chunks(3) {
+        let n = c
+            .iter()
+            .enumerate()
+            .fold(0u32, |n, (k, &b)| n | (b as u32) << (16 - 8 * k));
+        for k in 0..=c.len() {
+            out.push(A[(n >> (18 - 6 * k) & 63) as usize] as char);
+        }
+        out.push_str(&"=".repeat(3 - c.len()));
+    }
+    out
+}
+
+/// The bytes of base64 text (the inverse of [`base64`]).
+fn unbase64(text: &str) -> Vec<u8> {
+    const A: &str = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    let mut out = Vec::new();
+    let (mut acc, mut bits) = (0u32, 0);
+    for c in text.chars().filter(|&c| c != '=') {
+        acc = acc << 6 | A.find(c).unwrap() as u32;
+        bits += 6;
+        if bits >= 8 {
+            bits -= 8;
+            out.push((acc >> bits) as u8);
+            acc &= (1 << bits) - 1;
+        }
+    }
+    out
+}
+
+/// A glTF of the unit square in z = 0 (corners (0,0), (1,0), (1,1),
+/// (0,1)), its one buffer embedded as base64: positions (accessor 0,
+/// view 0) and u16 indices (accessor 1, view 1) drawn with `mode`;
+/// `edit` changes the JSON before it is written.
+fn square_gltf(mode: u32, indices: &[u16], edit: impl FnOnce(&mut serde_json::Value)) -> Vec<u8> {
+    let mut bin = Vec::new();
+    for p in [
+        [0.0f32, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [1.0, 1.0, 0.0],
+        [0.0, 1.0, 0.0],
+    ] {
+        for x in p {
+            bin.extend(x.to_le_bytes());
+        }
+    }
+    for i in indices {
+        bin.extend(i.to_le_bytes());
+    }
+    let mut j = serde_json::json!({
+        "asset": {"version": "2.0"},
+        "scene": 0,
+        "scenes": [{"nodes": [0]}],
+        "nodes": [{"mesh": 0}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1, "mode": mode}]}],
+        "buffers": [{"byteLength": bin.len(),
+                     "uri": format!("data:application/octet-stream;base64,{}", base64(&bin))}],
+        "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 48},
+                        {"buffer": 0, "byteOffset": 48, "byteLength": 2 * indices.len()}],
+        "accessors": [{"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3",
+                       "min": [0, 0, 0], "max": [1, 1, 0]},
+                      {"bufferView": 1, "componentType": 5123, "count": indices.len(), "type": "SCALAR"}]
+    });
+    edit(&mut j);
+    j.to_string().into_bytes()
+}
+
+/// Each face's area and the z of its normal (the square's two halves:
+/// 0.5 and +1 each).
+fn faces_of(raw: &penumbra::render::mesh::RawMesh) -> Vec<(f64, f64)> {
+    raw.faces
+        .iter()
+        .map(|f| {
+            let [a, b, c] = f.map(|i| raw.positions[i as usize]);
+            let n = (b - a).cross(c - a);
+            (0.5 * n.length(), n.z.signum())
+        })
+        .collect()
+}
+
+/// glTF's three triangle modes (lists, strips and fans) give the same
+/// square, both halves facing one way; the buffer is a base64 `data:` URI.
+#[test]
+fn gltf_triangle_lists_strips_and_fans_give_the_same_square() {
+    use penumbra::render::mesh::read_gltf;
+    for (mode, indices) in [
+        (4, &[0u16, 1, 2, 0, 2, 3][..]),
+        (5, &[0, 1, 3, 2]),
+        (6, &[0, 1, 2, 3]),
+    ] {
+        let raw = read_gltf(&square_gltf(mode, indices, |_| {}), None).unwrap();
+        assert_eq!(faces_of(&raw), [(0.5, 1.0), (0.5, 1.0)], "mode {mode}");
+    }
+    // Points and lines have no area: left out.
+    let raw = read_gltf(&square_gltf(1, &[0, 1, 2, 3], |_| {}), None).unwrap();
+    assert!(raw.faces.is_empty());
+}
+
+/// A malformed accessor is one error naming the primitive, the accessor
+/// and what is wrong (the glTF crate's reader panicked on some and quietly
+/// dropped the indices of others, drawing a different mesh).
+#[test]
+fn malformed_gltf_accessors_are_one_error_naming_the_accessor() {
+    use penumbra::render::mesh::read_gltf;
+    type Edit = fn(&mut serde_json::Value);
+    let cases: [(&str, Edit, &str); 8] = [
+        (
+            "float indices",
+            |j| j["accessors"][1]["componentType"] = 5126.into(),
+            "indices (accessor 1): component type FLOAT, expected UNSIGNED_BYTE, UNSIGNED_SHORT, UNSIGNED_INT",
+        ),
+        (
+            "signed indices",
+            |j| j["accessors"][1]["componentType"] = 5122.into(),
+            "component type SHORT",
+        ),
+        (
+            "VEC3 indices",
+            |j| j["accessors"][1]["type"] = "VEC3".into(),
+            "indices (accessor 1): type VEC3, expected SCALAR",
+        ),
+        (
+            "too many indices",
+            |j| j["accessors"][1]["count"] = 100.into(),
+            "indices (accessor 1): 100 elements of 2 bytes from byte 0 every 2 bytes reach beyond bufferView 1 (12 bytes)",
+        ),
+        (
+            "view past the buffer",
+            |j| j["bufferViews"][1]["byteOffset"] = 10000.into(),
+            "bufferView 1 (12 bytes from byte 10000) reaches beyond buffer 0 (60 bytes)",
+        ),
+        (
+            "stride below an element",
+            |j| j["bufferViews"][0]["byteStride"] = 8.into(),
+            "POSITION (accessor 0): bufferView 0: byteStride 8 is smaller than an element (12 bytes)",
+        ),
+        (
+            "too many positions",
+            |j| j["accessors"][0]["count"] = 100.into(),
+            "POSITION (accessor 0): 100 elements",
+        ),
+        (
+            "VEC2 positions",
+            |j| j["accessors"][0]["type"] = "VEC2".into(),
+            "POSITION (accessor 0): type VEC2, expected VEC3",
+        ),
+    ];
+    for (name, edit, want) in cases {
+        let e = read_gltf(&square_gltf(4, &[0, 1, 2, 0, 2, 3], edit), None).unwrap_err();
+        assert!(e.starts_with("mesh 0 primitive 0: "), "{name}: {e}");
+        assert!(e.contains(want), "{name}: {want:?} in {e}");
+    }
+    // Through the CLI: exit 2, one line, no panic printed.
+    let (code, err, written) = cli_with_mesh(
+        "gltf-float-indices",
+        "f.gltf",
+        &square_gltf(4, &[0, 1, 2, 0, 2, 3], |j| {
+            j["accessors"][1]["componentType"] = 5126.into()
+        }),
+    );
+    assert_eq!(code, 2, "{err}");
+    assert!(!written);
+    assert!(!err.contains("panicked"), "{err}");
+    assert_eq!(err.trim().lines().count(), 1, "{err}");
+}
+
+/// Sparse accessors: substitutions read from their views, and views too
+/// short for them refused by name.
+#[test]
+fn gltf_sparse_accessors_substitute_and_are_checked() {
+    use penumbra::render::mesh::read_gltf;
+    // The index list 0 1 2 0 2 3 with its second triangle's last index
+    // (index 5) replaced by 1: (0 2 1), the first half run backwards.
+    let sparse = |short: bool| {
+        move |j: &mut serde_json::Value| {
+            let uri = j["buffers"][0]["uri"].as_str().unwrap().to_string();
+            let (head, data) = uri.split_once(',').unwrap();
+            let mut bin = unbase64(data);
+            let at = bin.len();
+            bin.extend(5u16.to_le_bytes());
+            bin.extend(1u16.to_le_bytes());
+            j["buffers"][0]["uri"] = format!("{head},{}", base64(&bin)).into();
+            j["buffers"][0]["byteLength"] = bin.len().into();
+            j["bufferViews"]
+                .as_array_mut()
+                .unwrap()
+                .push(serde_json::json!(
+                {"buffer": 0, "byteOffset": at, "byteLength": 2}));
+            j["bufferViews"]
+                .as_array_mut()
+                .unwrap()
+                .push(serde_json::json!(
+                {"buffer": 0, "byteOffset": at + 2, "byteLength": if short { 1 } else { 2 }}));
+            j["accessors"][1]["sparse"] = serde_json::json!({
+                "count": 1,
+                "indices": {"bufferView": 2, "componentType": 5123},
+                "values": {"bufferView": 3}
+            });
+        }
+    };
+    let raw = read_gltf(&square_gltf(4, &[0, 1, 2, 0, 2, 3], sparse(false)), None).unwrap();
+    assert_eq!(raw.faces, [[0, 1, 2], [0, 2, 1]]);
+    let e = read_gltf(&square_gltf(4, &[0, 1, 2, 0, 2, 3], sparse(true)), None).unwrap_err();
+    assert!(
+        e.contains("indices (accessor 1): sparse values: 2 bytes from byte 0 reach beyond bufferView 3 (1 bytes)"),
+        "{e}"
+    );
+}
+
+/// An external buffer's URI is percent-decoded (exporters write a space
+/// as %20).
+#[test]
+fn gltf_buffer_uris_are_percent_decoded() {
+    use penumbra::render::mesh::read_gltf;
+    let dir = scratch("gltf-uri");
+    let doc = square_gltf(4, &[0, 1, 2, 0, 2, 3], |_| {});
+    let mut j: serde_json::Value = serde_json::from_slice(&doc).unwrap();
+    let uri = j["buffers"][0]["uri"].as_str().unwrap().to_string();
+    let embedded = read_gltf(&doc, None).unwrap();
+    // The same bytes in a file whose name has a space.
+    let bin = unbase64(uri.split_once(',').unwrap().1);
+    std::fs::write(dir.join("my buf.bin"), &bin).unwrap();
+    j["buffers"][0]["uri"] = "my%20buf.bin".into();
+    let raw = read_gltf(j.to_string().as_bytes(), Some(&dir)).unwrap();
+    assert_eq!(raw.faces, embedded.faces);
+    assert_eq!(raw.positions, embedded.positions);
+}
+
+/// OBJ text as the tools that write it mean it: a byte-order mark, classic
+/// Mac line ends and comments after a statement read as the plain file.
+#[test]
+fn obj_byte_order_marks_cr_line_ends_and_trailing_comments_read_as_meant() {
+    use penumbra::render::mesh::read_obj;
+    let plain = "v -1 -1 0\nv 1 -1 0\nv 0 1 0\nv 3 3 0\nf 1 2 3\n";
+    let want = read_obj(plain.as_bytes()).unwrap();
+    assert_eq!(want.faces, [[0, 1, 2]]);
+    let variants = [
+        format!("\u{feff}{plain}"),
+        plain.replace('\n', "\r"),
+        plain
+            .replace("v 0 1 0", "v 0 1 0 # apex")
+            .replace("f 1 2 3", "f 1 2 3 # the face"),
+        // Through the `tobj` path (a vertex colour), with both quirks.
+        format!(
+            "\u{feff}{}",
+            plain.replace("v 3 3 0", "v 3 3 0 1 0 0 # red")
+        ),
+    ];
+    for text in variants {
+        let got = read_obj(text.as_bytes()).unwrap_or_else(|e| panic!("{text:?}: {e}"));
+        assert_eq!(got.faces, want.faces, "{text:?}");
+        assert_eq!(&got.positions[..3], &want.positions[..3], "{text:?}");
+    }
+}
+
+/// What either OBJ reader would refuse or silently drop is one error
+/// naming the line.
+#[test]
+fn obj_faces_of_fewer_than_three_corners_and_bad_lines_name_the_line() {
+    use penumbra::render::mesh::read_obj;
+    let v = "v -1 -1 0\nv 1 -1 0\nv 0 1 0\n";
+    let cases = [
+        (
+            format!("{v}f 1 2\n"),
+            "line 4: malformed face \"f 1 2\", expected at least three vertices",
+        ),
+        (
+            format!("{v}f 1\nf 1 2 3\n"),
+            "line 4: malformed face \"f 1\"",
+        ),
+        (
+            format!("{v}vt 0 0\nf 1/1 2/1\n"),
+            "line 5: malformed face \"f 1/1 2/1\", expected at least three",
+        ),
+        (
+            format!("{v}vt 0 0\nf 1/1 2/1 3/5\n"),
+            "line 5: face \"f 1/1 2/1 3/5\": texture index 5 is out of range",
+        ),
+        (
+            format!("{v}f 1/1/1/1 2 3\n"),
+            "line 4: malformed face \"f 1/1/1/1 2 3\": corner \"1/1/1/1\"",
+        ),
+        (
+            "v -1 -1 0 foo\n".to_string(),
+            "line 1: malformed v line \"v -1 -1 0 foo\"",
+        ),
+        (
+            "v -1 -1 0 1 2 3 4\n".to_string(),
+            "line 1: malformed v line",
+        ),
+        (
+            "v -1 -1 0 nan\n".to_string(),
+            "line 1: vertex 1 is not finite",
+        ),
+    ];
+    for (text, want) in &cases {
+        let e = read_obj(text.as_bytes()).unwrap_err();
+        assert!(e.contains(want), "{text:?}: {want:?} in {e}");
+    }
+    // A line that is not UTF-8 where `tobj` would read it (the fast
+    // reader leaves files with a backslash, a line continuation, to it;
+    // it reads bytes and passes over a name that is not UTF-8).
+    let mut bytes = b"# C:\\models\nv -1 -1 0\nv 1 -1 0\nv 0 1 0\n".to_vec();
+    bytes.extend(b"g caf\xff\nf 1 2 3\n");
+    assert_eq!(read_obj(&bytes).unwrap_err(), "line 5 is not UTF-8 text");
+    let fast = read_obj(&bytes[bytes.iter().position(|&b| b == b'\n').unwrap() + 1..]).unwrap();
+    assert_eq!(fast.faces, [[0, 1, 2]]);
+}
+
+/// PLY elements may come in any order: faces before the vertices read
+/// as the usual order.
+#[test]
+fn ply_faces_before_vertices_read_as_the_usual_order() {
+    use penumbra::render::mesh::read_ply;
+    let head = "ply\nformat ascii 1.0\n";
+    let vertex = "element vertex 3\nproperty float x\nproperty float y\nproperty float z\n";
+    let face = "element face 1\nproperty list uchar int vertex_indices\n";
+    let (vs, fs) = ("0 0 0\n1 0 0\n0 1 0\n", "3 0 1 2\n");
+    let usual = read_ply(format!("{head}{vertex}{face}end_header\n{vs}{fs}").as_bytes()).unwrap();
+    let swapped = read_ply(format!("{head}{face}{vertex}end_header\n{fs}{vs}").as_bytes()).unwrap();
+    assert_eq!(swapped.faces, usual.faces);
+    assert_eq!(swapped.positions, usual.positions);
+    let out = read_ply(format!("{head}{face}{vertex}end_header\n3 0 1 3\n{vs}").as_bytes());
+    assert!(
+        out.unwrap_err()
+            .contains("face 0: vertex index 3 is out of range, the file has 3 vertices")
+    );
+}
+
+/// A vertex so far out that the triangle's area overflows is out of range
+/// (as 1e12 is), not a degenerate triangle skipped.
+#[test]
+fn vertices_far_beyond_the_range_are_refused_not_skipped() {
+    for (name, x) in [("e12", "1e12"), ("e200", "1e200"), ("e300", "-1e300")] {
+        let obj = format!("v {x} 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+        let (code, err, written) = cli_with_mesh(&format!("huge-{name}"), "h.obj", obj.as_bytes());
+        assert_eq!(code, 2, "{x}: {err}");
+        assert!(!written);
+        assert!(
+            err.contains("triangle 0 has the vertex [")
+                && err.contains("expected coordinates within ±1e9"),
+            "{x}: {err}"
+        );
+        assert!(err.len() < 400, "{x}: short: {err}");
+    }
+}

@@ -868,3 +868,115 @@ fn the_nearest_point_model_is_continuous_as_the_camera_reaches_the_lights_plane(
         );
     }
 }
+
+// ------------------------------------------------- attacks of a later round
+
+/// An output (or `--stats` file) that is a FIFO no one reads: the write
+/// waits for a reader, as a blocking open would, but SIGTERM ends it (a
+/// blocking open slept through the signal, whose handler only raises a
+/// flag).
+#[test]
+fn sigterm_ends_a_write_to_a_fifo_that_no_one_reads() {
+    for stats in [false, true] {
+        let dir = scratch();
+        let fifo = dir
+            .path()
+            .join(if stats { "stats.json" } else { "out.png" });
+        mkfifo(&fifo);
+        let mut cmd = bin();
+        cmd.args(["render", "--width", "16", "--height", "9", "-o"]);
+        if stats {
+            cmd.arg(dir.path().join("x.exr")).arg("--stats").arg(&fifo);
+        } else {
+            cmd.arg(&fifo);
+        }
+        let mut child = cmd.stderr(Stdio::piped()).spawn().unwrap();
+        // Time to render and reach the open.
+        std::thread::sleep(Duration::from_millis(1500));
+        assert!(child.try_wait().unwrap().is_none(), "stats {stats}: waits");
+        let sent = Command::new("kill")
+            .args(["-TERM", &child.id().to_string()])
+            .status()
+            .unwrap();
+        assert!(sent.success());
+        let start = Instant::now();
+        while child.try_wait().unwrap().is_none() {
+            assert!(
+                start.elapsed() < Duration::from_secs(10),
+                "stats {stats}: still waiting after SIGTERM"
+            );
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        let o = child.wait_with_output().unwrap();
+        assert_eq!(o.status.code(), Some(1), "stats {stats}: {}", stderr(&o));
+        assert!(stderr(&o).contains("interrupted"), "{}", stderr(&o));
+    }
+}
+
+/// A FIFO that is read gets the image, as before.
+#[test]
+fn a_fifo_with_a_reader_gets_the_image() {
+    let dir = scratch();
+    let fifo = dir.path().join("out.png");
+    mkfifo(&fifo);
+    let reader = {
+        let fifo = fifo.clone();
+        std::thread::spawn(move || std::fs::read(&fifo).unwrap())
+    };
+    let o = penumbra(&[
+        "render",
+        "--width",
+        "16",
+        "--height",
+        "9",
+        "-o",
+        fifo.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let bytes = reader.join().unwrap();
+    assert!(bytes.starts_with(b"\x89PNG"), "{} bytes", bytes.len());
+}
+
+/// An image too large for the memory the process may have is refused
+/// before rendering (exit 2), where the film's allocation failing would
+/// abort; the limit is the address space `ulimit -v` sets.
+#[test]
+fn an_image_too_large_for_the_memory_limit_is_refused_with_exit_2() {
+    let dir = scratch();
+    let out = dir.path().join("big.exr");
+    std::fs::write(&out, b"precious").unwrap();
+    let script = format!(
+        "ulimit -v 2000000 && exec {} render --width 16384 --height 16384 -o {}",
+        env!("CARGO_BIN_EXE_penumbra"),
+        out.display()
+    );
+    let o = Command::new("sh").args(["-c", &script]).output().unwrap();
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("16384×16384 needs about 6.5 GB of memory"),
+        "{err}"
+    );
+    assert_eq!(err.trim().lines().count(), 1, "{err}");
+    assert_eq!(std::fs::read(&out).unwrap(), b"precious");
+}
+
+/// An EXR larger than the image decoder's default 512 MiB (RGB f32) reads
+/// back: `compare` and the viewer take the images `render` writes, up to
+/// 16384².
+#[test]
+fn an_exr_beyond_the_decoders_default_limit_reads_back() {
+    use penumbra::render::output::{read_film, write_film};
+    let dir = scratch();
+    let path = dir.path().join("wide.exr");
+    // 45.9 M pixels: 551 MB as RGB f32.
+    let mut film = Film::new(16384, 2800);
+    film.pixels[16384 * 2799 + 16383] = glam::Vec3::new(0.25, 0.5, 1.0);
+    write_film(&film, &path).unwrap();
+    let back = read_film(&path).unwrap();
+    assert_eq!((back.width, back.height), (16384, 2800));
+    assert_eq!(
+        back.pixels[16384 * 2799 + 16383],
+        glam::Vec3::new(0.25, 0.5, 1.0)
+    );
+}

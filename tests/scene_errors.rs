@@ -135,6 +135,33 @@ fn wrong_types_are_refused() {
         "materials.red.shininess",
         "invalid type: boolean",
     );
+    // A named choice given a number, a null or a list: its names, not
+    // serde's "expected value at line …", which reads as a syntax error.
+    assert_error(
+        |v| v["render"]["sampling"] = json!(5),
+        "render.sampling",
+        "invalid type: number, expected one of `grid`, `random`",
+    );
+    assert_error(
+        |v| v["render"]["area_light_model"] = json!(null),
+        "render.area_light_model",
+        "invalid type: null, expected one of `sampled`, `nearest_point`, `analytic`, `exact`",
+    );
+    assert_error(
+        |v| v["render"]["sampling"] = json!(["grid"]),
+        "render.sampling",
+        "invalid type: array, expected one of",
+    );
+    assert_error(
+        |v| {
+            v["objects"]
+                .as_array_mut()
+                .unwrap()
+                .push(json!({"type": "mesh", "file": "/m.obj", "material": "white", "shading": 1}))
+        },
+        "objects[8].shading",
+        "invalid type: number, expected one of `auto`, `flat`, `smooth`",
+    );
 }
 
 #[test]

@@ -174,6 +174,8 @@ pub fn render(args: &RenderArgs) -> Result<(), CliError> {
         check_region(region, scene.camera.width, scene.camera.height)
             .map_err(|e| CliError::input(format!("--region: {e}")))?;
     }
+    let area = args.region.unwrap_or(TileRect::whole(&scene.camera));
+    check_memory(area.w, area.h, FileKind::of(&args.output).ok())?;
     let loading = start.elapsed();
     // Ctrl+C, SIGTERM and SIGHUP stop the render, or the write; no file is
     // written and an existing one is untouched. Installed after loading: a
@@ -272,6 +274,29 @@ pub fn render(args: &RenderArgs) -> Result<(), CliError> {
         let json = stats_json(args, &scene, &report.stats, threads, &times);
         write_stats(path, &json)?;
     }
+    Ok(())
+}
+
+/// Refuses (exit 2) an image too large for the memory the process may
+/// take: its film (12 bytes a pixel), the output's encoding buffer (an
+/// EXR's 12, a PNG's 3) and some room are asked of the allocator up front
+/// and given back, where an allocation failing half-way through would
+/// abort.
+fn check_memory(width: u32, height: u32, output: Option<FileKind>) -> Result<(), CliError> {
+    let pixels = width as usize * height as usize;
+    let per_pixel = if output == Some(FileKind::Png) {
+        15
+    } else {
+        24
+    };
+    let bytes = pixels.saturating_mul(per_pixel).saturating_add(64 << 20);
+    let mut probe: Vec<u8> = Vec::new();
+    probe.try_reserve_exact(bytes).map_err(|_| {
+        CliError::input(format!(
+            "{width}×{height} needs about {:.1} GB of memory, more than this process can have",
+            bytes as f64 / 1e9
+        ))
+    })?;
     Ok(())
 }
 

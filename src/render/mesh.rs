@@ -7,6 +7,7 @@ use std::path::{Path, PathBuf};
 use glam::DVec3;
 
 use super::geometry::MeshPart;
+pub use super::mesh_gltf::read_gltf;
 pub use super::mesh_ply::read_ply;
 use super::scene_file::{MeshDesc, MeshShading, read_regular};
 
@@ -203,13 +204,48 @@ fn split_vertices(
 
 /// Wavefront OBJ: plain files through the fast reader of `mesh_obj.rs`,
 /// any other through `tobj` (polygons as fans, points and lines ignored,
-/// `mtllib` not read). When `tobj` refuses the file or a vertex is not
-/// finite, a scan of the text finds the line to name.
+/// `mtllib` not read), after a scan of the text that names the first line
+/// either reader would refuse or drop (a face of fewer than three corners,
+/// an index out of range, a malformed number). A byte-order mark, classic
+/// Mac line ends (CR alone) and comments after a statement are read as
+/// the tools that write them mean them.
 pub fn read_obj(bytes: &[u8]) -> Result<RawMesh, String> {
-    if let Some(raw) = super::mesh_obj::read_plain_obj(bytes) {
+    let bytes = clean_obj(bytes);
+    if let Some(raw) = super::mesh_obj::read_plain_obj(&bytes) {
         return Ok(raw);
     }
-    read_obj_tobj(bytes)
+    if let Some(e) = obj_diagnosis(&bytes) {
+        return Err(e);
+    }
+    read_obj_tobj(&bytes)
+}
+
+/// The OBJ text without a UTF-8 byte-order mark, with CR line ends as LF
+/// where the file has no LF at all, and without comments that follow a
+/// statement on its line (`v 1 2 3 # top`); borrowed where none of these
+/// is there.
+fn clean_obj(bytes: &[u8]) -> std::borrow::Cow<'_, [u8]> {
+    let bytes = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes);
+    let cr_only = bytes.contains(&b'\r') && !bytes.contains(&b'\n');
+    let trailing_comment = |line: &[u8]| {
+        line.iter()
+            .position(|&b| b == b'#')
+            .is_some_and(|at| !line[..at].trim_ascii().is_empty())
+    };
+    let break_byte = if cr_only { b'\r' } else { b'\n' };
+    if !cr_only && !bytes.split(|&b| b == b'\n').any(trailing_comment) {
+        return std::borrow::Cow::Borrowed(bytes);
+    }
+    let mut out = Vec::with_capacity(bytes.len());
+    for line in bytes.split(|&b| b == break_byte) {
+        let kept = match line.iter().position(|&b| b == b'#') {
+            Some(at) if trailing_comment(line) => &line[..at],
+            _ => line,
+        };
+        out.extend_from_slice(kept);
+        out.push(b'\n');
+    }
+    std::borrow::Cow::Owned(out)
 }
 
 /// Wavefront OBJ through `tobj` alone (see [`read_obj`]).
@@ -276,24 +312,34 @@ pub fn read_obj_tobj(bytes: &[u8]) -> Result<RawMesh, String> {
     Ok(raw)
 }
 
-/// The first line of an OBJ text that is wrong, as a message: a `v` line
-/// without three finite numbers, a face with a malformed or out-of-range
-/// vertex index.
+/// The first line of an OBJ text that is wrong, as a message: a line that
+/// is not UTF-8, a `v` line without 3, 4 (with w) or 6 (with a colour)
+/// finite numbers, a `vn` line without three numbers, a face with fewer
+/// than three corners, a malformed corner, or an index out of range.
 fn obj_diagnosis(bytes: &[u8]) -> Option<String> {
-    let text = String::from_utf8_lossy(bytes);
     let mut vertices: i64 = 0;
     let mut normals: i64 = 0;
-    for (n, line) in text.lines().enumerate() {
+    let mut texcoords: i64 = 0;
+    for (n, line) in bytes.split(|&b| b == b'\n').enumerate() {
         let line_no = n + 1;
+        let Ok(line) = std::str::from_utf8(line) else {
+            return Some(format!("line {line_no} is not UTF-8 text"));
+        };
         let mut words = line.split_whitespace();
         let Some(key) = words.next() else { continue };
         let shown = super::error::cut(line.trim());
         match key {
             "v" | "vn" => {
-                let nums: Vec<Option<f64>> = words.take(3).map(|w| w.parse().ok()).collect();
-                if nums.len() < 3 || nums.iter().any(Option::is_none) {
+                let nums: Vec<Option<f64>> = words.map(|w| w.parse().ok()).collect();
+                let counts: &[usize] = if key == "v" { &[3, 4, 6] } else { &[3] };
+                if !counts.contains(&nums.len()) || nums.iter().any(Option::is_none) {
+                    let expected = if key == "v" {
+                        "three numbers (or four with w, or six with a colour)"
+                    } else {
+                        "three numbers"
+                    };
                     return Some(format!(
-                        "line {line_no}: malformed {key} line {shown:?}, expected three numbers"
+                        "line {line_no}: malformed {key} line {shown:?}, expected {expected}"
                     ));
                 }
                 if key == "v" && nums.iter().any(|x| !x.is_some_and(f64::is_finite)) {
@@ -308,12 +354,12 @@ fn obj_diagnosis(bytes: &[u8]) -> Option<String> {
                     normals += 1;
                 }
             }
+            "vt" => texcoords += 1,
             "f" => {
                 let mut count = 0;
                 for w in words {
                     count += 1;
-                    let mut parts = w.split('/');
-                    let v = parts.next().unwrap_or("");
+                    let parts: Vec<&str> = w.split('/').collect();
                     let check = |s: &str, total: i64, what: &str, plural: &str| -> Option<String> {
                         let Ok(i) = s.parse::<i64>() else {
                             let s = super::error::cut(s);
@@ -328,13 +374,23 @@ fn obj_diagnosis(bytes: &[u8]) -> Option<String> {
                             )
                         })
                     };
-                    if let Some(e) = check(v, vertices, "vertex", "vertices") {
-                        return Some(e);
+                    if parts.len() > 3 {
+                        let w = super::error::cut(w);
+                        return Some(format!(
+                            "line {line_no}: malformed face {shown:?}: corner {w:?}, expected v, v/t, v//n or v/t/n"
+                        ));
                     }
-                    if let Some(n) = parts.nth(1).filter(|s| !s.is_empty())
-                        && let Some(e) = check(n, normals, "normal", "normals")
-                    {
-                        return Some(e);
+                    let found = check(parts[0], vertices, "vertex", "vertices")
+                        .or_else(|| {
+                            let t = parts.get(1).filter(|s| !s.is_empty())?;
+                            check(t, texcoords, "texture", "texture coordinates")
+                        })
+                        .or_else(|| {
+                            let n = parts.get(2).filter(|s| !s.is_empty())?;
+                            check(n, normals, "normal", "normals")
+                        });
+                    if found.is_some() {
+                        return found;
                     }
                 }
                 if count < 3 {
@@ -347,141 +403,4 @@ fn obj_diagnosis(bytes: &[u8]) -> Option<String> {
         }
     }
     None
-}
-
-/// glTF 2.0 (`.gltf` with external `.bin` buffers, or `.glb`): every
-/// triangle primitive of the default scene (or the first), with its node
-/// transforms applied. Buffers are read here, through the bounded read;
-/// `data:` URIs are not supported.
-pub fn read_gltf(bytes: &[u8], dir: Option<&Path>) -> Result<RawMesh, String> {
-    use glam::{DMat3, DMat4};
-    // A GLB header whose length is below its own 12 bytes makes the crate
-    // subtract past zero (found by the `read_gltf` fuzz target): refused
-    // here, by name.
-    if let Some(length) = bytes
-        .strip_prefix(b"glTF")
-        .and_then(|rest| rest.get(4..8))
-        .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-        && (length < 12 || length as usize > bytes.len())
-    {
-        return Err(format!(
-            "the GLB header gives the file's length as {length} bytes, expected 12 to {} (the file's size)",
-            bytes.len()
-        ));
-    }
-    // gltf-json's validation can panic on some malformed documents (found
-    // by the mutation test): caught and reported as a refusal.
-    let g = std::panic::catch_unwind(|| gltf::Gltf::from_slice(bytes))
-        .map_err(|_| "not a valid glTF file (its validation failed)".to_string())?
-        // The crate quotes the offending JSON value whole (found by the
-        // fuzz target): long ones are cut.
-        .map_err(|e| {
-            format!(
-                "not a valid glTF file: {}",
-                super::error::cut_quoted(&e.to_string())
-            )
-        })?;
-    let mut buffers: Vec<Vec<u8>> = Vec::new();
-    for b in g.buffers() {
-        let data = match b.source() {
-            gltf::buffer::Source::Bin => g.blob.clone().ok_or_else(|| {
-                format!(
-                    "buffer {} is the GLB binary chunk, which is missing",
-                    b.index()
-                )
-            })?,
-            gltf::buffer::Source::Uri(uri) if uri.starts_with("data:") => {
-                return Err(format!(
-                    "buffer {}: embedded data: URIs are not supported, expected a .glb or an external .bin",
-                    b.index()
-                ));
-            }
-            gltf::buffer::Source::Uri(uri) => {
-                let path = dir.map_or_else(|| PathBuf::from(uri), |d| d.join(uri));
-                read_regular(&path, limits::MAX_MESH_FILE_BYTES)
-                    .map_err(|e| format!("buffer {} ({uri}): {e}", b.index()))?
-            }
-        };
-        if data.len() < b.length() {
-            return Err(format!(
-                "buffer {}: {} bytes, the file claims {}",
-                b.index(),
-                data.len(),
-                b.length()
-            ));
-        }
-        buffers.push(data);
-    }
-    let scene = g
-        .default_scene()
-        .or_else(|| g.scenes().next())
-        .ok_or("the file has no scene")?;
-    let mut raw = RawMesh::default();
-    let mut all_normals = true;
-    let mut stack: Vec<(gltf::Node, DMat4, usize)> =
-        scene.nodes().map(|n| (n, DMat4::IDENTITY, 0)).collect();
-    let mut visited = 0usize;
-    while let Some((node, parent, depth)) = stack.pop() {
-        visited += 1;
-        if depth > 256 || visited > 1_000_000 {
-            return Err("the node hierarchy is too deep or cyclic".into());
-        }
-        let local = DMat4::from_cols_array_2d(&node.transform().matrix().map(|c| c.map(f64::from)));
-        let m = parent * local;
-        let normal_m = DMat3::from_mat4(m).inverse().transpose();
-        if let Some(mesh) = node.mesh() {
-            for prim in mesh.primitives() {
-                let what = format!("mesh {} primitive {}", mesh.index(), prim.index());
-                if prim.mode() != gltf::mesh::Mode::Triangles {
-                    continue;
-                }
-                let read = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-                    let reader = prim.reader(|b| buffers.get(b.index()).map(|v| &v[..]));
-                    let pos: Option<Vec<[f32; 3]>> = reader.read_positions().map(|p| p.collect());
-                    let nor: Option<Vec<[f32; 3]>> = reader.read_normals().map(|p| p.collect());
-                    let idx: Option<Vec<u32>> =
-                        reader.read_indices().map(|i| i.into_u32().collect());
-                    (pos, nor, idx)
-                }))
-                .map_err(|_| format!("{what}: an accessor reaches beyond its buffer"))?;
-                let (Some(pos), nor, idx) = read else {
-                    return Err(format!("{what}: no POSITION attribute"));
-                };
-                let base = raw.positions.len();
-                let n = pos.len();
-                for (k, p) in pos.iter().enumerate() {
-                    let v = m.transform_point3(DVec3::from(p.map(f64::from)));
-                    if !v.is_finite() {
-                        return Err(format!("{what}: vertex {k} is not finite"));
-                    }
-                    raw.positions.push(v);
-                }
-                match &nor {
-                    Some(nor) if nor.len() == n => raw
-                        .normals
-                        .extend(nor.iter().map(|q| normal_m * DVec3::from(q.map(f64::from)))),
-                    _ => all_normals = false,
-                }
-                let idx = idx.unwrap_or_else(|| (0..n as u32).collect());
-                if let Some(bad) = idx.iter().find(|&&i| i as usize >= n) {
-                    return Err(format!(
-                        "{what}: vertex index {bad} is out of range, the primitive has {n} vertices"
-                    ));
-                }
-                for f in idx.chunks_exact(3) {
-                    let b = base as u32;
-                    raw.faces.push([f[0] + b, f[1] + b, f[2] + b]);
-                }
-            }
-        }
-        for child in node.children() {
-            stack.push((child, m, depth + 1));
-        }
-    }
-    if all_normals && !raw.faces.is_empty() && raw.normals.len() == raw.positions.len() {
-        raw.face_normals = Some(raw.faces.clone());
-    } else {
-        raw.normals.clear();
-    }
-    Ok(raw)
 }

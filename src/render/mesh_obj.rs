@@ -1,14 +1,14 @@
-//! Plain Wavefront OBJ read fast: `v`, `vn` and `f` lines (with any of the
-//! index forms `v`, `v/t`, `v//n`, `v/t/n`, negative indices included), on
-//! all threads, streaming into the mesh's arrays.
+//! Plain Wavefront OBJ read fast: `v` lines (a w or a vertex colour after
+//! the position is read past), `vn` and `f` lines (with any of the index
+//! forms `v`, `v/t`, `v//n`, `v/t/n`, negative indices included), on all
+//! threads, streaming into the mesh's arrays.
 //!
 //! `tobj` keeps a hash map entry per vertex and a 72-byte record per face
 //! before the mesh comes out (about 0.9 s and 200 MB for a million
 //! triangles); this reader needs a tenth of that. It gives up (`None`) on
-//! anything outside that subset or wrong (vertex colours, a malformed
-//! number, an index out of range, a line continuation, ...): `read_obj`
-//! then reads the file through `tobj`, which accepts or refuses it and names
-//! the line. The triangles are the same either way (a test compares them;
+//! anything outside that subset or wrong (a malformed number, an index
+//! out of range, a line continuation, ...): `read_obj` then names the line
+//! that is wrong, or reads the file through `tobj`. The triangles are the same either way (a test compares them;
 //! only the numbering of vertices differs: `tobj` numbers them in order of
 //! first use).
 
@@ -126,25 +126,31 @@ fn count(bytes: &[u8]) -> Counts {
     c
 }
 
-/// Three finite numbers and nothing more.
+/// Three finite numbers and nothing more, or (`extra`) also those with a
+/// w (4 numbers) or a colour (6) after them, which a mesh does not use.
 #[inline]
-fn three_numbers(rest: &[u8]) -> Option<DVec3> {
+fn three_numbers(rest: &[u8], extra: bool) -> Option<DVec3> {
     let mut words = rest
         .split(|b| b.is_ascii_whitespace())
         .filter(|w| !w.is_empty());
-    let mut v = [0.0; 3];
-    for x in &mut v {
-        let w = words.next()?;
-        *x = match decimal(w) {
+    let number = |w: &[u8]| -> Option<f64> {
+        let x = match decimal(w) {
             Some(x) => x,
             None => std::str::from_utf8(w).ok()?.parse().ok()?,
         };
+        x.is_finite().then_some(x)
+    };
+    let mut v = [0.0; 3];
+    for x in &mut v {
+        *x = number(words.next()?)?;
     }
-    if words.next().is_some() {
-        return None;
+    let mut more = 0;
+    for w in words {
+        number(w)?;
+        more += 1;
     }
-    let v = DVec3::from(v);
-    v.is_finite().then_some(v)
+    let allowed: &[usize] = if extra { &[0, 1, 3] } else { &[0] };
+    allowed.contains(&more).then_some(DVec3::from(v))
 }
 
 /// A plain decimal `[-]digits.digits` of at most 15 digits, read exactly
@@ -211,11 +217,11 @@ fn parse(bytes: &[u8], before: Counts) -> Option<Chunk> {
         let (k, rest) = key(line);
         match k {
             b"v" => {
-                c.positions.push(three_numbers(rest)?);
+                c.positions.push(three_numbers(rest, true)?);
                 seen.v += 1;
             }
             b"vn" => {
-                c.normals.push(three_numbers(rest)?);
+                c.normals.push(three_numbers(rest, false)?);
                 seen.vn += 1;
             }
             b"vt" => seen.vt += 1,

@@ -329,10 +329,17 @@ pub fn read_ply(bytes: &[u8]) -> Result<RawMesh, String> {
                 }) else {
                     return Err("the face element has no vertex_indices list".into());
                 };
-                if !vertex_seen {
-                    return Err("the face element comes before the vertex element".into());
-                }
-                let nv = raw.positions.len();
+                // Elements may come in any order: faces before the vertices
+                // are checked against the count the header gives them.
+                let nv = if vertex_seen {
+                    raw.positions.len()
+                } else {
+                    elements
+                        .iter()
+                        .find(|e| e.name == "vertex")
+                        .map(|e| e.count)
+                        .ok_or("the file has faces but no vertex element")?
+                };
                 for i in 0..el.count {
                     let what = || format!("face {i}");
                     b.next_element(&what)?;

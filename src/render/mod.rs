@@ -15,6 +15,7 @@ pub mod generate;
 pub mod generate_mesh;
 pub mod geometry;
 pub mod mesh;
+mod mesh_gltf;
 mod mesh_obj;
 mod mesh_ply;
 pub mod output;

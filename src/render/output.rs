@@ -308,16 +308,49 @@ fn write_in_place(
     path: &Path,
     write: impl FnOnce(&mut BufWriter<AtomicFile>) -> Result<(), String>,
 ) -> Result<(), String> {
-    let file = std::fs::OpenOptions::new()
-        .write(true)
-        .open(path)
-        .map_err(|e| os_message(&e))?;
+    let file = open_for_writing(path)?;
     let mut out = BufWriter::new(AtomicFile {
         file,
         first_error: None,
     });
     write(&mut out)?;
     out.flush().map_err(|e| os_message(&e))
+}
+
+/// Opens an existing file that is not a regular one for writing. A FIFO
+/// that no one reads yet is waited for, as a blocking open waits, but in
+/// steps that a signal ([`interrupt_writes`]) ends: a blocking open would
+/// sleep through SIGTERM, whose handler only raises a flag.
+fn open_for_writing(path: &Path) -> Result<std::fs::File, String> {
+    use std::os::unix::fs::OpenOptionsExt;
+    use std::os::unix::io::AsRawFd;
+    let file = loop {
+        let opened = std::fs::OpenOptions::new()
+            .write(true)
+            .custom_flags(libc::O_NONBLOCK)
+            .open(path);
+        match opened {
+            Ok(file) => break file,
+            // ENXIO: a FIFO without a reader.
+            Err(e) if e.raw_os_error() == Some(libc::ENXIO) => {
+                if writes_interrupted() {
+                    return Err(INTERRUPTED_MESSAGE.into());
+                }
+                std::thread::sleep(std::time::Duration::from_millis(20));
+            }
+            Err(e) => return Err(os_message(&e)),
+        }
+    };
+    // Blocking writes again, as the file would have had them.
+    let fd = file.as_raw_fd();
+    // SAFETY: fcntl on a descriptor this function owns, with valid flags.
+    unsafe {
+        let flags = libc::fcntl(fd, libc::F_GETFL);
+        if flags >= 0 {
+            libc::fcntl(fd, libc::F_SETFL, flags & !libc::O_NONBLOCK);
+        }
+    }
+    Ok(file)
 }
 
 /// Moves the finished temporary file to `path`. An existing file is
@@ -471,6 +504,10 @@ pub fn write_rgb8(path: &Path, width: u32, height: u32, rgb: &[u8]) -> Result<()
     })
 }
 
+/// The most memory an image's decoder may take: a 16384² image as RGBA
+/// f32, and room for the decoder's own buffers.
+const DECODE_BYTES: u64 = 16384 * 16384 * 16 + (256 << 20);
+
 /// Reads a PNG (decoded from sRGB to linear) or EXR (linear) image. The
 /// format, and with it the transfer function, is the one the bytes are in,
 /// whatever the file's name says. At most [`MAX_IMAGE_BYTES`] are read.
@@ -480,9 +517,17 @@ pub fn read_film(path: &Path) -> Result<Film, ImageError> {
         message,
     };
     let bytes = super::scene_file::read_bounded(path, MAX_IMAGE_BYTES).map_err(fail)?;
-    let reader = ImageReader::new(Cursor::new(bytes))
+    let mut reader = ImageReader::new(Cursor::new(bytes))
         .with_guessed_format()
         .map_err(|e| fail(e.to_string()))?;
+    // The decoder's own default stops at 512 MiB, below the images
+    // penumbra writes (a 16384² EXR decodes to 4 GiB of RGBA f32).
+    let side = super::scene_file::limits::MAX_SIDE;
+    let mut limits = image::Limits::default();
+    limits.max_image_width = Some(side);
+    limits.max_image_height = Some(side);
+    limits.max_alloc = Some(DECODE_BYTES);
+    reader.limits(limits);
     let linear = match reader.format() {
         Some(ImageFormat::OpenExr) => true,
         Some(ImageFormat::Png) => false,

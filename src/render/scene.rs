@@ -156,12 +156,9 @@ impl Scene {
                     let part = mesh::load(m, desc.base_dir.as_deref(), budget)
                         .map_err(|e| SceneError::new(format!("objects[{index}].file"), e))?;
                     let first = meshes.len();
-                    let skipped = meshes
-                        .add(part, material)
-                        .and_then(|n| {
-                            use super::scene_file::limits::MAX_COORD;
-                            meshes.check_range(first, MAX_COORD).map(|()| n)
-                        })
+                    let skipped = part
+                        .check_range(super::scene_file::limits::MAX_COORD)
+                        .and_then(|()| meshes.add(part, material))
                         .map_err(|e| {
                             SceneError::new(format!("objects[{index}]"), format!("{}: {e}", m.file))
                         })?;

@@ -639,7 +639,37 @@ fn require_objects(tree: &Value) -> Result<(), SceneError> {
             object(&format!("materials.{name}"), Some(m))?;
         }
     }
+    let render = tree.get("render");
+    require_name::<Sampling>("render.sampling", render.and_then(|r| r.get("sampling")))?;
+    require_name::<AreaLightModel>(
+        "render.area_light_model",
+        render.and_then(|r| r.get("area_light_model")),
+    )?;
     Ok(())
+}
+
+/// Refuses a value of a named choice (`"grid"`, `"exact"`, ...) that is
+/// not a string, listing the names: serde's own message for a number or a
+/// null there ("expected value at line …") reads as a syntax error.
+fn require_name<T: serde::de::DeserializeOwned>(
+    path: &str,
+    v: Option<&Value>,
+) -> Result<(), SceneError> {
+    match v {
+        Some(v) if !v.is_string() => {
+            // serde's message for an unknown name lists the known ones.
+            let names = serde_json::from_value::<T>(Value::String(String::new()))
+                .err()
+                .map(|e| e.to_string())
+                .and_then(|m| m.split_once("expected ").map(|(_, n)| n.to_string()))
+                .unwrap_or_else(|| "a name".into());
+            Err(SceneError::new(
+                path,
+                format!("invalid type: {}, expected {names}", kind_of(v)),
+            ))
+        }
+        _ => Ok(()),
+    }
 }
 
 fn kind_of(v: &Value) -> &'static str {
@@ -671,6 +701,9 @@ fn parse_object(index: usize, value: Value) -> Result<ObjectDesc, SceneError> {
             ));
         }
     };
+    if kind == "mesh" {
+        require_name::<MeshShading>(&format!("{path}.shading"), map.get("shading"))?;
+    }
     let body = Value::Object(map);
     fn variant<T: serde::de::DeserializeOwned>(path: &str, body: Value) -> Result<T, SceneError> {
         serde_path_to_error::deserialize(body).map_err(|e| path_error(path, e))
@@ -949,7 +982,7 @@ impl SceneDesc {
                     if m.file.trim().is_empty() {
                         return Err(SceneError::new(
                             format!("{p}.file"),
-                            "is empty, expected the path of a .obj or .ply file",
+                            "is empty, expected the path of a .obj, .ply, .gltf or .glb file",
                         ));
                     }
                     match m.scale {

@@ -48,6 +48,36 @@ pub struct MeshPart {
     pub faces: Vec<[u32; 3]>,
 }
 
+impl MeshPart {
+    /// An error naming the first face with a vertex beyond ±`limit`
+    /// (degenerate faces included: a face whose area overflows is not
+    /// degenerate, only too large).
+    pub fn check_range(&self, limit: f64) -> Result<(), String> {
+        // Most meshes have every vertex in range: one parallel look at the
+        // vertices answers them; only otherwise are the faces searched.
+        if self
+            .positions
+            .par_iter()
+            .with_min_len(4096)
+            .all(|v| v.is_finite() && v.abs().max_element() <= limit)
+        {
+            return Ok(());
+        }
+        for (k, f) in self.faces.iter().enumerate() {
+            for v in f.map(|i| self.positions[i as usize]) {
+                // (A NaN of inf − inf in the transform counts as beyond.)
+                if !v.is_finite() || v.abs().max_element() > limit {
+                    return Err(format!(
+                        "triangle {k} has the vertex [{:?}, {:?}, {:?}] after the transform, expected coordinates within ±{limit:e}",
+                        v.x, v.y, v.z
+                    ));
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
 impl Meshes {
     /// Faces of every part.
     pub fn len(&self) -> usize {
@@ -196,31 +226,5 @@ impl Meshes {
     /// Bytes held (vertex buffers, faces, shading flags).
     pub fn size_bytes(&self) -> usize {
         (self.positions.len() + self.normals.len()) * 24 + self.faces.len() * 13
-    }
-
-    /// Every face's vertices with coordinates within `limit`, or the first
-    /// face (counted over the scene's faces) that has one beyond it.
-    pub fn check_range(&self, first_face: usize, limit: f64) -> Result<(), String> {
-        // Most meshes have every vertex in range: one parallel look at the
-        // vertices answers them; only otherwise are the faces searched.
-        if self
-            .positions
-            .par_iter()
-            .with_min_len(4096)
-            .all(|v| v.abs().max_element() <= limit)
-        {
-            return Ok(());
-        }
-        for f in first_face..self.faces.len() {
-            for v in self.vertices(f as u32) {
-                if v.abs().max_element() > limit {
-                    return Err(format!(
-                        "triangle {} has the vertex {v} after the transform, expected coordinates within ±{limit:e}",
-                        f - first_face
-                    ));
-                }
-            }
-        }
-        Ok(())
     }
 }

@@ -433,3 +433,63 @@ fn outputs_go_through_links_and_into_fifos() {
     let kind = std::fs::symlink_metadata(&fifo).unwrap().file_type();
     assert!(std::os::unix::fs::FileTypeExt::is_fifo(&kind));
 }
+
+/// An output in a folder that is not there is refused before any work
+/// (exit 2, naming the folder), in `render`, `merge` and `compare --diff`
+/// alike; nothing is rendered first and then lost.
+#[test]
+fn an_output_in_a_missing_folder_is_refused_before_any_work() {
+    let dir = scratch_dir("missing-folder");
+    let missing = dir.join("no-such-folder");
+    let image = dir.join("a.exr");
+    let o = penumbra(&[
+        "render",
+        "--width",
+        "8",
+        "--height",
+        "8",
+        "-o",
+        image.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = |name: &str| missing.join(name).to_str().unwrap().to_string();
+    let runs: [Vec<String>; 3] = [
+        vec![
+            "render".into(),
+            "--width".into(),
+            "4096".into(),
+            "-o".into(),
+            out("x.png"),
+        ],
+        vec![
+            "merge".into(),
+            image.to_str().unwrap().into(),
+            "-o".into(),
+            out("m.exr"),
+        ],
+        vec![
+            "compare".into(),
+            image.to_str().unwrap().into(),
+            image.to_str().unwrap().into(),
+            "--diff".into(),
+            out("d.png"),
+        ],
+    ];
+    for args in runs {
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        let start = std::time::Instant::now();
+        let o = penumbra(&args);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+        assert!(
+            err.contains(&format!("there is no folder {}", missing.display())),
+            "{args:?}: {err}"
+        );
+        assert!(
+            !err.contains("rays traced"),
+            "{args:?}: rendered first: {err}"
+        );
+        assert!(start.elapsed() < std::time::Duration::from_secs(10));
+        assert!(!missing.exists());
+    }
+}

@@ -27,6 +27,7 @@ pub fn compare(args: &CompareArgs) -> Result<(), CliError> {
                 path.display()
             )));
         }
+        super::safety::refuse_missing_folder(path, "difference image")?;
         super::safety::refuse_overwriting_inputs(
             path,
             "difference image",

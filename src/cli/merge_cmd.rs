@@ -9,6 +9,7 @@ use crate::render::region::{merge as merge_parts, read_part};
 pub fn merge(args: &MergeArgs) -> Result<(), CliError> {
     super::safety::remove_temp_files_on_signals();
     FileKind::of(&args.output).map_err(CliError::input)?;
+    super::safety::refuse_missing_folder(&args.output, "output")?;
     let inputs: Vec<(&str, &std::path::Path)> =
         args.parts.iter().map(|p| ("part", p.as_path())).collect();
     super::safety::refuse_overwriting_inputs(&args.output, "output", &inputs)?;

@@ -155,6 +155,7 @@ fn at_aspect(given: u32, side: u32, other: u32) -> Option<u32> {
 pub fn render(args: &RenderArgs) -> Result<(), CliError> {
     let start = Instant::now();
     FileKind::of(&args.output).map_err(CliError::input)?;
+    super::safety::refuse_missing_folder(&args.output, "output")?;
     if let Some(scene) = &args.scene {
         super::safety::refuse_overwriting_inputs(&args.output, "output", &[("scene", scene)])?;
     }

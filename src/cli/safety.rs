@@ -101,6 +101,28 @@ pub fn same_file(a: &Path, b: &Path) -> bool {
     }
 }
 
+/// Refuses (exit 2), before any work, an output whose folder is not
+/// there (or is not a folder): the write at the end would fail after the
+/// render. A folder that is there but cannot be written stays a write
+/// error (exit 1), reported in the system's words when it happens.
+pub fn refuse_missing_folder(output: &Path, what: &str) -> Result<(), CliError> {
+    if output.as_os_str() == "-" || output.is_dir() {
+        return Ok(());
+    }
+    let dir = match output.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    if dir.is_dir() {
+        return Ok(());
+    }
+    Err(CliError::input(format!(
+        "{}: the {what} cannot be written: there is no folder {}",
+        output.display(),
+        dir.display()
+    )))
+}
+
 /// Refuses (exit 2) an output that is the same file as one of the inputs:
 /// writing it would destroy the input.
 pub fn refuse_overwriting_inputs(

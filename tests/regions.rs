@@ -206,3 +206,63 @@ fn gaps_foreign_parts_and_disagreeing_overlaps_are_refused() {
     let o = merge(&[top, bottom], &out);
     assert!(o.status.success(), "{}", stderr(&o));
 }
+
+/// `compare` of a part with the whole image compares the part's region of
+/// it (a part is not a whole image with black around it); parts compare
+/// with parts of the same region; anything else is refused by name.
+#[test]
+fn compare_takes_a_part_against_its_region_of_the_whole_image() {
+    let dir = scratch_dir("compare");
+    let whole = dir.join("whole.exr");
+    let o = penumbra(&render_args(whole.to_str().unwrap(), &[]));
+    assert!(o.status.success(), "{}", stderr(&o));
+    let part = render_part(&dir, "p.exr", "40,30,50,20", &[]);
+    let other = render_part(&dir, "q.exr", "0,0,50,20", &[]);
+    let reseeded = render_part(&dir, "r.exr", "40,30,50,20", &["--seed", "9"]);
+    let run = |a: &Path, b: &Path| {
+        let o = penumbra(&["compare", a.to_str().unwrap(), b.to_str().unwrap()]);
+        (
+            o.status.code(),
+            String::from_utf8_lossy(&o.stdout).into_owned(),
+            stderr(&o),
+        )
+    };
+    for (a, b) in [(&part, &whole), (&whole, &part), (&part, &part)] {
+        let (code, out, err) = run(a, b);
+        assert_eq!(code, Some(0), "{err}");
+        assert!(out.starts_with("rmse 0.000000e0\n"), "{out}");
+        assert!(
+            out.contains("region 40,30,50,20 of the 161×97 image"),
+            "{out}"
+        );
+    }
+    // A different seed differs, and the largest difference is named in the
+    // whole image's pixels, inside the region.
+    let (code, out, err) = run(&reseeded, &whole);
+    assert_eq!(code, Some(0), "{err}");
+    assert!(!out.starts_with("rmse 0.000000e0"), "{out}");
+    let at = out.split("at pixel (").nth(1).unwrap();
+    let (x, y) = at.split_once(')').unwrap().0.split_once(", ").unwrap();
+    let (x, y): (u32, u32) = (x.parse().unwrap(), y.parse().unwrap());
+    assert!((40..90).contains(&x) && (30..50).contains(&y), "{out}");
+    // Refused: parts of different regions, a whole image of another size.
+    let (code, _, err) = run(&part, &other);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("parts of different regions"), "{err}");
+    let small = dir.join("small.exr");
+    let o = penumbra(&[
+        "render",
+        SCENE,
+        "-o",
+        small.to_str().unwrap(),
+        "--width",
+        "16",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let (code, _, err) = run(&part, &small);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(
+        err.contains("is the region 40,30,50,20 of a 161×97 image, but") && err.contains("is 16×9"),
+        "{err}"
+    );
+}

@@ -1,7 +1,9 @@
 use super::{CliError, CompareArgs};
 use crate::render::Film;
+use crate::render::TileRect;
 use crate::render::compare::{compare as compare_films, diff_image};
 use crate::render::output::{FileKind, read_film, write_rgb8};
+use crate::render::region::{Part, read_part};
 
 /// Refuses an image with NaN or infinite pixels: no difference to it means
 /// anything (exit 2, with how many and where the first is).
@@ -34,15 +36,26 @@ pub fn compare(args: &CompareArgs) -> Result<(), CliError> {
             &[("first image", &args.a), ("second image", &args.b)],
         )?;
     }
-    let a = read_film(&args.a).map_err(CliError::input)?;
-    let b = read_film(&args.b).map_err(CliError::input)?;
+    let (a, b, region) = read_pair(&args.a, &args.b)?;
     finite(&a, &args.a)?;
     finite(&b, &args.b)?;
     let c = compare_films(&a, &b).map_err(CliError::input)?;
+    // Pixels are named in the whole image's coordinates.
+    let (x0, y0) = region.map_or((0, 0), |(r, _)| (r.x, r.y));
     let mut report = format!(
         "rmse {:.6e}\npsnr {:.2} dB\nmax_diff {:.6e} at pixel ({}, {})\n",
-        c.rmse, c.psnr, c.max_diff, c.max_at.0, c.max_at.1
+        c.rmse,
+        c.psnr,
+        c.max_diff,
+        c.max_at.0 + x0,
+        c.max_at.1 + y0
     );
+    if let Some((r, (w, h))) = region {
+        report += &format!(
+            "region {},{},{},{} of the {w}×{h} image\n",
+            r.x, r.y, r.w, r.h
+        );
+    }
     if let Some(path) = &args.diff {
         let (rgb, scale) = diff_image(&a, &b, None).map_err(CliError::input)?;
         write_rgb8(path, a.width, a.height, &rgb).map_err(CliError::other)?;
@@ -53,4 +66,79 @@ pub fn compare(args: &CompareArgs) -> Result<(), CliError> {
         );
     }
     super::print_stdout(&report)
+}
+
+/// The two images to compare. A region part (`render --region`) is
+/// compared with the same region of a whole image of its full size, or
+/// with a part of the same region: its pixels, not the whole image it
+/// would sit in (which would count everything outside it as black).
+/// Returns the region and the full size where parts were involved.
+#[allow(clippy::type_complexity)]
+fn read_pair(
+    a_path: &std::path::Path,
+    b_path: &std::path::Path,
+) -> Result<(Film, Film, Option<(TileRect, (u32, u32))>), CliError> {
+    let part = |p: &std::path::Path| read_part(p).ok();
+    let whole = |p: &std::path::Path| read_film(p).map_err(CliError::input);
+    let describe = |p: &Part| {
+        let r = p.region;
+        format!(
+            "region {},{},{},{} of a {}×{} image",
+            r.x, r.y, r.w, r.h, p.full.0, p.full.1
+        )
+    };
+    match (part(a_path), part(b_path)) {
+        (None, None) => Ok((whole(a_path)?, whole(b_path)?, None)),
+        (Some(a), Some(b)) => {
+            if (a.region, a.full) != (b.region, b.full) {
+                return Err(CliError::input(format!(
+                    "{} is the {}, {} the {}: parts of different regions",
+                    a_path.display(),
+                    describe(&a),
+                    b_path.display(),
+                    describe(&b)
+                )));
+            }
+            Ok((a.film, b.film, Some((a.region, a.full))))
+        }
+        (Some(p), None) => {
+            let w = whole(b_path)?;
+            let crop = crop_of(&w, &p, b_path, a_path, &describe)?;
+            Ok((p.film, crop, Some((p.region, p.full))))
+        }
+        (None, Some(p)) => {
+            let w = whole(a_path)?;
+            let crop = crop_of(&w, &p, a_path, b_path, &describe)?;
+            Ok((crop, p.film, Some((p.region, p.full))))
+        }
+    }
+}
+
+/// The pixels of `whole` under part `p`'s region, if `whole` has the
+/// part's full size.
+fn crop_of(
+    whole: &Film,
+    p: &Part,
+    whole_path: &std::path::Path,
+    part_path: &std::path::Path,
+    describe: &dyn Fn(&Part) -> String,
+) -> Result<Film, CliError> {
+    if (whole.width, whole.height) != p.full {
+        return Err(CliError::input(format!(
+            "{} is the {}, but {} is {}×{}: compare a part with a whole image of its size, or merge the parts first",
+            part_path.display(),
+            describe(p),
+            whole_path.display(),
+            whole.width,
+            whole.height
+        )));
+    }
+    let r = p.region;
+    let mut crop = Film::new(r.w, r.h);
+    for y in 0..r.h {
+        for x in 0..r.w {
+            crop.pixels[(y * r.w + x) as usize] = whole.get(r.x + x, r.y + y);
+        }
+    }
+    Ok(crop)
 }

@@ -266,3 +266,106 @@ fn compare_takes_a_part_against_its_region_of_the_whole_image() {
         "{err}"
     );
 }
+
+/// A gap is named from the parts' rectangles before the whole image's
+/// memory is taken (a 1×1 part of a 16384² image), a merge that does not
+/// fit in the memory the process may have is refused (exit 2), and the
+/// same region rendered twice is the same bytes (the crate writes its
+/// attribute maps in an order that changes from run to run: one of ours
+/// in each).
+#[test]
+fn merge_refuses_gaps_and_lack_of_memory_early_and_parts_are_the_same_bytes() {
+    let dir = scratch_dir("early");
+    let one = dir.join("one.exr");
+    let o = penumbra(&[
+        "render",
+        SCENE,
+        "-o",
+        one.to_str().unwrap(),
+        "--width",
+        "16384",
+        "--height",
+        "16384",
+        "--region",
+        "0,0,1,1",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let start = std::time::Instant::now();
+    let script = format!(
+        "ulimit -v 1000000 && exec {} merge {} -o {}",
+        env!("CARGO_BIN_EXE_penumbra"),
+        one.display(),
+        dir.join("m.exr").display()
+    );
+    let o = std::process::Command::new("sh")
+        .args(["-c", &script])
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains(
+            "a gap: 268435455 pixels of the 16384×16384 image are in no part, the first at (1, 0)"
+        ),
+        "{}",
+        stderr(&o)
+    );
+    assert!(start.elapsed() < std::time::Duration::from_secs(5));
+
+    // Two halves of a 4000×3000 image under a limit that holds them but
+    // not the merged image as well.
+    let halves: Vec<PathBuf> = ["0,0,4000,1500", "0,1500,4000,1500"]
+        .iter()
+        .enumerate()
+        .map(|(k, r)| {
+            let out = dir.join(format!("h{k}.exr"));
+            let o = penumbra(&[
+                "render",
+                SCENE,
+                "-o",
+                out.to_str().unwrap(),
+                "--width",
+                "4000",
+                "--height",
+                "3000",
+                "--region",
+                r,
+                "--terms",
+                "1,0,0",
+                "--depth",
+                "1",
+            ]);
+            assert!(o.status.success(), "{}", stderr(&o));
+            out
+        })
+        .collect();
+    let script = format!(
+        "ulimit -v 250000 && exec {} merge {} {} -o {}",
+        env!("CARGO_BIN_EXE_penumbra"),
+        halves[0].display(),
+        halves[1].display(),
+        dir.join("m.exr").display()
+    );
+    let o = std::process::Command::new("sh")
+        .args(["-c", &script])
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("not enough memory for the merged 4000×3000 image"),
+        "{}",
+        stderr(&o)
+    );
+    let o = merge(&halves, &dir.join("m.exr"));
+    assert!(o.status.success(), "{}", stderr(&o));
+
+    let bytes: Vec<Vec<u8>> = (0..8)
+        .map(|_| {
+            let p = render_part(&dir, "same.exr", "3,3,30,20", &[]);
+            std::fs::read(p).unwrap()
+        })
+        .collect();
+    assert!(
+        bytes.iter().all(|b| *b == bytes[0]),
+        "a region's bytes changed from run to run"
+    );
+}

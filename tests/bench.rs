@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::penumbra_ok;
+use common::{penumbra, penumbra_ok};
 use penumbra::cli::bench::reference::{reference, reference_key};
 use penumbra::cli::bench::sweep::{SweepPlan, csv, csv_columns, run_sweep};
 use penumbra::render::SEED_ROOM_JSON;
@@ -288,4 +288,55 @@ fn floor_layout_lays_one_layer_on_the_floor() {
         stdout.contains(&format!("{:.4}", floor_sphere_radius(20))),
         "{stdout}"
     );
+}
+
+/// The sweep's outputs are checked before any work: a plot that is not a
+/// PNG, one file for the CSV and the plot, a missing folder, a file where
+/// `--out` or `--cache` names a folder (each failed only after the whole
+/// sweep, or silently lost the CSV).
+#[test]
+fn bench_outputs_are_refused_before_the_sweep() {
+    let dir = std::env::temp_dir().join(format!("penumbra-bench-outputs-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("a-file");
+    std::fs::write(&file, b"x").unwrap();
+    let same = dir.join("same.png");
+    let file_s = file.to_str().unwrap();
+    let same_s = same.to_str().unwrap();
+    let cases: [(&[&str], &str); 6] = [
+        (
+            &["--plot", "p.exr"],
+            "p.exr: --plot writes a PNG (expected .png)",
+        ),
+        (&["--plot", "p"], "--plot writes a PNG"),
+        (
+            &["--csv", same_s, "--plot", same_s],
+            "--csv and --plot name the same file",
+        ),
+        (
+            &["--plot", "/no-such-folder/p.png"],
+            "there is no folder /no-such-folder",
+        ),
+        (&["--out", file_s], "--out is a file, expected a folder"),
+        (&["--cache", file_s], "--cache is a file, expected a folder"),
+    ];
+    for (extra, want) in cases {
+        let mut args = vec!["bench", "--quick", "--counts", "1", "--runs", "1"];
+        args.extend_from_slice(extra);
+        let start = std::time::Instant::now();
+        let o = penumbra(&args);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{extra:?}: {err}");
+        assert!(err.contains(want), "{extra:?}: {want:?} in {err}");
+        assert!(
+            !String::from_utf8_lossy(&o.stdout).contains("reference"),
+            "{extra:?}: the sweep ran first"
+        );
+        assert!(
+            start.elapsed() < std::time::Duration::from_secs(20),
+            "{extra:?}"
+        );
+        assert!(!same.exists());
+    }
+    std::fs::remove_dir_all(&dir).ok();
 }

@@ -163,6 +163,16 @@ pub enum PlotTime {
 /// `penumbra bench`.
 pub fn bench(args: &BenchArgs) -> Result<(), CliError> {
     crate::cli::safety::remove_temp_files_on_signals();
+    // The folders every mode may write into are made as needed: refused
+    // before any work where a file stands in their place.
+    for (dir, flag) in [(&args.out, "--out"), (&args.cache, "--cache")] {
+        if dir.exists() && !dir.is_dir() {
+            return Err(CliError::input(format!(
+                "{}: {flag} is a file, expected a folder",
+                dir.display()
+            )));
+        }
+    }
     println!("load average at start: {}", load_average());
     let pool = thread_pool(args.threads)?;
     let result = pool.install(|| {

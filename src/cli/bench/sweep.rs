@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use super::reference::{REFERENCE_RAYS, reference};
 use super::{BenchArgs, BenchScene, CliError, build, scenes, si, timed};
 use crate::render::compare::compare;
-use crate::render::output::write_atomic;
+use crate::render::output::{FileKind, write_atomic};
 use crate::render::sampling::points_per_hit;
 use crate::render::stats::SAVINGS;
 use crate::render::{AreaLightModel, RayStats, Sampling, SceneDesc};
@@ -426,7 +426,31 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
             "--csv and --plot name one file: use --out with several --spheres counts",
         ));
     }
-    // Refused before any work: an output that is the scene file.
+    // Refused before any work: a plot that is not a PNG, one file for both
+    // the CSV and the plot, an output in a folder that is not there (its
+    // own folder when named; `--out` is made), and an output that is the
+    // scene file.
+    if let Some(plot) = &args.plot
+        && !matches!(FileKind::of(plot), Ok(FileKind::Png))
+    {
+        return Err(CliError::input(format!(
+            "{}: --plot writes a PNG (expected .png)",
+            plot.display()
+        )));
+    }
+    if let (Some(csv), Some(plot)) = (&args.csv, &args.plot)
+        && (csv == plot || crate::cli::safety::same_file(csv, plot))
+    {
+        return Err(CliError::input(format!(
+            "{}: --csv and --plot name the same file",
+            csv.display()
+        )));
+    }
+    for (explicit, what) in [(&args.csv, "CSV"), (&args.plot, "plot")] {
+        if let Some(path) = explicit {
+            crate::cli::safety::refuse_missing_folder(path, what)?;
+        }
+    }
     if let Some(input) = &args.scene {
         for scene in &scenes {
             for (explicit, ext, what) in [(&args.csv, "csv", "CSV"), (&args.plot, "png", "plot")] {

@@ -783,20 +783,26 @@ fn an_existing_output_is_replaced_whole_and_keeps_its_permissions() {
     let folder = dir.path().join("f.png");
     std::fs::create_dir(&folder).unwrap();
     let r = render_tiny(&folder);
-    assert_eq!(r.status.code(), Some(1), "{}", stderr(&r));
+    assert_eq!(r.status.code(), Some(2), "{}", stderr(&r));
+    assert!(
+        stderr(&r).contains("the output is a folder, not a file"),
+        "{}",
+        stderr(&r)
+    );
     assert!(folder.is_dir());
     assert_eq!(files_in(dir.path()), ["f.png", "x.png"]);
 }
 
 #[test]
-fn a_missing_output_folder_is_named_without_the_temporary_file() {
+fn a_missing_output_folder_is_named_before_rendering_without_the_temporary_file() {
     let dir = scratch();
     let out = dir.path().join("no/such/folder/x.png");
     let r = render_tiny(&out);
     let err = stderr(&r);
-    assert_eq!(r.status.code(), Some(1), "{err}");
+    // Refused before rendering, as bad input.
+    assert_eq!(r.status.code(), Some(2), "{err}");
+    assert!(err.contains("there is no folder"), "{err}");
     assert!(err.contains("no/such/folder"), "{err}");
-    assert!(err.contains("No such file or directory"), "{err}");
     assert!(
         !err.contains(".part") && !err.contains(".penumbra-"),
         "{err}"

@@ -101,13 +101,19 @@ pub fn same_file(a: &Path, b: &Path) -> bool {
     }
 }
 
-/// Refuses (exit 2), before any work, an output whose folder is not
-/// there (or is not a folder): the write at the end would fail after the
-/// render. A folder that is there but cannot be written stays a write
-/// error (exit 1), reported in the system's words when it happens.
+/// Refuses (exit 2), before any work, an output that is a folder or whose
+/// folder is not there: the write at the end would fail after the render.
+/// A folder that is there but cannot be written stays a write error
+/// (exit 1), reported in the system's words when it happens.
 pub fn refuse_missing_folder(output: &Path, what: &str) -> Result<(), CliError> {
-    if output.as_os_str() == "-" || output.is_dir() {
+    if output.as_os_str() == "-" {
         return Ok(());
+    }
+    if output.is_dir() {
+        return Err(CliError::input(format!(
+            "{}: the {what} is a folder, not a file",
+            output.display()
+        )));
     }
     let dir = match output.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,

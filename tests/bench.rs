@@ -340,3 +340,29 @@ fn bench_outputs_are_refused_before_the_sweep() {
     }
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// One mode a run, and the spheres' options only with spheres: a second
+/// mode, or `--layout` without `--spheres`, was silently dropped.
+#[test]
+fn conflicting_bench_modes_are_refused() {
+    for args in [
+        &["bench", "--target", "--slopes"][..],
+        &["bench", "--exact", "--edits"],
+        &["bench", "--spp-split", "--target"],
+        &["bench", "--layout", "floor"],
+        &["bench", "--save-scenes", "/tmp"],
+    ] {
+        let o = penumbra(args);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+        assert!(
+            err.contains("cannot be used with")
+                || err.contains("required arguments were not provided"),
+            "{args:?}: {err}"
+        );
+        assert!(
+            !String::from_utf8_lossy(&o.stdout).contains("load average"),
+            "{args:?}"
+        );
+    }
+}

@@ -40,6 +40,10 @@ pub use reference::{Reference, reference, reference_key};
 pub use sweep::{Row, SweepPlan, run_sweep, write_csv};
 
 #[derive(Debug, Args, Default, Clone)]
+// One mode a run: a second one was silently dropped.
+#[command(group(clap::ArgGroup::new("mode")
+    .multiple(false)
+    .args(["target", "slopes", "edits", "spp_split", "exact", "meshes", "scaling"])))]
 pub struct BenchArgs {
     /// Scene file (JSON); the built-in seed room if omitted.
     pub scene: Option<PathBuf>,
@@ -96,11 +100,11 @@ pub struct BenchArgs {
     pub sphere_seed: u64,
     /// With --spheres: anywhere in the room (5 % of its volume; more
     /// spheres make a denser fog) or one layer on the floor (30 % of it).
-    #[arg(long, value_enum, default_value_t = LayoutArg::Volume)]
+    #[arg(long, value_enum, default_value_t = LayoutArg::Volume, requires = "spheres")]
     pub layout: LayoutArg,
     /// With --spheres: also write each generated scene as DIR/spheres-N.json
     /// (to render or view it).
-    #[arg(long, value_name = "DIR")]
+    #[arg(long, value_name = "DIR", requires = "spheres")]
     pub save_scenes: Option<PathBuf>,
     /// With --spheres: time each N at the scene's own settings (no sweep)
     /// and print the ratio of the largest N to the smallest.

@@ -493,3 +493,44 @@ fn an_output_in_a_missing_folder_is_refused_before_any_work() {
         assert!(!missing.exists());
     }
 }
+
+/// `generate` writes OBJ text: another extension (or none, or `-`) is
+/// refused, as a folder that is not there, before anything is written.
+#[test]
+fn generate_writes_only_obj_files_into_folders_that_are_there() {
+    let dir = scratch_dir("generate");
+    for (name, want) in [
+        ("x.ply", "generate writes Wavefront OBJ (expected .obj)"),
+        ("x", "expected .obj"),
+        ("-", "expected .obj"),
+        ("no-folder/x.obj", "there is no folder"),
+    ] {
+        let out = if name == "-" {
+            "-".into()
+        } else {
+            dir.join(name)
+        };
+        let o = penumbra(&[
+            "generate",
+            "--triangles",
+            "100",
+            "-o",
+            out.to_str().unwrap(),
+        ]);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{name}: {err}");
+        assert!(err.contains(want), "{name}: {err}");
+        assert!(!out.exists() || name == "-", "{name}");
+    }
+    assert!(!std::path::Path::new("-").exists());
+    let ok = dir.join("t.OBJ");
+    let o = penumbra(&["generate", "--triangles", "100", "-o", ok.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        penumbra::render::mesh::read_obj(&std::fs::read(&ok).unwrap())
+            .unwrap()
+            .faces
+            .len()
+            >= 100
+    );
+}

@@ -218,6 +218,19 @@ pub struct GenerateArgs {
 
 /// `penumbra generate`.
 pub fn generate(args: &GenerateArgs) -> Result<(), CliError> {
+    // What it writes is OBJ text: under another name a scene would read it
+    // as that format and fail.
+    let obj = args
+        .output
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("obj"));
+    if !obj {
+        return Err(CliError::input(format!(
+            "{}: generate writes Wavefront OBJ (expected .obj)",
+            args.output.display()
+        )));
+    }
+    safety::refuse_missing_folder(&args.output, "output")?;
     let n = crate::render::generate_mesh::write_torus_obj(&args.output, args.triangles as usize)
         .map_err(|e| CliError::other(format!("{}: {e}", args.output.display())))?;
     println!("{}: a torus of {n} triangles", args.output.display());

@@ -1366,3 +1366,340 @@ fn a_dropped_mesh_joins_the_scene_and_its_toggle_hides_it() {
     );
     assert_eq!(h.state().desc().objects.len(), before + 1);
 }
+
+// ----- limits of typed values and camera moves, failed states --------------
+
+use penumbra::render::scene_file::limits::{MAX_COLOUR, MAX_COORD};
+
+/// Types `text` into a number field as a person does: focus (which
+/// selects its text), type, Enter.
+fn type_into(
+    h: &mut Harness<'static, Viewer>,
+    find: impl Fn(&Harness<'static, Viewer>) -> egui::Rect,
+    text: &str,
+) {
+    // A render ending (its banner coming or going) moves the panel.
+    settle(h);
+    let field = find(h);
+    let node = h
+        .get_all_by_role(Role::SpinButton)
+        .find(|n| n.rect() == field)
+        .expect("the number field");
+    node.focus();
+    h.step();
+    h.step();
+    // Focused, the field edits its text (all of it selected).
+    assert!(
+        h.get_all_by_role(Role::SpinButton).any(|n| n.is_focused()),
+        "the field took no focus"
+    );
+    h.event(egui::Event::Text(text.into()));
+    h.step();
+    h.key_press(egui::Key::Enter);
+    h.step();
+    h.step();
+}
+
+/// The number field of a slider: the one on the slider's row, right of it.
+fn slider_field(h: &Harness<'static, Viewer>, slider: &str) -> egui::Rect {
+    let rail = h.get_by_role_and_label(Role::Slider, slider).rect();
+    h.get_all_by_role(Role::SpinButton)
+        .map(|n| n.rect())
+        .filter(|r| r.left() >= rail.right() && (r.center().y - rail.center().y).abs() < 4.0)
+        .min_by(|a, b| a.left().total_cmp(&b.left()))
+        .expect("the slider's number field")
+}
+
+/// Sets a slider as a screen reader does, once the render has ended.
+fn set_slider(h: &mut Harness<'static, Viewer>, label: &str, value: f64) {
+    settle(h);
+    h.get_by_role_and_label(Role::Slider, label)
+        .set_value_accesskit(value);
+    h.step();
+}
+
+fn light_centre(d: &SceneDesc) -> [f64; 3] {
+    let l = &d.light;
+    std::array::from_fn(|i| l.corner[i] + 0.5 * (l.edge_u[i] + l.edge_v[i]))
+}
+
+#[test]
+fn typed_numbers_are_clamped_to_the_formats_limits_and_nan_is_refused() {
+    let mut h = harness(ViewerOptions::new(small_room()));
+    settle(&mut h);
+    let x = |h: &Harness<'static, Viewer>| h.get_by_role_and_label(Role::SpinButton, "x").rect();
+
+    // A slider's number field: the light depth stops at the slider's end.
+    let depth = |h: &Harness<'static, Viewer>| slider_field(h, "Light depth");
+    type_into(&mut h, depth, "1e300");
+    let edge = h.state().desc().light.edge_v;
+    let len = edge.iter().map(|c| c * c).sum::<f64>().sqrt();
+    assert!((len - 20.0).abs() < 1e-9, "{len}");
+    type_into(&mut h, depth, "NaN");
+    assert_eq!(h.state().desc().light.edge_v, edge);
+
+    // NaN (egui made it inf) and "inf" are refused: the light stays.
+    let light = h.state().desc().light.clone();
+    type_into(&mut h, x, "NaN");
+    assert_eq!(h.state().desc().light, light);
+    type_into(&mut h, x, "inf");
+    assert_eq!(h.state().desc().light, light);
+
+    // 1e300 stops at the format's largest coordinate.
+    type_into(&mut h, x, "1e300");
+    let centre = light_centre(h.state().desc());
+    assert!((centre[0] - MAX_COORD).abs() <= 1.0, "{centre:?}");
+    let corner = h.state().desc().light.corner;
+    assert!(corner.iter().all(|c| c.abs() <= MAX_COORD), "{corner:?}");
+    type_into(&mut h, x, "0");
+    assert!(light_centre(h.state().desc())[0].abs() < 1e-9);
+
+    // A strength's field goes past its rail (0–10) to the format's limit,
+    // no further; shadow rays stay at least 1.
+    set_slider(&mut h, "Ambient strength", 1e300);
+    assert_eq!(h.state().desc().render.terms.ambient, MAX_COLOUR);
+    set_slider(&mut h, "Ambient strength", f64::NAN);
+    assert_eq!(h.state().desc().render.terms.ambient, MAX_COLOUR);
+    set_slider(&mut h, "Shadow rays", -5.0);
+    assert_eq!(h.state().desc().render.shadow_rays, 1);
+
+    // What is left renders, and saves to a file that loads again.
+    h.state().desc().validate().expect("a valid scene");
+    settle(&mut h);
+    finished(h.state());
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("typed.json");
+    let ctx = h.ctx.clone();
+    h.state_mut().save_scene(&ctx, path.clone());
+    h.state_mut().wait_for_saves(WAIT);
+    SceneDesc::load(&path).expect("the saved scene loads");
+}
+
+#[test]
+fn save_scene_refuses_a_scene_that_would_not_load() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("broken.json");
+    let mut h = harness(ViewerOptions::new(small_room()));
+    settle(&mut h);
+    h.state_mut().edit(|d, _| d.light.corner[0] = f64::INFINITY);
+    settle(&mut h);
+    assert!(matches!(
+        h.state().render_state(),
+        Some(JobState::Failed(_))
+    ));
+    let ctx = h.ctx.clone();
+    h.state_mut().save_scene(&ctx, path.clone());
+    h.state_mut().wait_for_saves(WAIT);
+    h.step();
+    assert!(!path.exists(), "an unloadable scene was written");
+    let banner = h.state().banner().expect("a banner").to_string();
+    assert!(
+        banner.contains("not saved") && banner.contains("light.corner[0]"),
+        "{banner}"
+    );
+    // Still the seed room, not a scene named after the refused file.
+    assert_eq!(h.state().scene_path(), None);
+    assert!(h.state().is_dirty());
+}
+
+/// Wheel scrolls over the image (negative: out), each given a few frames.
+fn wheel(h: &mut Harness<'static, Viewer>, delta: f32, times: usize) {
+    h.hover_at(egui::pos2(800.0, 450.0));
+    h.step();
+    for _ in 0..times {
+        h.event(egui::Event::MouseWheel {
+            unit: egui::MouseWheelUnit::Point,
+            delta: egui::vec2(0.0, delta),
+            phase: egui::TouchPhase::Move,
+            source: egui::MouseWheelSource::Wheel,
+            modifiers: egui::Modifiers::NONE,
+        });
+        for _ in 0..5 {
+            h.step();
+        }
+    }
+    // egui spreads a scroll over frames: let it end.
+    for _ in 0..600 {
+        if h.ctx.input(|i| i.smooth_scroll_delta == egui::Vec2::ZERO) {
+            break;
+        }
+        h.step();
+    }
+}
+
+#[test]
+fn wheel_zoom_and_pan_keep_the_camera_within_the_formats_range() {
+    let mut h = harness(ViewerOptions::new(small_room()));
+    settle(&mut h);
+    let pivot = glam::DVec3::from(h.state().desc().camera.look_at);
+    let distance = |v: &Viewer| {
+        (glam::DVec3::from(v.desc().camera.position) - glam::DVec3::from(v.desc().camera.look_at))
+            .length()
+    };
+
+    // Far out (unbounded, this went past 1e9 and the render failed for
+    // good): the camera stops well inside the format's range.
+    wheel(&mut h, -3000.0, 40);
+    let far = distance(h.state());
+    assert!(far > 1e3, "the wheel did not zoom out: {far}");
+    assert!(far < 1e5, "no limit: {far}");
+    assert_eq!(glam::DVec3::from(h.state().desc().camera.look_at), pivot);
+    h.state().desc().validate().expect("a valid camera");
+    settle(&mut h);
+    finished(h.state());
+
+    // Panning (from a few hundred metres, where a point is a metre) stops
+    // too: twice the distance allowed, unbounded.
+    h.key_press(egui::Key::Home);
+    h.step();
+    wheel(&mut h, -1000.0, 2);
+    for _ in 0..40 {
+        pan_image(&mut h, egui::pos2(600.0, 450.0), egui::vec2(400.0, 0.0));
+    }
+    let cam = h.state().desc().camera.clone();
+    let off = glam::DVec3::from(cam.position).length();
+    assert!(off > 2e3, "the pan did not go far: {off}");
+    assert!(off < 1e4, "no limit: {cam:?}");
+    h.state().desc().validate().expect("a valid camera");
+
+    // Back in, all the way: the camera never reaches its pivot.
+    h.key_press(egui::Key::Home);
+    h.step();
+    wheel(&mut h, 3000.0, 40);
+    let near = distance(h.state());
+    assert!(near > 0.0 && near < 1e-2, "{near}");
+    h.state().desc().validate().expect("a valid camera");
+    settle(&mut h);
+    finished(h.state());
+    // And out again: the wheel still works.
+    wheel(&mut h, -600.0, 2);
+    assert!(distance(h.state()) > near);
+}
+
+/// Middle-drags on the image (a pan) from `from` by `by`.
+fn pan_image(h: &mut Harness<'static, Viewer>, from: egui::Pos2, by: egui::Vec2) {
+    let button = |pos, pressed| egui::Event::PointerButton {
+        pos,
+        button: egui::PointerButton::Middle,
+        pressed,
+        modifiers: egui::Modifiers::NONE,
+    };
+    h.event(egui::Event::PointerMoved(from));
+    h.event(button(from, true));
+    h.step();
+    for k in 1..=4 {
+        h.event(egui::Event::PointerMoved(from + by * (k as f32 / 4.0)));
+        h.step();
+    }
+    h.event(button(from + by, false));
+    h.step();
+}
+
+#[test]
+fn save_png_after_a_failed_render_says_so_and_the_banner_goes_with_the_fix() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("failed.png");
+    let mut h = harness(ViewerOptions::new(small_room()));
+    settle(&mut h);
+    h.state_mut().edit(|d, _| d.light.corner[2] = -5e299);
+    settle(&mut h);
+    assert!(matches!(
+        h.state().render_state(),
+        Some(JobState::Failed(_))
+    ));
+
+    // Ctrl+S: no dialog, but the reason.
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::S);
+    h.step();
+    assert!(h.state_mut().dialog_mut().is_none(), "a save dialog opened");
+    let banner = h.state().banner().expect("a banner").to_string();
+    assert!(banner.contains("nothing to save"), "{banner}");
+    // The same from a path chosen before the render failed.
+    let ctx = h.ctx.clone();
+    h.state_mut().save_png(&ctx, out.clone());
+    h.state_mut().wait_for_saves(WAIT);
+    h.step();
+    assert!(!out.exists());
+    assert!(h.state().banner().unwrap().contains("nothing to save"));
+
+    // Ctrl+Z brings the light back: the render succeeds and the banner,
+    // no longer true, goes by itself.
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
+    h.step();
+    settle(&mut h);
+    finished(h.state());
+    assert_eq!(h.state().banner(), None);
+}
+
+#[test]
+fn a_scene_whose_mesh_is_missing_keeps_the_scene_before_and_its_name() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("missingmesh.json");
+    let mut json: serde_json::Value = serde_json::from_str(&small_room().to_json()).unwrap();
+    json["objects"]
+        .as_array_mut()
+        .unwrap()
+        .push(serde_json::json!(
+            {"type": "mesh", "file": "/nonexistent/nope.obj", "material": "white"}
+        ));
+    std::fs::write(&path, json.to_string()).unwrap();
+    let mut h = harness(ViewerOptions::new(small_room()));
+    settle(&mut h);
+    let title = h.state().title();
+    let image = h.state().shown_image().clone();
+
+    let ctx = h.ctx.clone();
+    h.state_mut().open_scene(&ctx, &path);
+    loaded(&mut h);
+    step_until(&mut h, |v| v.banner().is_some());
+    let banner = h.state().banner().unwrap().to_string();
+    assert!(
+        banner.contains("missingmesh.json") && banner.contains("nope.obj"),
+        "{banner}"
+    );
+    // The seed room, its name and its image stay, as for invalid JSON.
+    assert_eq!(h.state().scene_path(), None);
+    assert_eq!(h.state().title(), title);
+    assert_eq!(h.state().desc(), &small_room());
+    assert!(h.state().recent().is_empty(), "{:?}", h.state().recent());
+    settle(&mut h);
+    assert_eq!(h.state().shown_image(), &image);
+    // Edits act on the scene shown.
+    h.state_mut().edit(|d, _| d.render.terms.ambient = 0.7);
+    settle(&mut h);
+    assert_eq!(
+        finished(h.state()),
+        room_render(|d| d.render.terms.ambient = 0.7)
+    );
+    // The banner stays until dismissed, as for invalid JSON.
+    assert!(h.state().banner().is_some());
+}
+
+#[test]
+fn the_behind_a_wall_hint_shows_only_while_the_cutaway_is_off() {
+    let mut h = harness(ViewerOptions::new(small_room()));
+    settle(&mut h);
+    const HINT: &str = "behind a wall";
+    // Behind the back wall (z = 5, facing -z).
+    h.state_mut()
+        .edit(|d, _| d.camera.position = [0.0, 4.0, 10.0]);
+    h.step();
+    assert!(h.state().notice().is_some_and(|n| n.contains(HINT)));
+
+    h.key_press(egui::Key::C);
+    h.step();
+    assert!(h.state().desc().render.cutaway);
+    assert!(
+        !h.state().notice().is_some_and(|n| n.contains(HINT)),
+        "{:?}",
+        h.state().notice()
+    );
+    // Off again: true again.
+    h.key_press(egui::Key::C);
+    h.step();
+    assert!(h.state().notice().is_some_and(|n| n.contains(HINT)));
+    // Home puts the camera in front: gone.
+    h.key_press(egui::Key::Home);
+    h.step();
+    assert!(!h.state().notice().is_some_and(|n| n.contains(HINT)));
+}

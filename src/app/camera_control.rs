@@ -2,12 +2,17 @@
 //! description: orbit about `look_at` by dragging, pan with the middle
 //! button or shift-drag, zoom with the wheel; walk with W/A/S/D (Q/E down
 //! and up, Shift faster) and look around with a right-drag, to move inside
-//! a room. Editing `CameraDesc` keeps "save scene" exact.
+//! a room. Editing `CameraDesc` keeps "save scene" exact. Every move
+//! stays within the scene's [`Reach`], so no mouse gesture can take the
+//! camera where the format refuses it.
 
 use egui::{PointerButton, Response, Vec2};
 use glam::DVec3;
 
+use crate::render::Scene;
+use crate::render::geometry::Aabb;
 use crate::render::scene_file::CameraDesc;
+use crate::render::scene_file::limits::{MAX_COORD, MIN_SCENE_SIZE};
 
 /// Radians of orbit per point dragged.
 const ORBIT_SPEED: f64 = 0.004;
@@ -27,15 +32,96 @@ pub const WALK_KEYS: [egui::Key; 6] = [
     egui::Key::E,
 ];
 
+/// How far the camera may go from the scene's finite part, in scene sizes:
+/// far enough to see the scene as a dot, near enough that its features stay
+/// above the format's smallest (`MIN_FEATURE` of the scene's size, which
+/// grows with the camera's distance): 10⁻⁶ of the scene still renders.
+const REACH_IN_SIZES: f64 = 1e3;
+/// The nearest the camera may come to its pivot, in scene sizes.
+const NEAREST_IN_SIZES: f64 = 1e-6;
+
+/// Where the camera may be: within [`REACH_IN_SIZES`] scene sizes of the
+/// centre of the scene's finite part (the bounded objects and the light),
+/// and no nearer its pivot than [`NEAREST_IN_SIZES`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Reach {
+    pub centre: DVec3,
+    /// The largest side of the finite part's box.
+    pub size: f64,
+}
+
+impl Reach {
+    /// The reach of a built scene.
+    pub fn of_scene(scene: &Scene) -> Reach {
+        let mut b = Aabb::from_points(&scene.light.shape.corners());
+        if let Some(o) = scene.object_bounds {
+            b = b.union(o);
+        }
+        Reach {
+            centre: b.centre(),
+            size: b.extent().max_element().max(MIN_SCENE_SIZE),
+        }
+    }
+
+    /// A stand-in before the scene is built: about what a camera frames.
+    pub fn of_camera(cam: &CameraDesc) -> Reach {
+        Reach {
+            centre: v(cam.look_at),
+            size: (v(cam.position) - v(cam.look_at))
+                .length()
+                .max(MIN_SCENE_SIZE),
+        }
+    }
+
+    /// The camera's farthest distance from `centre`; the pivot may be twice
+    /// as far (the camera within reach, looking outwards).
+    fn radius(&self) -> f64 {
+        REACH_IN_SIZES * self.size
+    }
+
+    /// The nearest the camera may come to a pivot at `target`: the format
+    /// refuses a camera on its pivot, and rounding puts it there below
+    /// about 10⁻¹² of the coordinates.
+    fn min_distance(&self, target: DVec3) -> f64 {
+        NEAREST_IN_SIZES * self.size + 1e-9 * target.abs().max_element()
+    }
+
+    /// How far out of reach `cam` is: at most 1 within it, infinite
+    /// beyond the format's coordinates.
+    fn excess(&self, cam: &CameraDesc) -> f64 {
+        let (pos, target) = (v(cam.position), v(cam.look_at));
+        if !(pos.abs().max_element() <= MAX_COORD && target.abs().max_element() <= MAX_COORD) {
+            return f64::INFINITY;
+        }
+        let r = self.radius();
+        ((pos - self.centre).length() / r).max((target - self.centre).length() / (2.0 * r))
+    }
+
+    /// Whether a move from `before` to `after` may stand: `after` is within
+    /// reach, or no farther out than `before` (a scene's own camera may
+    /// stand beyond it, and must be able to come back).
+    pub fn allows(&self, before: &CameraDesc, after: &CameraDesc) -> bool {
+        let close = |c: &CameraDesc| (v(c.position) - v(c.look_at)).length();
+        let too_close = close(after) < self.min_distance(v(after.look_at));
+        if too_close && close(after) < close(before) {
+            return false;
+        }
+        self.excess(after) <= self.excess(before).max(1.0)
+    }
+}
+
 /// Applies this frame's drags and scrolls over the image; true if the
 /// camera moved. `image_height` is the displayed height in points (pan
-/// follows the cursor at the look-at distance).
+/// follows the cursor at the look-at distance). A move that would leave
+/// `reach` is not made.
 pub fn camera_input(
     ui: &egui::Ui,
     response: &Response,
     cam: &mut CameraDesc,
     image_height: f32,
+    reach: &Reach,
 ) -> bool {
+    let before = cam.clone();
     let mut moved = false;
     let shift = ui.input(|i| i.modifiers.shift);
     let delta = response.drag_delta();
@@ -57,7 +143,7 @@ pub fn camera_input(
     if response.hovered() {
         let scroll = ui.input(|i| i.smooth_scroll_delta.y);
         if scroll != 0.0 {
-            zoom(cam, (-(scroll as f64) * ZOOM_SPEED).exp());
+            zoom(cam, (-(scroll as f64) * ZOOM_SPEED).exp(), reach);
             moved = true;
         }
     }
@@ -85,6 +171,10 @@ pub fn camera_input(
             ui.ctx().request_repaint();
             moved = true;
         }
+    }
+    if moved && !reach.allows(&before, cam) {
+        *cam = before;
+        return false;
     }
     moved
 }
@@ -169,12 +259,20 @@ pub fn pan(cam: &mut CameraDesc, delta: Vec2, image_height: f32) {
     cam.look_at = (target + shift).to_array();
 }
 
-/// Scales the distance to `look_at` by `factor`.
-pub fn zoom(cam: &mut CameraDesc, factor: f64) {
+/// Scales the distance to `look_at` by `factor`, stopping at the edges of
+/// `reach` (out, or in to the pivot).
+pub fn zoom(cam: &mut CameraDesc, factor: f64, reach: &Reach) {
     let target = v(cam.look_at);
     let offset = v(cam.position) - target;
     let len = offset.length();
-    let new_len = (len * factor).clamp(1e-3 * len.max(1e-6), 1e3 * len.max(1e-6));
+    let mut new_len = (len * factor).clamp(1e-3 * len.max(1e-6), 1e3 * len.max(1e-6));
+    if factor > 1.0 {
+        // Out to the reach's edge, wherever the pivot is within it.
+        let room = reach.radius() - (target - reach.centre).length();
+        new_len = new_len.min(room.max(len));
+    } else {
+        new_len = new_len.max(reach.min_distance(target).min(len));
+    }
     cam.position = (target + offset * (new_len / len)).to_array();
 }
 

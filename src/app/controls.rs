@@ -2,23 +2,72 @@
 //! (or of [`ViewSettings`]) in place and reports whether anything changed;
 //! the viewer then restarts the render from the edited description.
 
+use std::ops::RangeInclusive;
+
 use egui::{Slider, SliderClamping, Ui};
 
 use super::settings::ViewSettings;
-use crate::render::scene_file::limits::{MAX_DEPTH, MAX_SHADOW_RAYS, MAX_SHININESS};
+use crate::render::scene_file::limits::{
+    MAX_COLOUR, MAX_COORD, MAX_DEPTH, MAX_SHADOW_RAYS, MAX_SHININESS,
+};
 use crate::render::{AreaLightModel, Sampling, SceneDesc};
+
+/// The light's width and depth: the slider's range, for typed values too
+/// (a light far larger than the room makes its features too small for the
+/// format, and the render fails).
+const LIGHT_SIZE: RangeInclusive<f64> = 0.01..=20.0;
 
 /// A slider that never changes a value it only shows: a scene's 4096
 /// shadow rays or strength 20 load, show and save unchanged (egui's default
-/// clamping would rewrite them). Ranges are the format's limits, except the
-/// term strengths (0–10 of the format's 0–10⁶, so that a drag stays fine;
-/// the number field takes any value the format does).
-fn slider<'a, N: egui::emath::Numeric>(
-    value: &'a mut N,
-    range: std::ops::RangeInclusive<N>,
-) -> Slider<'a> {
-    Slider::new(value, range).clamping(SliderClamping::Never)
+/// clamping would rewrite them). Ranges are the format's limits (the
+/// light's size excepted: [`LIGHT_SIZE`]); a value dragged or typed is
+/// clamped to them (see [`slider_within`]).
+fn slider<'a, N: egui::emath::Numeric>(value: &'a mut N, range: RangeInclusive<N>) -> Slider<'a> {
+    slider_within(value, range.clone(), range)
 }
+
+/// A slider over `rail` whose dragged or typed values are clamped to
+/// `limits` and whose number field refuses NaN and infinities, so no edit
+/// can leave the format's range (a scene saved with one would not load).
+/// The term strengths' rail is 0–10 of the format's 0–10⁶, so that a drag
+/// stays fine while the number field takes any value the format does.
+fn slider_within<'a, N: egui::emath::Numeric>(
+    value: &'a mut N,
+    rail: RangeInclusive<N>,
+    limits: RangeInclusive<N>,
+) -> Slider<'a> {
+    let (lo, hi) = (limits.start().to_f64(), limits.end().to_f64());
+    let rail = rail.start().to_f64()..=rail.end().to_f64();
+    let slider = Slider::from_get_set(rail, move |new| {
+        if let Some(x) = new.filter(|x| x.is_finite()) {
+            *value = N::from_f64(x.clamp(lo, hi));
+        }
+        value.to_f64()
+    })
+    .clamping(SliderClamping::Never)
+    .custom_parser(parse_finite);
+    if N::INTEGRAL {
+        slider.integer()
+    } else {
+        slider
+    }
+}
+
+/// Reads a typed number as egui does (spaces ignored, "−" as "-"), but
+/// refuses NaN and infinities: egui would clamp NaN to the top of the
+/// range and take "inf" or 1e999 as a number.
+pub fn parse_finite(text: &str) -> Option<f64> {
+    let text: String = text
+        .chars()
+        .filter(|c| !c.is_whitespace())
+        .map(|c| if c == '\u{2212}' { '-' } else { c })
+        .collect();
+    text.parse::<f64>().ok().filter(|x| x.is_finite())
+}
+
+/// The smallest value a field the format wants above zero (shininess)
+/// takes when typed; the format itself has no smaller bound.
+const ABOVE_ZERO: f64 = f64::MIN_POSITIVE;
 
 /// Buttons of the panel that the viewer acts on.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -106,7 +155,10 @@ pub fn controls_ui(
                     changed |= ui.checkbox(on, label).changed();
                     ui.add_enabled_ui(*on, |ui| {
                         changed |= ui
-                            .add(slider(strength, 0.0..=10.0).text(format!("{label} strength")))
+                            .add(
+                                slider_within(strength, 0.0..=10.0, 0.0..=MAX_COLOUR)
+                                    .text(format!("{label} strength")),
+                            )
                             .changed();
                     });
                 });
@@ -124,9 +176,13 @@ pub fn controls_ui(
                 ui.add_enabled_ui(on, |ui| {
                     if ui
                         .add(
-                            slider(&mut view.shininess, 1.0..=MAX_SHININESS)
-                                .logarithmic(true)
-                                .text("Shininess"),
+                            slider_within(
+                                &mut view.shininess,
+                                1.0..=MAX_SHININESS,
+                                ABOVE_ZERO..=MAX_SHININESS,
+                            )
+                            .logarithmic(true)
+                            .text("Shininess"),
                         )
                         .changed()
                     {
@@ -198,6 +254,7 @@ pub fn controls_ui(
             changed |= ui
                 .add(
                     Slider::new(&mut view.resolution_scale, ViewSettings::SCALE_RANGE)
+                        .custom_parser(parse_finite)
                         .text("Resolution scale"),
                 )
                 .on_hover_text(
@@ -233,6 +290,9 @@ fn light_ui(ui: &mut Ui, desc: &mut SceneDesc) -> bool {
                 .add(
                     egui::DragValue::new(c)
                         .speed(0.02)
+                        .range(-MAX_COORD..=MAX_COORD)
+                        .clamp_existing_to_range(false)
+                        .custom_parser(parse_finite)
                         .prefix(format!("{name} "))
                         .max_decimals(3),
                 )
@@ -242,14 +302,14 @@ fn light_ui(ui: &mut Ui, desc: &mut SceneDesc) -> bool {
     // Sizes are relative to the light's own edges, so any light works.
     changed |= ui
         .add(
-            slider(&mut w, 0.01..=20.0)
+            slider(&mut w, LIGHT_SIZE)
                 .logarithmic(true)
                 .text("Light width"),
         )
         .changed();
     changed |= ui
         .add(
-            slider(&mut d, 0.01..=20.0)
+            slider(&mut d, LIGHT_SIZE)
                 .logarithmic(true)
                 .text("Light depth"),
         )
@@ -262,7 +322,10 @@ fn light_ui(ui: &mut Ui, desc: &mut SceneDesc) -> bool {
         let (lu, lv) = (len(l.edge_u), len(l.edge_v));
         l.edge_u = l.edge_u.map(|x| x * w / lu);
         l.edge_v = l.edge_v.map(|x| x * d / lv);
-        l.corner = std::array::from_fn(|i| centre[i] - 0.5 * (l.edge_u[i] + l.edge_v[i]));
+        // A centre at the format's edge must not push the corner past it.
+        l.corner = std::array::from_fn(|i| {
+            (centre[i] - 0.5 * (l.edge_u[i] + l.edge_v[i])).clamp(-MAX_COORD, MAX_COORD)
+        });
     }
     ui.horizontal(|ui| {
         ui.label("Diffuse intensity");
@@ -301,9 +364,13 @@ fn material_ui(ui: &mut Ui, state: &mut ControlsState, desc: &mut SceneDesc) -> 
     });
     changed |= ui
         .add(
-            slider(&mut m.shininess, 1.0..=MAX_SHININESS)
-                .logarithmic(true)
-                .text("Material shininess"),
+            slider_within(
+                &mut m.shininess,
+                1.0..=MAX_SHININESS,
+                ABOVE_ZERO..=MAX_SHININESS,
+            )
+            .logarithmic(true)
+            .text("Material shininess"),
         )
         .changed();
     changed |= ui

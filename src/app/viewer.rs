@@ -15,7 +15,7 @@ use std::time::{Duration, Instant};
 
 use egui::{Color32, ColorImage, ImageData, Sense, TextureHandle, TextureOptions, Ui};
 
-use super::camera_control::{camera_input, frame_all, set_pivot};
+use super::camera_control::{Reach, camera_input, frame_all, set_pivot};
 use super::controls::{Action, ControlsState, controls_ui};
 use super::error_view::{
     ErrorJob, ErrorRequest, ErrorShown, ImageSource, Readout, legend_ui, readout_text,
@@ -43,6 +43,10 @@ use crate::render::{DisplayTransform, Film, SceneDesc};
 
 /// Background of the image area and of an image not yet rendered.
 const EMPTY: Color32 = Color32::from_rgb(24, 24, 24);
+
+/// The status line's hint while the camera stands behind a plane with the
+/// cut-away off.
+const BEHIND_A_WALL: &str = "the camera is behind a wall: C (cut-away) sees through it";
 
 /// A whole texture.
 const FULL_UV: egui::Rect = egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0));
@@ -129,6 +133,12 @@ pub struct Viewer {
     /// The scene as last read from its file (to tell what a reload changed).
     file_desc: Option<SceneDesc>,
     home_camera: CameraDesc,
+    /// Where the camera may go: from the latest scene built (`None`
+    /// before one is).
+    reach: Option<Reach>,
+    /// What the latest open replaced, until the opened scene's first
+    /// render ends.
+    replaced: Option<Box<Replaced>>,
     view: ViewSettings,
     controls: ControlsState,
     objects: super::object_list::ObjectListState,
@@ -233,6 +243,21 @@ impl Persisted {
     pub const KEY: &'static str = "penumbra-viewer";
 }
 
+/// What an open replaced, kept until the opened scene's first render ends:
+/// if that fails (the JSON was fine, but a mesh file is missing or broken
+/// and the scene does not build), it comes back, as it stays when a file
+/// does not parse.
+struct Replaced {
+    desc: SceneDesc,
+    file_desc: Option<SceneDesc>,
+    saved: SceneDesc,
+    home_camera: CameraDesc,
+    view: ViewSettings,
+    history: History,
+    scene_path: Option<PathBuf>,
+    recent: Vec<PathBuf>,
+}
+
 /// What waits for "discard unsaved edits?".
 #[derive(Debug, Clone, PartialEq)]
 pub enum Confirm {
@@ -255,6 +280,8 @@ impl Viewer {
         let linear = Film::new(desc.camera.width, desc.camera.height);
         Viewer {
             home_camera: desc.camera.clone(),
+            reach: None,
+            replaced: None,
             view: ViewSettings::for_scene(&desc),
             progress: Progress::new(desc.render.sampling, desc.render.area_light_model),
             file_desc: options
@@ -558,7 +585,11 @@ impl Viewer {
     pub fn execute(&mut self, ctx: &egui::Context, command: Command) {
         match command {
             Command::Open => self.open_dialog(Purpose::OpenScene),
-            Command::SavePng => self.open_dialog(Purpose::SavePng),
+            Command::SavePng => {
+                if !self.refuse_png() {
+                    self.open_dialog(Purpose::SavePng);
+                }
+            }
             Command::SaveScene => self.open_dialog(Purpose::SaveScene),
             Command::Quit => ctx.send_viewport_cmd(egui::ViewportCommand::Close),
             Command::Undo => {
@@ -704,7 +735,10 @@ impl Viewer {
         }
         self.ref_match = self.reference.as_ref().map(|r| r.check(&desc));
         if !desc.render.cutaway && behind_a_plane(&desc) {
-            self.notice = Some("the camera is behind a wall: C (cut-away) sees through it".into());
+            self.notice = Some(BEHIND_A_WALL.into());
+        } else if self.notice.as_deref() == Some(BEHIND_A_WALL) {
+            // Cut-away on, or back in front: the hint no longer holds.
+            self.notice = None;
         }
         self.last_pass = None;
         self.progress = Progress::new(desc.render.sampling, desc.render.area_light_model);
@@ -798,22 +832,57 @@ impl Viewer {
     }
 
     fn opened(&mut self, ctx: &egui::Context, path: &Path, desc: SceneDesc) {
-        self.view = ViewSettings::for_scene(&desc);
-        self.home_camera = desc.camera.clone();
-        self.file_desc = Some(desc.clone());
-        self.saved = desc.clone();
-        self.history.reset(Snapshot {
+        let view = ViewSettings::for_scene(&desc);
+        let history = History::new(Snapshot {
             desc: desc.clone(),
-            view: self.view.clone(),
+            view: view.clone(),
         });
-        self.desc = desc;
-        self.scene_path = Some(path.to_path_buf());
+        let replaced = Replaced {
+            view: std::mem::replace(&mut self.view, view),
+            home_camera: std::mem::replace(&mut self.home_camera, desc.camera.clone()),
+            file_desc: self.file_desc.replace(desc.clone()),
+            saved: std::mem::replace(&mut self.saved, desc.clone()),
+            history: std::mem::replace(&mut self.history, history),
+            desc: std::mem::replace(&mut self.desc, desc),
+            scene_path: self.scene_path.replace(path.to_path_buf()),
+            recent: self.recent.clone(),
+        };
+        // An open that replaced a scene which never rendered keeps the
+        // scene shown before both.
+        if self.replaced.is_none() {
+            self.replaced = Some(Box::new(replaced));
+        }
+        self.reach = None;
         self.remember_dir(path);
         self.add_recent(path);
         self.watch(ctx);
         self.banner = None;
         self.pick = None;
         self.notice = Some(format!("opened {}", path.display()));
+        self.restart();
+    }
+
+    /// An opened scene that does not render gives way to the scene it
+    /// replaced, with the reason in the banner (it stays, as for a file
+    /// that does not parse).
+    fn back_from_open(&mut self, ctx: &egui::Context, r: Replaced, why: &str) {
+        let opened = self.scene_path.take();
+        self.desc = r.desc;
+        self.file_desc = r.file_desc;
+        self.saved = r.saved;
+        self.home_camera = r.home_camera;
+        self.view = r.view;
+        self.history = r.history;
+        self.scene_path = r.scene_path;
+        self.recent = r.recent;
+        self.reach = None;
+        self.pick = None;
+        self.watch(ctx);
+        let name = opened.map_or_else(String::new, |p| format!("{}: ", p.display()));
+        self.show_error(format!(
+            "{name}cannot be shown, the scene before it stays: {why}"
+        ));
+        self.notice = None;
         self.restart();
     }
 
@@ -882,6 +951,9 @@ impl Viewer {
     /// Writes the image at the scene's full resolution: the finished image
     /// on screen if it is that, else a fresh render on a background thread.
     pub fn save_png(&mut self, ctx: &egui::Context, mut path: PathBuf) {
+        if self.refuse_png() {
+            return;
+        }
         if path.extension().is_none() {
             path.set_extension("png");
         }
@@ -893,12 +965,33 @@ impl Viewer {
         self.io.save_png(ctx, full, film, path, self.display);
     }
 
+    /// Refuses to save an image while the render has failed (the scene
+    /// cannot be rendered, at full size either), saying so in the banner;
+    /// true if refused. The message goes with the next good render.
+    fn refuse_png(&mut self) -> bool {
+        let Some(JobState::Failed(why)) = self.job.as_ref().map(RenderJob::state) else {
+            return false;
+        };
+        self.banner = Some(format!("nothing to save: the render failed ({why})"));
+        self.banner_from_render = true;
+        true
+    }
+
     /// Writes the settings as a scene file that renders to the same image.
+    /// A scene the format refuses is not written (it would not load
+    /// again): the banner says why.
     pub fn save_scene(&mut self, ctx: &egui::Context, mut path: PathBuf) {
         if path.extension().is_none() {
             path.set_extension("json");
         }
         let full = self.view.apply(&self.desc, true);
+        if let Err(e) = full.validate() {
+            self.show_error(format!(
+                "{} not saved: the scene would not load again: {e}",
+                path.display()
+            ));
+            return;
+        }
         self.io.save_scene(ctx, full.clone(), path.clone());
         // Saved as: this is now the scene's file (watched; its contents
         // are these settings, so the reload it causes changes nothing).
@@ -1304,7 +1397,7 @@ impl Viewer {
         self.start(&ctx);
         self.poll_inputs(&ctx);
         self.stream_tiles();
-        self.check_render_end();
+        self.check_render_end(&ctx);
         self.poll_reference();
         self.poll_error(&ctx);
         self.poll_compare(&ctx);
@@ -1754,8 +1847,9 @@ impl Viewer {
         }
     }
 
-    /// The latest render's end: its figures, or its error in the banner.
-    fn check_render_end(&mut self) {
+    /// The latest render's end: its figures, or its error in the banner
+    /// (or, for the first render of a scene just opened, the scene before).
+    fn check_render_end(&mut self, ctx: &egui::Context) {
         let Some(job) = &self.job else { return };
         let generation = job.generation();
         if self.handled == generation {
@@ -1763,6 +1857,8 @@ impl Viewer {
         }
         match job.state() {
             JobState::Finished(f) => {
+                // The opened scene renders: it stays.
+                self.replaced = None;
                 self.progress.finished = Some((f.elapsed, f.traced_rays));
                 self.progress.tiles_done = self.progress.tiles_total;
                 self.handled = generation;
@@ -1772,10 +1868,14 @@ impl Viewer {
                 self.refresh_error();
             }
             JobState::Failed(msg) => {
-                self.banner = Some(msg);
-                self.banner_from_render = true;
                 self.progress.finished = Some((self.progress.started.elapsed(), 0));
                 self.handled = generation;
+                if let Some(r) = self.replaced.take() {
+                    self.back_from_open(ctx, *r, &msg);
+                    return;
+                }
+                self.banner = Some(msg);
+                self.banner_from_render = true;
             }
             JobState::Running | JobState::Cancelled => {}
         }
@@ -1851,8 +1951,15 @@ impl Viewer {
                     });
                 });
         }
-        let moved =
-            !image_drag && camera_input(ui, &response, &mut self.desc.camera, rect.height());
+        if let Some(scene) = self.job.as_ref().and_then(RenderJob::scene) {
+            self.reach = Some(Reach::of_scene(&scene));
+        }
+        // Before the first scene is built: about the scene's own view.
+        let reach = self
+            .reach
+            .unwrap_or_else(|| Reach::of_camera(&self.home_camera));
+        let moved = !image_drag
+            && camera_input(ui, &response, &mut self.desc.camera, rect.height(), &reach);
         if response.double_clicked()
             && let Some(pos) = response.interact_pointer_pos().or(response.hover_pos())
             && let Some([px, py]) = self.image_view.pixel_at(area, size, ppp, pos)

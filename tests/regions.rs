@@ -6,7 +6,7 @@ mod common;
 use std::path::{Path, PathBuf};
 use std::process::Output;
 
-use common::penumbra;
+use common::{penumbra, penumbra_within_memory};
 use penumbra::render::output::read_film;
 use penumbra::render::region::{read_part, write_part};
 
@@ -291,16 +291,16 @@ fn merge_refuses_gaps_and_lack_of_memory_early_and_parts_are_the_same_bytes() {
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let start = std::time::Instant::now();
-    let script = format!(
-        "ulimit -v 1000000 && exec {} merge {} -o {}",
-        env!("CARGO_BIN_EXE_penumbra"),
-        one.display(),
-        dir.join("m.exr").display()
+    let merged = dir.join("m.exr");
+    let o = penumbra_within_memory(
+        1_000_000,
+        &[
+            "merge",
+            one.to_str().unwrap(),
+            "-o",
+            merged.to_str().unwrap(),
+        ],
     );
-    let o = std::process::Command::new("sh")
-        .args(["-c", &script])
-        .output()
-        .unwrap();
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert!(
         stderr(&o).contains(
@@ -338,24 +338,23 @@ fn merge_refuses_gaps_and_lack_of_memory_early_and_parts_are_the_same_bytes() {
             out
         })
         .collect();
-    let script = format!(
-        "ulimit -v 250000 && exec {} merge {} {} -o {}",
-        env!("CARGO_BIN_EXE_penumbra"),
-        halves[0].display(),
-        halves[1].display(),
-        dir.join("m.exr").display()
+    let o = penumbra_within_memory(
+        250_000,
+        &[
+            "merge",
+            halves[0].to_str().unwrap(),
+            halves[1].to_str().unwrap(),
+            "-o",
+            merged.to_str().unwrap(),
+        ],
     );
-    let o = std::process::Command::new("sh")
-        .args(["-c", &script])
-        .output()
-        .unwrap();
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert!(
         stderr(&o).contains("not enough memory for the merged 4000×3000 image"),
         "{}",
         stderr(&o)
     );
-    let o = merge(&halves, &dir.join("m.exr"));
+    let o = merge(&halves, &merged);
     assert!(o.status.success(), "{}", stderr(&o));
 
     let bytes: Vec<Vec<u8>> = (0..8)

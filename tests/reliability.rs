@@ -11,7 +11,7 @@ use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use common::{files_in, penumbra};
+use common::{files_in, penumbra, penumbra_within_memory};
 use penumbra::render::SEED_ROOM_JSON;
 use penumbra::render::compare::compare;
 use penumbra::render::scene_file::limits;
@@ -951,12 +951,18 @@ fn an_image_too_large_for_the_memory_limit_is_refused_with_exit_2() {
     let dir = scratch();
     let out = dir.path().join("big.exr");
     std::fs::write(&out, b"precious").unwrap();
-    let script = format!(
-        "ulimit -v 2000000 && exec {} render --width 16384 --height 16384 -o {}",
-        env!("CARGO_BIN_EXE_penumbra"),
-        out.display()
+    let o = penumbra_within_memory(
+        2_000_000,
+        &[
+            "render",
+            "--width",
+            "16384",
+            "--height",
+            "16384",
+            "-o",
+            out.to_str().unwrap(),
+        ],
     );
-    let o = Command::new("sh").args(["-c", &script]).output().unwrap();
     let err = stderr(&o);
     assert_eq!(o.status.code(), Some(2), "{err}");
     assert!(

@@ -33,6 +33,20 @@ pub fn penumbra(args: &[&str]) -> Output {
         .expect("runs")
 }
 
+/// Runs the `penumbra` binary with `args` under an address-space limit
+/// of `kib` KiB (`ulimit -v`): how a machine short of memory looks to it.
+/// The arguments go to the shell as its own positional parameters, so
+/// paths need no quoting.
+pub fn penumbra_within_memory(kib: u64, args: &[&str]) -> Output {
+    Command::new("sh")
+        .arg("-c")
+        .arg(format!("ulimit -v {kib} && exec \"$0\" \"$@\""))
+        .arg(env!("CARGO_BIN_EXE_penumbra"))
+        .args(args)
+        .output()
+        .expect("runs")
+}
+
 /// Runs the `penumbra` binary with `args`, expects success and returns
 /// its standard output.
 pub fn penumbra_ok(args: &[&str]) -> String {

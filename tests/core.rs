@@ -204,6 +204,73 @@ fn reflections_change_only_pixels_that_see_a_mirror() {
     assert!(differing > 100, "reflections visible on {differing} pixels");
 }
 
+/// A 1×1 view of two mirror planes of reflectivity `r` and ambient colour
+/// `ambient` (nothing else of their own), under a light of ambient and
+/// diffuse `light`. `facing`: the second plane faces the floor (a
+/// corridor, the camera between them looking along it), else it is a wall
+/// that sends the floor's reflection up to the light.
+fn two_mirrors(r: f64, ambient: f64, light: [f64; 2], max_depth: u32, facing: bool) -> Loaded {
+    let (eye, target, second) = if facing {
+        (
+            "[0, 0.5, 0]",
+            "[0, 0, 0.5]",
+            r#""point": [0, 1, 0], "normal": [0, -1, 0]"#,
+        )
+    } else {
+        (
+            "[0, 1, -1]",
+            "[0, 0, 0]",
+            r#""point": [0, 0, 1.5], "normal": [0, 0, -1]"#,
+        )
+    };
+    let [la, ld] = light;
+    common::scene_json(&format!(
+        r#"{{
+  "format": 1,
+  "camera": {{ "position": {eye}, "look_at": {target}, "up": [0, 1, 0],
+              "fov_y_deg": 30, "width": 1, "height": 1 }},
+  "render": {{ "max_depth": {max_depth}, "shadow_rays": 1 }},
+  "light": {{ "corner": [-0.25, 2.5, 0.25], "edge_u": [0.5, 0, 0], "edge_v": [0, 0, 0.5],
+             "ambient": [{la}, {la}, {la}], "diffuse": [{ld}, {ld}, {ld}], "specular": [0, 0, 0] }},
+  "materials": {{ "m": {{ "ambient": [{ambient}, {ambient}, {ambient}], "diffuse": [0, 0, 0],
+                        "specular": [0, 0, 0], "shininess": 1, "reflectivity": {r} }} }},
+  "objects": [ {{ "type": "plane", "point": [0, 0, 0], "normal": [0, 1, 0], "material": "m" }},
+               {{ "type": "plane", {second}, "material": "m" }} ]
+}}"#
+    ))
+}
+
+/// The scene format sums every hit up to `max_depth` (colour = local +
+/// reflectivity · reflected): a path whose weight is small still reaches
+/// what it reaches, however bright, and a corridor of mirrors is followed
+/// for as many hits as `max_depth` allows, with skipping on or off.
+#[test]
+fn reflected_paths_are_followed_to_max_depth_however_faint() {
+    for skip in [true, false] {
+        // Floor, wall, light: weight 0.03 · 0.03 = 9e-4 on the light's
+        // 1000 gives 0.9.
+        let mut loaded = two_mirrors(0.03, 0.0, [0.0, 1000.0], 4, false);
+        loaded.settings.skip = skip;
+        let pixel = loaded.render_image().get(0, 0);
+        assert!(
+            (pixel - Vec3::splat(0.9)).abs().max_element() < 1e-5,
+            "skip {skip}: {pixel} against 0.9"
+        );
+        // Between mirrors of reflectivity 0.5 and ambient 0.1 each hit
+        // adds 0.1 · 0.5^i: the sum tells how many hits were made.
+        for depth in [8, 12, 16] {
+            let mut loaded = two_mirrors(0.5, 0.1, [1.0, 0.0], depth, true);
+            loaded.settings.skip = skip;
+            let pixel = loaded.render_image().get(0, 0).x as f64;
+            let expected: f64 = (0..depth).map(|i| 0.1 * 0.5f64.powi(i as i32)).sum();
+            assert!(
+                (pixel - expected).abs() < 2e-7,
+                "skip {skip}, max_depth {depth}: {pixel} against {expected}"
+            );
+        }
+    }
+}
+
 fn render_with(loaded: &Loaded, options: RenderOptions) -> penumbra::render::RenderReport {
     loaded
         .render(&options, &CancelToken::new(), &|_| {})

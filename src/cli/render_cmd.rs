@@ -402,7 +402,6 @@ fn stats_json(
             "shadow_disabled": s.shadow_disabled,
             "shadow_unneeded": s.shadow_unneeded,
             "shadow_adaptive": s.shadow_adaptive,
-            "reflected_culled": s.reflected_culled,
             "shadow_skipped": s.shadow_skipped(),
             "traced": s.traced(),
             "effective": s.effective(),

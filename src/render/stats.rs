@@ -23,8 +23,6 @@ pub struct RayStats {
     /// Shadow rays not traced: the adaptive mode's probes all agreed
     /// (an approximation, unlike the other skips).
     pub shadow_adaptive: u64,
-    /// Reflected rays not traced: the path weight fell below 1/1024.
-    pub reflected_culled: u64,
     /// `exact` model: hit points whose visible light was computed exactly.
     pub exact_hits: u64,
     /// `exact` model: hit points that fell back to the `analytic` estimate
@@ -44,7 +42,7 @@ pub struct Saving {
 }
 
 /// Every kind of skipped work, in report order.
-pub const SAVINGS: [Saving; 6] = [
+pub const SAVINGS: [Saving; 5] = [
     Saving {
         key: "shadow_backfacing",
         short: "backfac",
@@ -74,12 +72,6 @@ pub const SAVINGS: [Saving; 6] = [
         short: "adapt",
         label: "shadow rays left out by adaptive sampling",
         count: |s| s.shadow_adaptive,
-    },
-    Saving {
-        key: "reflected_culled",
-        short: "culled",
-        label: "reflected rays below the path weight (culled)",
-        count: |s| s.reflected_culled,
     },
 ];
 
@@ -112,7 +104,6 @@ impl AddAssign for RayStats {
         self.shadow_disabled += o.shadow_disabled;
         self.shadow_unneeded += o.shadow_unneeded;
         self.shadow_adaptive += o.shadow_adaptive;
-        self.reflected_culled += o.reflected_culled;
         self.exact_hits += o.exact_hits;
         self.exact_fallbacks += o.exact_fallbacks;
     }

@@ -30,11 +30,6 @@ use super::shadow::{HitLanes, LANE_RAYS, ShadowBuffers, ShadowQuery, lanes_fit};
 use super::stats::RayStats;
 use super::tile_frustum::{TileTargets, camera_objects};
 
-/// Reflected rays whose path weight falls below this are not traced (when
-/// skipping is on): they could change the pixel by at most this fraction of
-/// the brightest surface.
-pub const MIN_PATH_WEIGHT: f32 = 1.0 / 1024.0;
-
 /// Why a path ended.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum PathEnd {
@@ -46,8 +41,6 @@ pub enum PathEnd {
     MaxDepth,
     /// The last hit's material does not reflect.
     Absorbed,
-    /// The path weight fell below [`MIN_PATH_WEIGHT`].
-    Faint,
 }
 
 /// One recorded hit: what the colour needs besides the shading parameters,
@@ -538,12 +531,11 @@ impl<'a> Tracer<'a> {
                 });
                 break;
             }
+            // Traced whatever the path weight: however faint, the rest of
+            // the path may meet a light or surface bright enough to matter
+            // (colours reach 10⁶), and the scene format sums every hit up
+            // to `max_depth`.
             weight *= material.reflectivity;
-            if s.skip && weight < MIN_PATH_WEIGHT {
-                scratch.stats.reflected_culled += 1;
-                sink.end(PathEnd::Faint);
-                break;
-            }
             // About the shading normal, unless that would send the ray
             // into the surface.
             let mut mirrored = reflect(ray.dir, shading_normal);
@@ -1087,14 +1079,11 @@ pub fn replay(
             return Some(colour);
         }
         weight *= m.reflectivity;
-        if settings.skip && weight < MIN_PATH_WEIGHT {
-            return Some(colour);
-        }
     }
     match end {
         PathEnd::Background => colour += settings.background * weight,
         PathEnd::Light => colour += shading.light.diffuse * weight,
-        PathEnd::MaxDepth | PathEnd::Absorbed | PathEnd::Faint => return None,
+        PathEnd::MaxDepth | PathEnd::Absorbed => return None,
     }
     Some(colour)
 }

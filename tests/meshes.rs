@@ -515,14 +515,18 @@ fn degenerate_triangles_are_reported_by_the_cli() {
 /// and whatever is read has its indices in range.
 #[test]
 fn mutated_mesh_files_are_read_or_refused_without_panics() {
-    use penumbra::render::mesh::{RawMesh, read_gltf, read_obj, read_ply};
+    use penumbra::render::mesh::{NO_NORMAL, RawMesh, read_gltf, read_obj, read_ply};
     let check = |r: Result<RawMesh, String>| {
         if let Ok(raw) = r {
             let n = raw.positions.len() as u32;
             assert!(raw.faces.iter().flatten().all(|&i| i < n));
             if let Some(f) = &raw.face_normals {
                 let m = raw.normals.len() as u32;
-                assert!(f.iter().flatten().all(|&i| i < m));
+                assert_eq!(f.len(), raw.faces.len());
+                assert!(
+                    f.iter()
+                        .all(|f| *f == NO_NORMAL || f.iter().all(|&i| i < m))
+                );
             }
         } else if let Err(e) = r {
             assert!(!e.is_empty() && e.len() < 1000, "{e}");
@@ -1121,4 +1125,106 @@ fn vertices_far_beyond_the_range_are_refused_not_skipped() {
         );
         assert!(err.len() < 400, "{x}: short: {err}");
     }
+}
+
+/// Five faces of a curved patch; the first four carry `vn` normals, the
+/// last has none (`with_normals` and `without` pick which are written).
+fn patch_obj(with_normals: bool, without: bool) -> String {
+    let mut s = String::from(
+        "v -1 1 0\nv 1 1 0.6\nv 1 3 0\nv -1 3 0.3\nv 0 2 -0.5\nv 2.5 2 0.2\n\
+         vn 0.1847 0.2855 0.9404\nvn -0.2733 0.3973 0.8761\nvn -0.1625 -0.0100 0.9867\n\
+         vn 0.3482 -0.3482 0.8704\nvn -0.0535 0.0535 0.9971\n",
+    );
+    if with_normals {
+        s += "f 1//1 2//2 5//5\nf 2//2 3//3 5//5\nf 3//3 4//4 5//5\nf 4//4 1//1 5//5\n";
+    }
+    if without {
+        s += "f 2 6 3\n";
+    }
+    s
+}
+
+/// `auto` shading takes the file's normals on the faces that have them and
+/// leaves the others flat, face by face: a file whose last face has no
+/// normals renders as its other faces with their normals plus that face
+/// alone (it made the whole mesh flat).
+#[test]
+fn auto_shading_uses_the_normals_of_the_faces_that_have_them() {
+    let dir = scratch("auto-normals");
+    let write = |name: &str, text: String| {
+        let file = dir.join(name);
+        std::fs::write(&file, text).unwrap();
+        file
+    };
+    let mixed = write("mixed.obj", patch_obj(true, true));
+    let smooth_part = write("smooth.obj", patch_obj(true, false));
+    let flat_part = write("flat.obj", patch_obj(false, true));
+    let place = |m: &mut MeshDesc| m.translate = [0.0, 0.5, -2.0];
+    let with_meshes = |files: &[(&Path, MeshShading)]| {
+        let mut d = small_room();
+        for (file, shading) in files {
+            let mut m = mesh(file, "red");
+            m.shading = *shading;
+            place(&mut m);
+            d.objects.push(ObjectDesc::Mesh(m));
+        }
+        render(&d, true)
+    };
+    let auto = with_meshes(&[(&mixed, MeshShading::Auto)]);
+    let by_face = with_meshes(&[
+        (&smooth_part, MeshShading::Auto),
+        (&flat_part, MeshShading::Auto),
+    ]);
+    let flat = with_meshes(&[(&mixed, MeshShading::Flat)]);
+    assert_eq!(rmse(&auto, &by_face), (0.0, 0.0));
+    let (to_flat, _) = rmse(&auto, &flat);
+    assert!(to_flat > 1e-3, "the normals were used: rmse {to_flat}");
+
+    // glTF: a primitive without NORMAL is flat beside one with it.
+    use penumbra::render::mesh::{build, read_gltf};
+    let mut normals = Vec::new();
+    for _ in 0..4 {
+        for x in [0.0f32, 0.6, 0.8] {
+            normals.extend(x.to_le_bytes());
+        }
+    }
+    let gltf = square_gltf(4, &[0, 1, 2, 0, 2, 3], |j| {
+        j["buffers"]
+            .as_array_mut()
+            .unwrap()
+            .push(serde_json::json!({
+            "byteLength": 48,
+            "uri": format!("data:application/octet-stream;base64,{}", base64(&normals))}));
+        j["bufferViews"]
+            .as_array_mut()
+            .unwrap()
+            .push(serde_json::json!(
+            {"buffer": 1, "byteOffset": 0, "byteLength": 48}));
+        j["accessors"]
+            .as_array_mut()
+            .unwrap()
+            .push(serde_json::json!(
+            {"bufferView": 2, "componentType": 5126, "count": 4, "type": "VEC3"}));
+        j["meshes"][0]["primitives"] = serde_json::json!([
+            {"attributes": {"POSITION": 0, "NORMAL": 2}, "indices": 1, "mode": 4},
+            {"attributes": {"POSITION": 0}, "indices": 1, "mode": 4}]);
+    });
+    let raw = read_gltf(&gltf, None).unwrap();
+    let part = build(raw, &mesh(Path::new("square.gltf"), "red"));
+    let unit = |n: glam::DVec3| (n - glam::DVec3::new(0.0, 0.6, 0.8)).length() < 1e-7;
+    let with: Vec<bool> = part
+        .faces
+        .iter()
+        .map(|f| f.iter().all(|&i| unit(part.normals[i as usize])))
+        .collect();
+    let without: Vec<bool> = part
+        .faces
+        .iter()
+        .map(|f| {
+            f.iter()
+                .all(|&i| part.normals[i as usize] == glam::DVec3::ZERO)
+        })
+        .collect();
+    assert_eq!(with, [true, true, false, false]);
+    assert_eq!(without, [false, false, true, true]);
 }

@@ -25,11 +25,15 @@ pub struct RawMesh {
     pub positions: Vec<DVec3>,
     /// Vertex indices of each triangle (checked to be in range).
     pub faces: Vec<[u32; 3]>,
-    /// Normals from the file, and each face's indices into them (in range),
-    /// if every face has them.
+    /// Normals from the file, and each face's indices into them (in range;
+    /// [`NO_NORMAL`] for a face without them), if any face has them.
     pub normals: Vec<DVec3>,
     pub face_normals: Option<Vec<[u32; 3]>>,
 }
+
+/// The normal indices of a face whose file gives it no normal at every
+/// corner: `auto` shading makes that face flat.
+pub const NO_NORMAL: [u32; 3] = [u32::MAX; 3];
 
 /// The file of a mesh object: relative paths are resolved against the
 /// scene file's folder.
@@ -179,7 +183,8 @@ pub fn build(raw: RawMesh, desc: &MeshDesc) -> MeshPart {
 
 /// A mesh whose faces index positions and normals apart (OBJ's `f 1//7`):
 /// one vertex per pair of indices used, so that normals can be shared by
-/// position index.
+/// position index. A face without normals ([`NO_NORMAL`]) gets vertices of
+/// normal zero: flat (see `Meshes::add`).
 fn split_vertices(
     positions: Vec<DVec3>,
     faces: Vec<[u32; 3]>,
@@ -193,7 +198,10 @@ fn split_vertices(
         let face = std::array::from_fn(|k| {
             *index.entry((f[k], nf[k])).or_insert_with(|| {
                 part.positions.push(positions[f[k] as usize]);
-                part.normals.push(tf.normal(file_normals[nf[k] as usize]));
+                part.normals.push(match file_normals.get(nf[k] as usize) {
+                    Some(&n) if *nf != NO_NORMAL => tf.normal(n),
+                    _ => DVec3::ZERO,
+                });
                 (part.positions.len() - 1) as u32
             })
         });
@@ -266,7 +274,6 @@ pub fn read_obj_tobj(bytes: &[u8]) -> Result<RawMesh, String> {
         }
     };
     let mut raw = RawMesh::default();
-    let mut all_normals = true;
     let mut face_normals = Vec::new();
     for m in &models {
         let mesh = &m.mesh;
@@ -290,23 +297,27 @@ pub fn read_obj_tobj(bytes: &[u8]) -> Result<RawMesh, String> {
             }
             raw.faces.push([f[0] + base, f[1] + base, f[2] + base]);
         }
+        // `tobj` gives a model's normal indices only as one list: a model
+        // whose faces all have normals uses them, any other is flat.
         let ncount = mesh.normals.len() / 3;
-        if mesh.normal_indices.len() == mesh.indices.len() && ncount > 0 {
-            for f in mesh.normal_indices.chunks_exact(3) {
-                if f.iter().any(|&i| i as usize >= ncount) {
-                    all_normals = false;
-                    break;
-                }
-                face_normals.push([f[0] + nbase, f[1] + nbase, f[2] + nbase]);
-            }
-        } else if !mesh.indices.is_empty() {
-            all_normals = false;
+        let with_normals = mesh.normal_indices.len() == mesh.indices.len()
+            && ncount > 0
+            && mesh.normal_indices.iter().all(|&i| (i as usize) < ncount);
+        for f in mesh
+            .normal_indices
+            .chunks_exact(3)
+            .take(if with_normals { usize::MAX } else { 0 })
+        {
+            face_normals.push([f[0] + nbase, f[1] + nbase, f[2] + nbase]);
+        }
+        if !with_normals {
+            face_normals.resize(raw.faces.len(), NO_NORMAL);
         }
     }
     if raw.positions.iter().any(|p| !p.is_finite()) {
         return Err(obj_diagnosis(bytes).unwrap_or_else(|| "a vertex is not finite".into()));
     }
-    if all_normals && face_normals.len() == raw.faces.len() && !raw.faces.is_empty() {
+    if face_normals.iter().any(|f| *f != NO_NORMAL) {
         raw.face_normals = Some(face_normals);
     }
     Ok(raw)

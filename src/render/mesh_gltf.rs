@@ -88,7 +88,7 @@ pub fn read_gltf(bytes: &[u8], dir: Option<&Path>) -> Result<RawMesh, String> {
         .or_else(|| g.scenes().next())
         .ok_or("the file has no scene")?;
     let mut raw = RawMesh::default();
-    let mut all_normals = true;
+    let mut any_normals = false;
     let mut stack: Vec<(gltf::Node, DMat4, usize)> =
         scene.nodes().map(|n| (n, DMat4::IDENTITY, 0)).collect();
     let mut visited = 0usize;
@@ -141,11 +141,13 @@ pub fn read_gltf(bytes: &[u8], dir: Option<&Path>) -> Result<RawMesh, String> {
                     }
                     raw.positions.push(v);
                 }
+                // A primitive without normals has them zero: flat faces.
                 match &nor {
                     Some(nor) if nor.len() == n => {
+                        any_normals = true;
                         raw.normals.extend(nor.iter().map(|q| normal_m * *q))
                     }
-                    _ => all_normals = false,
+                    _ => raw.normals.resize(raw.positions.len(), DVec3::ZERO),
                 }
                 let b = base as u32;
                 triangles(mode, &indices, |f| raw.faces.push(f.map(|i| i + b)));
@@ -155,7 +157,7 @@ pub fn read_gltf(bytes: &[u8], dir: Option<&Path>) -> Result<RawMesh, String> {
             stack.push((child, m, depth + 1));
         }
     }
-    if all_normals && !raw.faces.is_empty() && raw.normals.len() == raw.positions.len() {
+    if any_normals && !raw.faces.is_empty() && raw.normals.len() == raw.positions.len() {
         raw.face_normals = Some(raw.faces.clone());
     } else {
         raw.normals.clear();

@@ -15,7 +15,7 @@
 use glam::DVec3;
 use rayon::prelude::*;
 
-use super::mesh::RawMesh;
+use super::mesh::{NO_NORMAL, RawMesh};
 
 /// Bytes per parallel chunk (cut at line ends).
 const CHUNK: usize = 1 << 20;
@@ -26,9 +26,10 @@ struct Chunk {
     positions: Vec<DVec3>,
     normals: Vec<DVec3>,
     faces: Vec<[u32; 3]>,
+    /// Each face's normal indices, [`NO_NORMAL`] where a corner has none.
     face_normals: Vec<[u32; 3]>,
-    /// Face corners without a normal index.
-    corners_without_normal: usize,
+    /// Faces with a normal index at every corner.
+    faces_with_normals: usize,
 }
 
 /// Counts of one chunk's `v`, `vt` and `vn` lines.
@@ -79,7 +80,7 @@ pub fn read_plain_obj(bytes: &[u8]) -> Option<RawMesh> {
     let sum = |f: fn(&Chunk) -> usize| chunks.iter().map(f).sum::<usize>();
     raw.positions.reserve_exact(sum(|c| c.positions.len()));
     raw.faces.reserve_exact(sum(|c| c.faces.len()));
-    let with_normals = sum(|c| c.corners_without_normal) == 0 && total.vn > 0;
+    let with_normals = sum(|c| c.faces_with_normals) > 0 && total.vn > 0;
     if with_normals {
         raw.normals.reserve_exact(sum(|c| c.normals.len()));
     }
@@ -96,7 +97,7 @@ pub fn read_plain_obj(bytes: &[u8]) -> Option<RawMesh> {
             face_normals.extend_from_slice(&c.face_normals);
         }
     }
-    if with_normals && !raw.faces.is_empty() {
+    if with_normals {
         raw.face_normals = Some(face_normals);
     }
     Some(raw)
@@ -257,8 +258,11 @@ fn parse(bytes: &[u8], before: Counts) -> Option<Chunk> {
                 for j in 1..corner_v.len() - 1 {
                     c.faces.push([corner_v[0], corner_v[j], corner_v[j + 1]]);
                     match (corner_n[0], corner_n[j], corner_n[j + 1]) {
-                        (Some(a), Some(b), Some(d)) => c.face_normals.push([a, b, d]),
-                        _ => c.corners_without_normal += 1,
+                        (Some(a), Some(b), Some(d)) => {
+                            c.face_normals.push([a, b, d]);
+                            c.faces_with_normals += 1;
+                        }
+                        _ => c.face_normals.push(NO_NORMAL),
                     }
                 }
             }

@@ -561,7 +561,8 @@ impl MeshScale {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, Default)]
 #[serde(rename_all = "snake_case")]
 pub enum MeshShading {
-    /// The file's vertex normals where it has them, else flat.
+    /// The file's vertex normals on the faces that have them, the other
+    /// faces flat.
     #[default]
     Auto,
     /// Face normals.

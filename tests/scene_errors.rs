@@ -235,7 +235,7 @@ fn out_of_range_values_are_refused() {
     assert_error(
         |v| v["camera"]["width"] = json!(-5),
         "camera.width",
-        "invalid value: integer `-5`",
+        "-5 is out of range, expected 1..=16384 pixels",
     );
     assert_error(
         |v| v["render"]["shadow_rays"] = json!(4097),
@@ -366,4 +366,91 @@ fn errors_from_files_name_the_file() {
     let e = Loaded::load(&path).unwrap_err().to_string();
     assert!(e.starts_with(&format!("{}: ", path.display())), "{e}");
     assert!(e.contains("EOF while parsing"), "{e}");
+}
+
+/// JSON has one number type: a whole-number field takes `64.0` and `6.4e1`
+/// as 64 (they were refused as "expected u32"), and a fraction, a negative
+/// value or one beyond the field's type is refused with the field's range.
+#[test]
+fn whole_number_fields_take_any_spelling_of_a_whole_number() {
+    // The seed room with `number` written for one field, as it stands.
+    let with = |[section, name]: [&str; 2], number: &str| {
+        let mut v = seed();
+        v[section][name] = json!(123456789);
+        v.to_string().replace("123456789", number)
+    };
+    for (field, number, value) in [
+        (["camera", "width"], "96.0", 96u64),
+        (["camera", "height"], "5.4e1", 54),
+        (["render", "shadow_rays"], "64.0", 64),
+        (["render", "max_depth"], "4e0", 4),
+        (["render", "seed"], "7.0", 7),
+        (["render", "samples_per_pixel"], "2.0", 2),
+    ] {
+        let desc = SceneDesc::from_json(&with(field, number))
+            .unwrap_or_else(|e| panic!("{field:?} = {number}: {e}"));
+        let read = match field[1] {
+            "width" => desc.camera.width as u64,
+            "height" => desc.camera.height as u64,
+            "shadow_rays" => desc.render.shadow_rays as u64,
+            "max_depth" => desc.render.max_depth as u64,
+            "seed" => desc.render.seed,
+            _ => desc.render.samples_per_pixel as u64,
+        };
+        assert_eq!(read, value, "{field:?} = {number}");
+    }
+    let format = seed().to_string().replace("\"format\":1", "\"format\":1.0");
+    assert_eq!(SceneDesc::from_json(&format).unwrap().format, 1);
+
+    for (field, number, words) in [
+        (
+            ["camera", "width"],
+            "-1",
+            "-1 is out of range, expected 1..=16384 pixels",
+        ),
+        (
+            ["camera", "width"],
+            "96.5",
+            "floating point `96.5`, expected a whole number in 1..=16384 pixels",
+        ),
+        (
+            ["camera", "height"],
+            "5000000000",
+            "5000000000 is out of range, expected 1..=16384 pixels",
+        ),
+        (
+            ["render", "shadow_rays"],
+            "1e300",
+            "1e300 is out of range, expected 1..=4096",
+        ),
+        (
+            ["render", "max_depth"],
+            "\"4\"",
+            "invalid type: string \"4\", expected a whole number in 1..=16",
+        ),
+        (["render", "seed"], "-3", "-3 is out of range"),
+    ] {
+        let e = SceneDesc::from_json(&with(field, number))
+            .unwrap_err()
+            .to_string();
+        let path = format!("{}.{}: ", field[0], field[1]);
+        assert!(
+            e.starts_with(&path) && e.contains(words),
+            "{field:?} = {number}: {e}"
+        );
+    }
+}
+
+/// `shininess_override` is a number or absent: `null` was taken as absent.
+#[test]
+fn a_null_shininess_override_is_refused() {
+    assert_error(
+        |v| v["render"]["shininess_override"] = Value::Null,
+        "render.shininess_override",
+        "invalid type: null, expected a number, or the field left out",
+    );
+    let mut v = seed();
+    v["render"]["shininess_override"] = json!(30);
+    let desc = SceneDesc::from_json(&v.to_string()).unwrap();
+    assert_eq!(desc.render.shininess_override, Some(30.0));
 }

@@ -21,6 +21,7 @@ mod mesh_ply;
 pub mod output;
 pub mod region;
 pub mod scene_file;
+mod whole_number;
 
 // Internals that the benchmarks and white-box tests reach into; not part of
 // the API.

@@ -15,6 +15,7 @@ use serde::{Deserialize, Serialize};
 use serde_json::Value;
 
 use super::error::SceneError;
+use super::whole_number::deserialize_whole;
 
 /// The scene files this build reads.
 pub const FORMAT_VERSION: u32 = 1;
@@ -210,7 +211,9 @@ pub struct CameraDesc {
     pub look_at: Vec3Desc,
     pub up: Vec3Desc,
     pub fov_y_deg: f64,
+    #[serde(deserialize_with = "image_side")]
     pub width: u32,
+    #[serde(deserialize_with = "image_side")]
     pub height: u32,
 }
 
@@ -340,13 +343,13 @@ fn is_true(b: &bool) -> bool {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RenderDesc {
-    #[serde(default = "default_shadow_rays")]
+    #[serde(default = "default_shadow_rays", deserialize_with = "shadow_rays")]
     pub shadow_rays: u32,
     #[serde(default)]
     pub sampling: Sampling,
-    #[serde(default = "default_max_depth")]
+    #[serde(default = "default_max_depth", deserialize_with = "max_depth")]
     pub max_depth: u32,
-    #[serde(default = "default_seed")]
+    #[serde(default = "default_seed", deserialize_with = "seed")]
     pub seed: u64,
     #[serde(default)]
     pub area_light_model: AreaLightModel,
@@ -369,12 +372,100 @@ pub struct RenderDesc {
     pub cutaway: bool,
     /// Extension: one shininess for every material (the viewer's global
     /// override). Omitted when unset.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(
+        default,
+        skip_serializing_if = "Option::is_none",
+        deserialize_with = "number_if_present"
+    )]
     pub shininess_override: Option<f64>,
     /// Camera samples per pixel (anti-aliasing); 1: one ray through the
     /// pixel centre.
-    #[serde(default = "one_sample", skip_serializing_if = "is_one_sample")]
+    #[serde(
+        default = "one_sample",
+        skip_serializing_if = "is_one_sample",
+        deserialize_with = "samples_per_pixel"
+    )]
     pub samples_per_pixel: u32,
+}
+
+/// The ranges of the format's whole-number fields.
+mod whole_ranges {
+    use super::limits::*;
+    use crate::render::whole_number::WholeRange;
+
+    pub const FORMAT: WholeRange = WholeRange {
+        lo: 0,
+        hi: u32::MAX as u64,
+        unit: "",
+    };
+    pub const SIDE: WholeRange = WholeRange {
+        lo: 1,
+        hi: MAX_SIDE as u64,
+        unit: " pixels",
+    };
+    pub const SHADOW_RAYS: WholeRange = WholeRange {
+        lo: 1,
+        hi: MAX_SHADOW_RAYS as u64,
+        unit: "",
+    };
+    pub const DEPTH: WholeRange = WholeRange {
+        lo: 1,
+        hi: MAX_DEPTH as u64,
+        unit: "",
+    };
+    pub const SEED: WholeRange = WholeRange {
+        lo: 0,
+        hi: u64::MAX,
+        unit: "",
+    };
+    pub const SAMPLES: WholeRange = WholeRange {
+        lo: 1,
+        hi: MAX_SAMPLES_PER_PIXEL as u64,
+        unit: "",
+    };
+}
+
+/// Readers of the whole-number fields (see `whole_number.rs`); any
+/// version number is read, and `validate` names the supported one.
+fn format_version<'de, D: serde::Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
+    deserialize_whole(d, whole_ranges::FORMAT)
+}
+fn image_side<'de, D: serde::Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
+    deserialize_whole(d, whole_ranges::SIDE)
+}
+fn shadow_rays<'de, D: serde::Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
+    deserialize_whole(d, whole_ranges::SHADOW_RAYS)
+}
+fn max_depth<'de, D: serde::Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
+    deserialize_whole(d, whole_ranges::DEPTH)
+}
+fn seed<'de, D: serde::Deserializer<'de>>(d: D) -> Result<u64, D::Error> {
+    deserialize_whole(d, whole_ranges::SEED)
+}
+fn samples_per_pixel<'de, D: serde::Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
+    deserialize_whole(d, whole_ranges::SAMPLES)
+}
+
+/// An optional number: absent is `None` (the field's default), `null` is
+/// refused as what it is not (the format says "a number or absent").
+fn number_if_present<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Option<f64>, D::Error> {
+    struct Number;
+    impl serde::de::Visitor<'_> for Number {
+        type Value = f64;
+        fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+            f.write_str("a number, or the field left out")
+        }
+        fn visit_f64<E>(self, v: f64) -> Result<f64, E> {
+            Ok(v)
+        }
+        fn visit_u64<E>(self, v: u64) -> Result<f64, E> {
+            Ok(v as f64)
+        }
+        fn visit_i64<E>(self, v: i64) -> Result<f64, E> {
+            Ok(v as f64)
+        }
+    }
+    d.deserialize_any(Number).map(Some)
 }
 
 fn one_sample() -> u32 {
@@ -582,6 +673,7 @@ impl MeshShading {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct RawScene {
+    #[serde(deserialize_with = "format_version")]
     format: u32,
     camera: CameraDesc,
     #[serde(default)]
@@ -822,7 +914,7 @@ impl SceneDesc {
             if !(1..=MAX_SIDE).contains(&v) {
                 return Err(SceneError::new(
                     format!("camera.{name}"),
-                    format!("{v} is out of range, expected 1..={MAX_SIDE} pixels"),
+                    whole_ranges::SIDE.out_of_range(v),
                 ));
             }
         }
@@ -844,21 +936,13 @@ impl SceneDesc {
         if !(1..=limits::MAX_SHADOW_RAYS).contains(&r.shadow_rays) {
             return Err(SceneError::new(
                 "render.shadow_rays",
-                format!(
-                    "{} is out of range, expected 1..={}",
-                    r.shadow_rays,
-                    limits::MAX_SHADOW_RAYS
-                ),
+                whole_ranges::SHADOW_RAYS.out_of_range(r.shadow_rays),
             ));
         }
         if !(1..=limits::MAX_DEPTH).contains(&r.max_depth) {
             return Err(SceneError::new(
                 "render.max_depth",
-                format!(
-                    "{} is out of range, expected 1..={}",
-                    r.max_depth,
-                    limits::MAX_DEPTH
-                ),
+                whole_ranges::DEPTH.out_of_range(r.max_depth),
             ));
         }
         for (name, v) in [
@@ -875,11 +959,7 @@ impl SceneDesc {
         if !(1..=limits::MAX_SAMPLES_PER_PIXEL).contains(&r.samples_per_pixel) {
             return Err(SceneError::new(
                 "render.samples_per_pixel",
-                format!(
-                    "{} is out of range, expected 1..={}",
-                    r.samples_per_pixel,
-                    limits::MAX_SAMPLES_PER_PIXEL
-                ),
+                whole_ranges::SAMPLES.out_of_range(r.samples_per_pixel),
             ));
         }
         let pixels = c.width as u64 * c.height as u64;
@@ -1340,7 +1420,7 @@ fn sin_angle(a: Vec3Desc, b: Vec3Desc) -> f64 {
 
 /// A number for a message: as written when of ordinary size, in exponent
 /// form when huge or tiny (1e308 would otherwise print as 309 digits).
-fn num(v: f64) -> String {
+pub(super) fn num(v: f64) -> String {
     if v == 0.0 || !v.is_finite() || (1e-4..=1e9).contains(&v.abs()) {
         format!("{v}")
     } else {

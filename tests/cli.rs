@@ -534,3 +534,67 @@ fn generate_writes_only_obj_files_into_folders_that_are_there() {
             >= 100
     );
 }
+
+/// A number out of range is quoted as typed: `--filter-width 1e-300` was
+/// reported as "0 is out of range", `1e300` as "inf".
+#[test]
+fn an_out_of_range_number_is_quoted_as_typed() {
+    let dir = scratch_dir("typed");
+    let out = dir.join("x.png");
+    for typed in ["1e-300", "1e300", "0.49999"] {
+        let o = render_small(&out, &["--filter-width", typed]);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{typed}: {err}");
+        assert!(
+            err.contains(&format!(": {typed} is out of range, expected 0.5..=8")),
+            "{typed}: {err}"
+        );
+    }
+    assert!(!out.exists());
+}
+
+/// A negative number without `=` reaches the option's own range check,
+/// which names the option (clap took `-5` for an unknown argument and
+/// named none).
+#[test]
+fn a_negative_number_is_refused_by_its_option() {
+    let dir = scratch_dir("negative");
+    let out = dir.join("x.exr");
+    let out = out.to_str().unwrap();
+    let cases: [(&[&str], &str); 14] = [
+        (&["render", "-o", out, "--width", "-5"], "--width"),
+        (&["render", "-o", out, "--height", "-5"], "--height"),
+        (&["render", "-o", out, "--spp", "-2"], "--spp"),
+        (
+            &["render", "-o", out, "--shadow-rays", "-1"],
+            "--shadow-rays",
+        ),
+        (&["render", "-o", out, "--depth", "-1"], "--depth"),
+        (&["render", "-o", out, "--threads", "-1"], "--threads"),
+        (&["render", "-o", out, "--seed", "-1"], "--seed"),
+        (
+            &["render", "-o", out, "--scale", "-1"],
+            "-1 is out of range",
+        ),
+        (
+            &["render", "-o", out, "--filter-width", "-1"],
+            "-1 is out of range",
+        ),
+        (
+            &["render", "-o", out, "--terms", "-1,0,0"],
+            "-1 is out of range",
+        ),
+        (&["render", "-o", out, "--region", "-1,0,10,10"], "--region"),
+        (&["bench", "--width", "-5"], "--width"),
+        (&["bench", "--spheres", "-1", "--scaling"], "--spheres"),
+        (&["generate", "-o", out, "--triangles", "-5"], "--triangles"),
+    ];
+    for (args, want) in cases {
+        let o = penumbra(args);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+        assert!(!err.contains("unexpected argument"), "{args:?}: {err}");
+        assert!(err.contains(want), "{args:?}: {want:?} in {err}");
+    }
+    assert!(files_in(&dir).is_empty());
+}

@@ -1,6 +1,11 @@
 //! The command-line front end: argument types and the commands. Each
 //! command returns a [`CliError`] whose exit code tells bad input (2) from
 //! other failures (1).
+//!
+//! Every numeric option takes values that begin with `-`
+//! (`allow_hyphen_values`): `--width -5` then reaches the option's own
+//! range check, whose message names the option and its range, where clap
+//! would have called `-5` an unexpected argument.
 
 pub mod bench;
 mod compare_cmd;
@@ -66,12 +71,12 @@ pub struct ViewArgs {
     pub no_persist: bool,
     /// Change the ambient slider by itself every SECS seconds (six times),
     /// to measure `--log-timings` without a person at the mouse.
-    #[arg(long, value_name = "SECS", hide = true)]
+    #[arg(long, allow_hyphen_values = true, value_name = "SECS", hide = true)]
     pub wiggle: Option<f64>,
     /// Once the requested quality is reached and nothing changes, refine
     /// the image with more camera samples per pixel up to this many (1:
     /// never; default 16).
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1024))]
+    #[arg(long, allow_hyphen_values = true, value_parser = clap::value_parser!(u32).range(1..=1024))]
     pub refine_spp: Option<u32>,
 }
 
@@ -80,29 +85,29 @@ pub struct ViewArgs {
 pub struct SceneOverrides {
     /// Image width in pixels (alone: the height follows at the scene's
     /// aspect ratio).
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=16384))]
+    #[arg(long, allow_hyphen_values = true, value_parser = clap::value_parser!(u32).range(1..=16384))]
     pub width: Option<u32>,
     /// Image height in pixels (alone: the width follows at the scene's
     /// aspect ratio).
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=16384))]
+    #[arg(long, allow_hyphen_values = true, value_parser = clap::value_parser!(u32).range(1..=16384))]
     pub height: Option<u32>,
     /// Shadow rays per hit point.
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=4096))]
+    #[arg(long, allow_hyphen_values = true, value_parser = clap::value_parser!(u32).range(1..=4096))]
     pub shadow_rays: Option<u32>,
     /// Placement of shadow-ray points on the light.
     #[arg(long, value_enum)]
     pub sampling: Option<SamplingArg>,
     /// Most surface hits along one camera path (1 = no reflections).
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=16))]
+    #[arg(long, allow_hyphen_values = true, value_parser = clap::value_parser!(u32).range(1..=16))]
     pub depth: Option<u32>,
     /// Area-light model.
     #[arg(long, value_enum)]
     pub model: Option<ModelArg>,
     /// Random seed.
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true)]
     pub seed: Option<u64>,
     /// Multipliers of the ambient, diffuse and specular terms, e.g. 1,0,0.
-    #[arg(long, value_parser = parse_terms)]
+    #[arg(long, allow_hyphen_values = true, value_parser = parse_terms)]
     pub terms: Option<[f64; 3]>,
     /// Adaptive shadow rays: a few first, the rest only where they disagree
     /// (faster, biased).
@@ -114,20 +119,20 @@ pub struct SceneOverrides {
     pub cutaway: bool,
     /// Multiply every coordinate and length of the scene (camera included)
     /// by this factor: the image stays the same.
-    #[arg(long, value_parser = parse_scale)]
+    #[arg(long, allow_hyphen_values = true, value_parser = parse_scale)]
     pub scale: Option<f64>,
     /// Move the whole scene (camera included) by x,y,z.
     #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
     pub translate: Option<[f64; 3]>,
     /// Camera samples per pixel (anti-aliasing; `render.samples_per_pixel`).
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1024))]
+    #[arg(long, allow_hyphen_values = true, value_parser = clap::value_parser!(u32).range(1..=1024))]
     pub spp: Option<u32>,
     /// Reconstruction filter of several samples per pixel (default
     /// blackman-harris).
     #[arg(long, value_enum)]
     pub filter: Option<FilterArg>,
     /// Width of the Blackman–Harris filter in pixels (default 1.5).
-    #[arg(long, value_parser = parse_filter_width)]
+    #[arg(long, allow_hyphen_values = true, value_parser = parse_filter_width)]
     pub filter_width: Option<f32>,
 }
 
@@ -155,7 +160,8 @@ fn parse_filter_width(s: &str) -> Result<f32, String> {
     if (0.5..=8.0).contains(&w) {
         Ok(w)
     } else {
-        Err(format!("{w} is out of range, expected 0.5..=8 pixels"))
+        // The text as typed: the f32 it parses to may be 0 or inf.
+        Err(format!("{s} is out of range, expected 0.5..=8 pixels"))
     }
 }
 
@@ -169,7 +175,7 @@ pub struct RenderArgs {
     #[command(flatten)]
     pub overrides: SceneOverrides,
     /// Worker threads (default: all cores).
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1024))]
+    #[arg(long, allow_hyphen_values = true, value_parser = clap::value_parser!(u32).range(1..=1024))]
     pub threads: Option<u32>,
     /// Trace every shadow ray, skipping nothing (to measure what skipping
     /// saves; the image is the same).
@@ -182,7 +188,7 @@ pub struct RenderArgs {
     /// Render only the crop window X,Y,W,H (pixels from the top-left) into
     /// an EXR that records its place in the whole image; `penumbra merge`
     /// stitches such parts into the image a whole render gives.
-    #[arg(long, value_name = "X,Y,W,H", value_parser = parse_region, conflicts_with = "progressive")]
+    #[arg(long, allow_hyphen_values = true, value_name = "X,Y,W,H", value_parser = parse_region, conflicts_with = "progressive")]
     pub region: Option<TileRect>,
     /// Also write the render's times and every ray count to FILE as JSON,
     /// for scripts (`-`: standard output). Of the line on standard error,
@@ -209,7 +215,7 @@ fn parse_region(s: &str) -> Result<TileRect, String> {
 #[derive(Debug, Args)]
 pub struct GenerateArgs {
     /// About this many triangles (the torus has 2 · around · across).
-    #[arg(long, default_value_t = 1_000_000, value_parser = clap::value_parser!(u32).range(18..=20_000_000))]
+    #[arg(long, allow_hyphen_values = true, default_value_t = 1_000_000, value_parser = clap::value_parser!(u32).range(18..=20_000_000))]
     pub triangles: u32,
     /// The OBJ file to write.
     #[arg(short, long)]

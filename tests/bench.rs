@@ -8,9 +8,10 @@ use penumbra::cli::bench::reference::{reference, reference_key};
 use penumbra::cli::bench::sweep::{SweepPlan, csv, csv_columns, run_sweep};
 use penumbra::render::SEED_ROOM_JSON;
 use penumbra::render::generate::{
-    Layout, ROOM_MAX, ROOM_MIN, floor_sphere_radius, generate, sphere_radius, spheres_in_room,
+    Layout, MAX_SPHERES, ROOM_MAX, ROOM_MIN, ROOM_OBJECTS, floor_sphere_radius, generate,
+    sphere_radius, spheres_in_room,
 };
-use penumbra::render::scene_file::ObjectDesc;
+use penumbra::render::scene_file::{ObjectDesc, limits};
 use penumbra::render::{AreaLightModel, Loaded, Sampling, SceneDesc};
 
 fn tiny_room(width: u32, height: u32) -> SceneDesc {
@@ -365,4 +366,23 @@ fn conflicting_bench_modes_are_refused() {
             "{args:?}"
         );
     }
+}
+
+/// `--spheres` takes what the room can hold: the room's own objects and
+/// the spheres within the format's object limit (1 000 000 spheres were
+/// taken and then refused as "1000005 objects", naming no option).
+#[test]
+fn spheres_stop_at_what_the_room_holds() {
+    assert_eq!(
+        generate(1, 1, Layout::Volume).objects.len(),
+        ROOM_OBJECTS + 1
+    );
+    assert_eq!(MAX_SPHERES + ROOM_OBJECTS, limits::MAX_OBJECTS);
+    let o = penumbra(&["bench", "--spheres", "10,1000000", "--scaling"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("--spheres") && err.contains(&format!("1..={MAX_SPHERES}")),
+        "{err}"
+    );
 }

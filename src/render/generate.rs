@@ -27,6 +27,14 @@ pub const VOLUME_FRACTION: f64 = 0.05;
 /// overlaps).
 pub const FLOOR_COVERAGE: f64 = 0.3;
 
+/// The seed room's objects the spheres join: its planes and rects.
+pub const ROOM_OBJECTS: usize = 5;
+
+/// Most spheres a generated room holds: the format's object limit less the
+/// room's own objects (more would be refused as a scene of too many
+/// objects, which no option of the bench's names).
+pub const MAX_SPHERES: usize = super::scene_file::limits::MAX_OBJECTS - ROOM_OBJECTS;
+
 /// Where the generated spheres go.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Layout {

@@ -95,8 +95,9 @@ pub struct BenchArgs {
     #[arg(long, allow_hyphen_values = true, value_parser = clap::value_parser!(u32).range(1..=1024))]
     pub threads: Option<u32>,
     /// Replace the scene with the seed room holding N random spheres; a
-    /// comma-separated list runs each N.
-    #[arg(long, allow_hyphen_values = true, value_delimiter = ',', value_parser = clap::value_parser!(u32).range(1..=1_000_000))]
+    /// comma-separated list runs each N (at most 999 995: with the room's
+    /// own 5 objects, the format's 1 000 000).
+    #[arg(long, allow_hyphen_values = true, value_delimiter = ',', value_parser = clap::value_parser!(u32).range(1..=generate::MAX_SPHERES as i64))]
     pub spheres: Option<Vec<u32>>,
     /// Seed of the sphere generator.
     #[arg(long, allow_hyphen_values = true, default_value_t = 1)]

@@ -368,6 +368,29 @@ fn conflicting_bench_modes_are_refused() {
     }
 }
 
+/// An image too small to hold a penumbra pixel is refused (exit 2, with a
+/// width that has some): it printed "0 penumbra pixels", RMSE 0 everywhere
+/// and a slope of NaN, with exit 0.
+#[test]
+fn slopes_refuse_an_image_without_penumbra_pixels() {
+    for size in [&["--width", "1", "--height", "1"][..], &["--width", "3"]] {
+        let mut args = vec!["bench", "--slopes"];
+        args.extend_from_slice(size);
+        let o = penumbra(&args);
+        let (out, err) = (
+            String::from_utf8_lossy(&o.stdout),
+            String::from_utf8_lossy(&o.stderr),
+        );
+        assert_eq!(o.status.code(), Some(2), "{size:?}: {out}{err}");
+        assert!(
+            err.contains("--slopes: no penumbra pixels at")
+                && err.contains("no error to fit; the smallest width with some is --width "),
+            "{size:?}: {err}"
+        );
+        assert!(!out.contains("NaN") && !err.contains("NaN"), "{out}{err}");
+    }
+}
+
 /// `--spheres` takes what the room can hold: the room's own objects and
 /// the spheres within the format's object limit (1 000 000 spheres were
 /// taken and then refused as "1000005 objects", naming no option).

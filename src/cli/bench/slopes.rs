@@ -15,8 +15,9 @@ use crate::render::compare::rmse_masked;
 use crate::render::rng::Rng;
 use crate::render::sampling::Pattern;
 use crate::render::scene::HitTarget;
+use crate::render::scene_file::limits::MAX_SIDE;
 use crate::render::shadow::{ShadowBuffers, ShadowQuery, visibility};
-use crate::render::{Film, Loaded, RayStats, Sampling};
+use crate::render::{Film, Loaded, RayStats, Sampling, SceneDesc};
 
 /// Shadow-ray counts of the fit.
 const COUNTS: [u32; 5] = [4, 16, 64, 256, 1024];
@@ -48,9 +49,27 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
             loaded.settings.shadow_rays = rays;
             Ok(loaded)
         };
-        let reference = with(Sampling::Stratified, REFERENCE_RAYS)?.render_image();
         let mask = penumbra_mask(&with(Sampling::Grid, 1024)?);
         let in_mask = mask.iter().filter(|&&m| m).count();
+        let (width, height) = (desc.camera.width, desc.camera.height);
+        if in_mask == 0 {
+            // An RMSE over no pixels is 0 and its slope NaN: refused, with
+            // a larger width that has some.
+            let larger = match larger_size_with_penumbrae(&desc)? {
+                // Every width to 16 is tried: the first found is the smallest.
+                Some((w, h, n)) if w <= 16 => {
+                    format!("the smallest width with some is --width {w} ({n} at {w}×{h})")
+                }
+                Some((w, h, n)) => format!("--width {w} has some ({n} at {w}×{h})"),
+                None => format!("nor at any size up to {LARGEST_TRIED} pixels wide"),
+            };
+            return Err(CliError::input(format!(
+                "{}: --slopes: no penumbra pixels at {width}×{height} (none whose first hit sees part of the light), \
+                 so no error to fit; {larger}",
+                bench_scene.name
+            )));
+        }
+        let reference = with(Sampling::Stratified, REFERENCE_RAYS)?.render_image();
         println!(
             "{}: {}×{}, {in_mask} penumbra pixels; RMSE of the diffuse term in penumbrae against {REFERENCE_RAYS} stratified rays",
             bench_scene.name, desc.camera.width, desc.camera.height
@@ -70,10 +89,43 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
             for e in &errors {
                 print!("{e:>11.3e}");
             }
-            println!("{:>9.2}", fitted_slope(&COUNTS.map(f64::from), &errors));
+            match fitted_slope(&COUNTS.map(f64::from), &errors) {
+                Some(slope) => println!("{slope:>9.2}"),
+                None => println!("{:>9}", "-"),
+            }
         }
     }
     Ok(())
+}
+
+/// Widest image [`larger_size_with_penumbrae`] tries.
+const LARGEST_TRIED: u32 = 256;
+
+/// The first larger size at the scene's aspect ratio whose image has
+/// penumbra pixels (every width up to 16, then 32, 64, … up to
+/// [`LARGEST_TRIED`]), and how many: for the message of a size that has
+/// none. Small images cost little to try.
+fn larger_size_with_penumbrae(desc: &SceneDesc) -> Result<Option<(u32, u32, usize)>, CliError> {
+    let c = &desc.camera;
+    let aspect = c.height as f64 / c.width as f64;
+    let widths = (c.width + 1..=16).chain(
+        [32, 64, 128, LARGEST_TRIED]
+            .into_iter()
+            .filter(|&w| w > c.width),
+    );
+    for width in widths {
+        let mut d = desc.clone();
+        d.camera.width = width;
+        d.camera.height = ((width as f64 * aspect).round() as u32).clamp(1, MAX_SIDE);
+        d.render.sampling = Sampling::Grid;
+        d.render.shadow_rays = 1024;
+        let loaded = Loaded::new(&d).map_err(CliError::input)?;
+        let count = penumbra_mask(&loaded).iter().filter(|&&m| m).count();
+        if count > 0 {
+            return Ok(Some((width, d.camera.height, count)));
+        }
+    }
+    Ok(None)
 }
 
 /// Pixels whose camera-ray hit sees part, not all or none, of the light.
@@ -122,14 +174,18 @@ fn penumbra_mask(loaded: &Loaded) -> Vec<bool> {
     mask
 }
 
-/// Least-squares slope of log(error) against log(rays).
-pub fn fitted_slope(rays: &[f64], errors: &[f64]) -> f64 {
+/// Least-squares slope of log(error) against log(rays), over the errors
+/// above 0; none where fewer than two are (no line to fit).
+pub fn fitted_slope(rays: &[f64], errors: &[f64]) -> Option<f64> {
     let points: Vec<(f64, f64)> = rays
         .iter()
         .zip(errors)
         .filter(|(_, e)| **e > 0.0)
         .map(|(r, e)| (r.ln(), e.ln()))
         .collect();
+    if points.len() < 2 {
+        return None;
+    }
     let n = points.len() as f64;
     let (mx, my) = points
         .iter()
@@ -137,7 +193,7 @@ pub fn fitted_slope(rays: &[f64], errors: &[f64]) -> f64 {
     let (sxy, sxx) = points.iter().fold((0.0, 0.0), |(a, b), p| {
         (a + (p.0 - mx) * (p.1 - my), b + (p.0 - mx) * (p.0 - mx))
     });
-    sxy / sxx
+    Some(sxy / sxx)
 }
 
 #[cfg(test)]
@@ -148,6 +204,16 @@ mod tests {
     fn slope_of_a_power_law() {
         let rays = [4.0, 16.0, 64.0, 256.0];
         let errors = rays.map(|r: f64| 3.0 * r.powf(-0.75));
-        assert!((fitted_slope(&rays, &errors) + 0.75).abs() < 1e-12);
+        assert!((fitted_slope(&rays, &errors).unwrap() + 0.75).abs() < 1e-12);
+    }
+
+    /// Errors of 0 (no pixels, or exact images) leave no line: the slope
+    /// was NaN.
+    #[test]
+    fn no_slope_without_two_errors_above_zero() {
+        let rays = [4.0, 16.0, 64.0, 256.0];
+        assert_eq!(fitted_slope(&rays, &[0.0; 4]), None);
+        assert_eq!(fitted_slope(&rays, &[0.1, 0.0, 0.0, 0.0]), None);
+        assert!(fitted_slope(&rays, &[0.1, 0.05, 0.0, 0.0]).is_some());
     }
 }

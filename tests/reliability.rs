@@ -992,3 +992,101 @@ fn an_exr_beyond_the_decoders_default_limit_reads_back() {
         glam::Vec3::new(0.25, 0.5, 1.0)
     );
 }
+
+/// `fifo` opened for writing once a reader has it open (until then a
+/// non-blocking open fails): the reader is then past its start, its
+/// signal handlers set, and waits for the bytes.
+fn writer_once_read(fifo: &Path, reader: &mut std::process::Child) -> std::fs::File {
+    use std::os::unix::fs::OpenOptionsExt;
+    let start = Instant::now();
+    loop {
+        let opened = std::fs::OpenOptions::new()
+            .write(true)
+            .custom_flags(libc::O_NONBLOCK)
+            .open(fifo);
+        if let Ok(file) = opened {
+            return file;
+        }
+        assert!(reader.try_wait().unwrap().is_none(), "ended before reading");
+        assert!(start.elapsed() < Duration::from_secs(60), "never opened");
+        std::thread::sleep(Duration::from_millis(10));
+    }
+}
+
+/// `merge` and `compare` stopped by SIGINT, SIGTERM or SIGHUP say so and
+/// exit 1, as `render` does (they ended silently with 130 or 143): while
+/// reading a part or an image (a FIFO a writer holds open) and while
+/// writing (a FIFO output no one reads). The target is untouched.
+#[test]
+fn an_interrupted_merge_or_compare_says_so_and_exits_1() {
+    let dir = scratch();
+    let part = dir.path().join("part.exr");
+    let o = penumbra(&[
+        "render",
+        "--width",
+        "16",
+        "--height",
+        "9",
+        "--region",
+        "0,0,16,9",
+        "-o",
+        part.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let target = dir.path().join("whole.exr");
+    std::fs::write(&target, b"precious").unwrap();
+    let (input, output) = (dir.path().join("in.exr"), dir.path().join("out.png"));
+    mkfifo(&input);
+    mkfifo(&output);
+    let diff = dir.path().join("diff.png");
+    let (part, target, diff, input_s, output_s) = (
+        part.to_str().unwrap(),
+        target.to_str().unwrap(),
+        diff.to_str().unwrap(),
+        input.to_str().unwrap(),
+        output.to_str().unwrap(),
+    );
+    let no_image = "penumbra: interrupted: no image written";
+    let no_diff = "penumbra: interrupted: no difference image written";
+    let reading: [(&[&str], &str, &str); 3] = [
+        (&["merge", input_s, part, "-o", target], "TERM", no_image),
+        (&["compare", part, input_s, "--diff", diff], "INT", no_diff),
+        (&["compare", input_s, part], "HUP", "penumbra: interrupted"),
+    ];
+    for (args, signal, said) in reading {
+        let mut child = bin().args(args).stderr(Stdio::piped()).spawn().unwrap();
+        let writer = writer_once_read(&input, &mut child);
+        let sent = Command::new("kill")
+            .args([&format!("-{signal}"), &child.id().to_string()])
+            .status()
+            .unwrap();
+        assert!(sent.success());
+        let o = child.wait_with_output().unwrap();
+        drop(writer);
+        assert_eq!(o.status.code(), Some(1), "{args:?}: {}", stderr(&o));
+        assert_eq!(stderr(&o).trim(), said, "{args:?}");
+    }
+    let writing: [(&[&str], &str); 2] = [
+        (&["merge", part, "-o", output_s], no_image),
+        (&["compare", part, part, "--diff", output_s], no_diff),
+    ];
+    for (args, said) in writing {
+        let mut child = bin().args(args).stderr(Stdio::piped()).spawn().unwrap();
+        // Time to read the part and reach the output's open.
+        std::thread::sleep(Duration::from_millis(1500));
+        assert!(child.try_wait().unwrap().is_none(), "{args:?}: waits");
+        let sent = Command::new("kill")
+            .args(["-TERM", &child.id().to_string()])
+            .status()
+            .unwrap();
+        assert!(sent.success());
+        let o = child.wait_with_output().unwrap();
+        assert_eq!(o.status.code(), Some(1), "{args:?}: {}", stderr(&o));
+        assert_eq!(stderr(&o).trim(), said, "{args:?}");
+    }
+    assert_eq!(std::fs::read(target).unwrap(), b"precious");
+    assert_eq!(
+        files_in(dir.path()),
+        ["in.exr", "out.png", "part.exr", "whole.exr"]
+    );
+}

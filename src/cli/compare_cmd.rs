@@ -1,9 +1,14 @@
 use super::{CliError, CompareArgs};
+use crate::render::CancelToken;
 use crate::render::Film;
 use crate::render::TileRect;
 use crate::render::compare::{compare as compare_films, diff_image};
-use crate::render::output::{FileKind, read_film, write_rgb8};
+use crate::render::output::{FileKind, read_film, write_rgb8, writes_interrupted};
 use crate::render::region::{Part, read_part};
+
+/// What `compare --diff` says when interrupted, as an interrupted render
+/// does.
+const INTERRUPTED_BEFORE_DIFF: &str = "interrupted: no difference image written";
 
 /// Refuses an image with NaN or infinite pixels: no difference to it means
 /// anything (exit 2, with how many and where the first is).
@@ -19,7 +24,12 @@ fn finite(film: &Film, path: &std::path::Path) -> Result<(), CliError> {
 
 /// `penumbra compare`.
 pub fn compare(args: &CompareArgs) -> Result<(), CliError> {
-    super::safety::remove_temp_files_on_signals();
+    let interrupted = if args.diff.is_some() {
+        INTERRUPTED_BEFORE_DIFF
+    } else {
+        "interrupted"
+    };
+    super::safety::end_on_signals(interrupted);
     if let Some(path) = &args.diff {
         // The difference image is a PNG; anything else is bad input, as for
         // `render -o`.
@@ -58,7 +68,16 @@ pub fn compare(args: &CompareArgs) -> Result<(), CliError> {
     }
     if let Some(path) = &args.diff {
         let (rgb, scale) = diff_image(&a, &b, None).map_err(CliError::input)?;
-        write_rgb8(path, a.width, a.height, &rgb).map_err(CliError::other)?;
+        // The write is stopped as render's is: it fails, the target
+        // untouched.
+        super::safety::handle_signals(&CancelToken::new());
+        write_rgb8(path, a.width, a.height, &rgb).map_err(|e| {
+            if writes_interrupted() {
+                CliError::other(INTERRUPTED_BEFORE_DIFF)
+            } else {
+                CliError::other(e)
+            }
+        })?;
         report += &format!(
             "diff {} (black = equal, white = {:.3e})\n",
             path.display(),

@@ -2,12 +2,16 @@
 //! image.
 
 use super::{CliError, MergeArgs};
-use crate::render::output::{FileKind, write_film};
+use crate::render::CancelToken;
+use crate::render::output::{FileKind, write_film, writes_interrupted};
 use crate::render::region::{merge as merge_parts, read_part};
+
+/// What an interrupted merge says, as an interrupted render does.
+const INTERRUPTED: &str = "interrupted: no image written";
 
 /// `penumbra merge`.
 pub fn merge(args: &MergeArgs) -> Result<(), CliError> {
-    super::safety::remove_temp_files_on_signals();
+    super::safety::end_on_signals(INTERRUPTED);
     FileKind::of(&args.output).map_err(CliError::input)?;
     super::safety::refuse_missing_folder(&args.output, "output")?;
     let inputs: Vec<(&str, &std::path::Path)> =
@@ -25,7 +29,15 @@ pub fn merge(args: &MergeArgs) -> Result<(), CliError> {
         parts.push((path.clone(), part));
     }
     let film = merge_parts(&parts).map_err(CliError::input)?;
-    write_film(&film, &args.output).map_err(CliError::other)?;
+    // The write is stopped as render's is: it fails, the target untouched.
+    super::safety::handle_signals(&CancelToken::new());
+    write_film(&film, &args.output).map_err(|e| {
+        if writes_interrupted() {
+            CliError::other(INTERRUPTED)
+        } else {
+            CliError::other(e)
+        }
+    })?;
     eprintln!("{}×{} from {} parts", film.width, film.height, parts.len());
     Ok(())
 }

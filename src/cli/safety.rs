@@ -3,6 +3,7 @@
 //! input.
 
 use std::path::Path;
+use std::sync::atomic::{AtomicPtr, AtomicUsize, Ordering};
 
 use super::CliError;
 use crate::render::CancelToken;
@@ -59,18 +60,57 @@ pub fn handle_signals(cancel: &CancelToken) {
     }
 }
 
-/// For commands without a render to stop (`compare`, `bench`): SIGINT,
-/// SIGTERM and SIGHUP too remove the temporary file being written and end
-/// the process at once, as the other fatal signals do (see
-/// [`handle_signals`]).
-pub fn remove_temp_files_on_signals() {
-    // SAFETY: as in handle_signals.
+/// The line [`report_and_exit`] writes: set once by [`end_on_signals`],
+/// read by the handler (a pointer and a length: atomics, which a handler
+/// may read).
+static INTERRUPTED_LINE: AtomicPtr<u8> = AtomicPtr::new(std::ptr::null_mut());
+static INTERRUPTED_LINE_LEN: AtomicUsize = AtomicUsize::new(0);
+
+extern "C" fn report_and_exit(_signal: libc::c_int) {
+    remove_temp_files();
+    let line = INTERRUPTED_LINE.load(Ordering::SeqCst);
+    // SAFETY: write(2) and _exit(2) are async-signal-safe; the line is a
+    // leaked string that is never freed.
     unsafe {
-        for signal in FATAL
-            .into_iter()
-            .chain([libc::SIGINT, libc::SIGTERM, libc::SIGHUP])
-        {
+        if !line.is_null() {
+            libc::write(
+                libc::STDERR_FILENO,
+                line as *const libc::c_void,
+                INTERRUPTED_LINE_LEN.load(Ordering::SeqCst),
+            );
+        }
+        libc::_exit(1);
+    }
+}
+
+/// For the work of commands that has no render to stop (reading and
+/// merging parts, comparing, the bench): SIGINT, SIGTERM and SIGHUP remove
+/// the temporary file being written, print `penumbra: {message}` and end
+/// the process with exit code 1, as an interrupted `render` does (before,
+/// the signal ended it silently with 130 or 143). They end it at once,
+/// even in a blocking read of a FIFO. The other fatal signals are handled
+/// as in [`handle_signals`]; a later [`handle_signals`] takes SIGINT,
+/// SIGTERM and SIGHUP over for a write that can be stopped cleanly.
+pub fn end_on_signals(message: &str) {
+    let line: &'static mut str = format!("penumbra: {message}\n").leak();
+    INTERRUPTED_LINE_LEN.store(line.len(), Ordering::SeqCst);
+    INTERRUPTED_LINE.store(line.as_mut_ptr(), Ordering::SeqCst);
+    let stopping = [libc::SIGINT, libc::SIGTERM, libc::SIGHUP];
+    // SAFETY: as in handle_signals; report_and_exit only calls
+    // async-signal-safe functions, and the three signals are blocked
+    // while it runs, so that a second one prints no second line.
+    unsafe {
+        for signal in FATAL {
             install_remove_and_die(signal);
+        }
+        let mut action: libc::sigaction = std::mem::zeroed();
+        action.sa_sigaction = report_and_exit as extern "C" fn(libc::c_int) as usize;
+        libc::sigemptyset(&mut action.sa_mask);
+        for signal in stopping {
+            libc::sigaddset(&mut action.sa_mask, signal);
+        }
+        for signal in stopping {
+            libc::sigaction(signal, &action, std::ptr::null_mut());
         }
         libc::signal(libc::SIGXFSZ, libc::SIG_IGN);
     }

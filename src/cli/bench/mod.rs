@@ -170,7 +170,7 @@ pub enum PlotTime {
 
 /// `penumbra bench`.
 pub fn bench(args: &BenchArgs) -> Result<(), CliError> {
-    crate::cli::safety::remove_temp_files_on_signals();
+    crate::cli::safety::end_on_signals("interrupted");
     // The folders every mode may write into are made as needed: refused
     // before any work where a file stands in their place.
     for (dir, flag) in [(&args.out, "--out"), (&args.cache, "--cache")] {

@@ -598,3 +598,33 @@ fn a_negative_number_is_refused_by_its_option() {
     }
     assert!(files_in(&dir).is_empty());
 }
+
+/// `--filter-width` with `--filter box` is refused: the box has no width,
+/// and the width was dropped without a word.
+#[test]
+fn a_filter_width_with_the_box_filter_is_refused() {
+    let dir = scratch_dir("box-width");
+    let out = dir.join("x.png");
+    let o = render_small(
+        &out,
+        &["--spp", "2", "--filter", "box", "--filter-width", "3"],
+    );
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("--filter-width 3") && err.contains("--filter box"),
+        "{err}"
+    );
+    assert!(!out.exists());
+    // Each alone, and the width with Blackman–Harris, render.
+    for extra in [
+        &["--filter", "box"][..],
+        &["--filter-width", "3"],
+        &["--filter", "blackman-harris", "--filter-width", "3"],
+    ] {
+        let mut args = vec!["--spp", "2"];
+        args.extend_from_slice(extra);
+        let o = render_small(&out, &args);
+        assert!(o.status.success(), "{extra:?}: {}", stderr(&o));
+    }
+}

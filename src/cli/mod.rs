@@ -137,14 +137,21 @@ pub struct SceneOverrides {
 }
 
 impl SceneOverrides {
-    /// The filter these options ask for, if they name one.
-    pub fn filter(&self) -> Option<FilterKind> {
+    /// The filter these options ask for, if they name one. A width with
+    /// `--filter box` is refused (exit 2) rather than dropped: the box has
+    /// no width, and an image that quietly ignores an option passes for
+    /// one made with it.
+    pub fn filter(&self) -> Result<Option<FilterKind>, CliError> {
         match (self.filter, self.filter_width) {
-            (None, None) => None,
-            (Some(FilterArg::Box), _) => Some(FilterKind::Box),
-            (_, w) => Some(FilterKind::BlackmanHarris {
+            (None, None) => Ok(None),
+            (Some(FilterArg::Box), Some(w)) => Err(CliError::input(format!(
+                "--filter-width {w} sets the width of the Blackman–Harris filter; \
+                 --filter box has none: give one of the two"
+            ))),
+            (Some(FilterArg::Box), None) => Ok(Some(FilterKind::Box)),
+            (_, w) => Ok(Some(FilterKind::BlackmanHarris {
                 width: w.unwrap_or(FilterKind::DEFAULT.width()),
-            }),
+            })),
         }
     }
 }

@@ -17,6 +17,7 @@ pub fn load_scene(
     path: Option<&Path>,
     overrides: &SceneOverrides,
 ) -> Result<(SceneDesc, Loaded), CliError> {
+    let filter = overrides.filter()?;
     let desc = load_desc(path, overrides)?;
     let o = overrides;
     // --scale and --translate go through the same validation as the file;
@@ -57,7 +58,7 @@ pub fn load_scene(
         e
     });
     let loaded = loaded.map(|mut l| {
-        if let Some(f) = overrides.filter() {
+        if let Some(f) = filter {
             l.settings.filter = f;
         }
         l

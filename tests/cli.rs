@@ -628,3 +628,16 @@ fn a_filter_width_with_the_box_filter_is_refused() {
         assert!(o.status.success(), "{extra:?}: {}", stderr(&o));
     }
 }
+
+/// `--scale` and `--translate` promise what holds: the same image to
+/// within rounding, not bit for bit (a scale of 1e-7 moves some pixels by
+/// a few 1e-8).
+#[test]
+fn scale_help_promises_the_same_image_within_rounding() {
+    let o = penumbra(&["render", "--help"]);
+    let help = String::from_utf8_lossy(&o.stdout);
+    assert!(!help.contains("the image stays the same"), "{help}");
+    let scale = &help[help.find("--scale").unwrap()..help.find("--translate").unwrap()];
+    assert!(scale.contains("to within rounding"), "{scale}");
+    assert!(scale.contains("not always bit for bit"), "{scale}");
+}

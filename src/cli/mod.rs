@@ -118,10 +118,12 @@ pub struct SceneOverrides {
     #[arg(long)]
     pub cutaway: bool,
     /// Multiply every coordinate and length of the scene (camera included)
-    /// by this factor: the image stays the same.
+    /// by this factor: the same image to within rounding (RMSE below 1e-7),
+    /// not always bit for bit.
     #[arg(long, allow_hyphen_values = true, value_parser = parse_scale)]
     pub scale: Option<f64>,
-    /// Move the whole scene (camera included) by x,y,z.
+    /// Move the whole scene (camera included) by x,y,z: the same image to
+    /// within rounding (RMSE below 1e-7), not always bit for bit.
     #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
     pub translate: Option<[f64; 3]>,
     /// Camera samples per pixel (anti-aliasing; `render.samples_per_pixel`).

@@ -454,3 +454,37 @@ fn a_null_shininess_override_is_refused() {
     let desc = SceneDesc::from_json(&v.to_string()).unwrap();
     assert_eq!(desc.render.shininess_override, Some(30.0));
 }
+
+/// A part that makes the scene huge puts ordinary features below the
+/// floor of 1e-9 of its size: the message names that part too (a sphere
+/// of radius 1e9, which its own range allows, was refused as a light too
+/// small, with no word of the sphere).
+#[test]
+fn a_part_that_makes_the_scene_huge_is_named_with_the_feature_it_shrinks() {
+    let huge_sphere =
+        json!({"type": "sphere", "center": [0, -1e9, 0], "radius": 1e9, "material": "white"});
+    assert_error(
+        |v| {
+            v["objects"]
+                .as_array_mut()
+                .unwrap()
+                .push(huge_sphere.clone())
+        },
+        "light.edge_u",
+        "because of objects[8], a sphere of radius 1.000e9",
+    );
+    let far_triangle = json!({"type": "triangle", "vertices": [[0, 0, 0], [1, 0, 0], [0, 0, 9e8]], "material": "white"});
+    assert_error(
+        |v| {
+            v["light"]["edge_u"] = json!([0.5, 0, 0]);
+            v["objects"].as_array_mut().unwrap().push(far_triangle);
+        },
+        "light.edge_u",
+        "because of objects[8], a triangle (",
+    );
+    // A light too small for an ordinary room blames no other part.
+    let e = error_of(|v| v["light"]["edge_u"] = json!([1e-12, 0, 0]));
+    assert!(e.starts_with("light.edge_u: "), "{e}");
+    assert!(e.contains("below the smallest supported size"), "{e}");
+    assert!(!e.contains("because of"), "{e}");
+}

@@ -1087,28 +1087,49 @@ impl SceneDesc {
     /// and the largest absolute coordinate of those and of the planes'
     /// points. Assumes the fields themselves are valid.
     pub fn size_and_offset(&self) -> (f64, f64) {
-        let mut lo = [f64::INFINITY; 3];
-        let mut hi = [f64::NEG_INFINITY; 3];
-        let mut grow = |p: Vec3Desc, r: Vec3Desc| {
-            for i in 0..3 {
-                lo[i] = lo[i].min(p[i] - r[i]);
-                hi[i] = hi[i].max(p[i] + r[i]);
-            }
-        };
-        grow(self.camera.position, [0.0; 3]);
-        let l = &self.light;
-        for c in corners(l.corner, l.edge_u, l.edge_v) {
-            grow(c, [0.0; 3]);
-        }
+        let (lo, hi) = self.bounds(None);
         let mut offset = 0.0f64;
         for o in &self.objects {
             match o {
                 ObjectDesc::Plane(pl) => offset = offset.max(max_abs(pl.point)),
-                ObjectDesc::Rect(r) => {
-                    for c in corners(r.corner, r.edge_u, r.edge_v) {
-                        grow(c, [0.0; 3]);
-                    }
+                // Its vertices are only known once the file is read; the
+                // mesh's own checks bound them (`mesh.rs`).
+                ObjectDesc::Mesh(m) => offset = offset.max(max_abs(m.translate)),
+                _ => {}
+            }
+        }
+        let offset = (0..3).fold(offset, |m, i| m.max(lo[i].abs()).max(hi[i].abs()));
+        (side(lo, hi), offset)
+    }
+
+    /// The box around the camera, the light and every bounded object,
+    /// leaving `left_out` out.
+    fn bounds(&self, left_out: Option<SizePart>) -> (Vec3Desc, Vec3Desc) {
+        let mut lo = [f64::INFINITY; 3];
+        let mut hi = [f64::NEG_INFINITY; 3];
+        self.for_each_extent(|part, a, b| {
+            if Some(part) != left_out {
+                for i in 0..3 {
+                    lo[i] = lo[i].min(a[i]);
+                    hi[i] = hi[i].max(b[i]);
                 }
+            }
+        });
+        (lo, hi)
+    }
+
+    /// Calls `f` with the box around each part that sets the scene's size:
+    /// the camera's position, the light and every bounded object.
+    fn for_each_extent(&self, mut f: impl FnMut(SizePart, Vec3Desc, Vec3Desc)) {
+        let (lo, hi) = box_around(&[self.camera.position]);
+        f(SizePart::Camera, lo, hi);
+        let l = &self.light;
+        let (lo, hi) = box_around(&corners(l.corner, l.edge_u, l.edge_v));
+        f(SizePart::Light, lo, hi);
+        for (i, o) in self.objects.iter().enumerate() {
+            let extent = match o {
+                ObjectDesc::Plane(_) | ObjectDesc::Mesh(_) => continue,
+                ObjectDesc::Rect(r) => box_around(&corners(r.corner, r.edge_u, r.edge_v)),
                 ObjectDesc::Box(b) => {
                     // The exact bounds of the box rotated about its centre.
                     let (sin, cos) = b.rotate_y_deg.to_radians().sin_cos();
@@ -1127,22 +1148,61 @@ impl SceneDesc {
                         h[1],
                         sin.abs() * h[0] + cos.abs() * h[2],
                     ];
-                    grow(centre, r);
+                    (sub(centre, r), add(centre, r))
                 }
-                ObjectDesc::Sphere(s) => grow(s.center, [s.radius; 3]),
-                ObjectDesc::Triangle(t) => {
-                    for v in t.vertices {
-                        grow(v, [0.0; 3]);
-                    }
+                ObjectDesc::Sphere(s) => {
+                    let r = [s.radius; 3];
+                    (sub(s.center, r), add(s.center, r))
                 }
-                // Its vertices are only known once the file is read; the
-                // mesh's own checks bound them (`mesh.rs`).
-                ObjectDesc::Mesh(m) => offset = offset.max(max_abs(m.translate)),
-            }
+                ObjectDesc::Triangle(t) => box_around(&t.vertices),
+            };
+            f(SizePart::Object(i), extent.0, extent.1);
         }
-        let size = (0..3).map(|i| hi[i] - lo[i]).fold(0.0, f64::max);
-        let offset = (0..3).fold(offset, |m, i| m.max(lo[i].abs()).max(hi[i].abs()));
-        (size, offset)
+    }
+
+    /// The one part other than `other_than` without which the scene would
+    /// be smallest, and its size then, where leaving a part out shrinks
+    /// it: what makes the scene as large as it is, for the message of a
+    /// feature below the floor that size sets. Only parts that reach a
+    /// side of the box can shrink it; a handful are tried.
+    fn what_sets_the_size(&self, other_than: SizePart) -> Option<(SizePart, f64)> {
+        let (lo, hi) = self.bounds(None);
+        let size = side(lo, hi);
+        let mut reaching: Vec<SizePart> = Vec::new();
+        self.for_each_extent(|part, a, b| {
+            if part != other_than
+                && reaching.len() < 12
+                && (0..3).any(|i| a[i] == lo[i] || b[i] == hi[i])
+            {
+                reaching.push(part);
+            }
+        });
+        reaching
+            .into_iter()
+            .map(|part| {
+                let (lo, hi) = self.bounds(Some(part));
+                (part, side(lo, hi))
+            })
+            .filter(|&(_, without)| without < size)
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+    }
+
+    /// A part of the scene by its place in the file, as a message names it
+    /// (`objects[9], a sphere of radius 1e9`).
+    fn describe(&self, part: SizePart) -> String {
+        match part {
+            SizePart::Camera => "camera.position".into(),
+            SizePart::Light => "the light".into(),
+            SizePart::Object(i) => match &self.objects[i] {
+                ObjectDesc::Sphere(s) => {
+                    format!("objects[{i}], a sphere of radius {}", sig(s.radius))
+                }
+                ObjectDesc::Rect(_) => format!("objects[{i}], a rect"),
+                ObjectDesc::Box(_) => format!("objects[{i}], a box"),
+                ObjectDesc::Triangle(_) => format!("objects[{i}], a triangle"),
+                ObjectDesc::Plane(_) | ObjectDesc::Mesh(_) => format!("objects[{i}]"),
+            },
+        }
     }
 
     /// The numeric range the renderer supports (`limits::MIN_SCENE_SIZE`,
@@ -1175,37 +1235,57 @@ impl SceneDesc {
             ));
         }
         let least = MIN_FEATURE * size;
-        let small = |path: String, what: &str, v: f64| -> Result<(), SceneError> {
+        let small = |part: SizePart, path: String, what: &str, v: f64| -> Result<(), SceneError> {
             if v >= least {
                 return Ok(());
             }
-            Err(SceneError::new(
-                path,
-                format!(
-                    "{what} {} is below the smallest supported size, {MIN_FEATURE:e} of the scene's size {} = {}",
-                    sig(v),
-                    sig(size),
-                    sig(least)
-                ),
-            ))
+            let mut message = format!(
+                "{what} {} is below the smallest supported size, {MIN_FEATURE:e} of the scene's size {} = {}",
+                sig(v),
+                sig(size),
+                sig(least)
+            );
+            // A feature of an ordinary size may be below the floor only
+            // because another part makes the scene huge: that one is named.
+            if let Some((large, without)) = self.what_sets_the_size(part)
+                && v >= MIN_FEATURE * without
+            {
+                message += &format!(
+                    "; the scene is that large because of {} ({} across without it): \
+                     make that smaller or this larger",
+                    self.describe(large),
+                    sig(without)
+                );
+            }
+            Err(SceneError::new(path, message))
         };
-        let flat = |path: &str, u: Vec3Desc, v: Vec3Desc| -> Result<(), SceneError> {
-            let (nu, nv) = (norm(u), norm(v));
-            small(format!("{path}.edge_u"), "length", nu)?;
-            small(format!("{path}.edge_v"), "length", nv)?;
-            // Width across the longer edge: area / longer edge.
-            let width = nu.min(nv) * sin_angle(u, v);
-            small(
-                format!("{path}.edge_v"),
-                "width (area / longer edge)",
-                width,
-            )
-        };
-        flat("light", self.light.edge_u, self.light.edge_v)?;
+        let flat =
+            |part: SizePart, path: &str, u: Vec3Desc, v: Vec3Desc| -> Result<(), SceneError> {
+                let (nu, nv) = (norm(u), norm(v));
+                small(part, format!("{path}.edge_u"), "length", nu)?;
+                small(part, format!("{path}.edge_v"), "length", nv)?;
+                // Width across the longer edge: area / longer edge.
+                let width = nu.min(nv) * sin_angle(u, v);
+                small(
+                    part,
+                    format!("{path}.edge_v"),
+                    "width (area / longer edge)",
+                    width,
+                )
+            };
+        flat(
+            SizePart::Light,
+            "light",
+            self.light.edge_u,
+            self.light.edge_v,
+        )?;
         for (i, o) in self.objects.iter().enumerate() {
+            let part = SizePart::Object(i);
             match o {
-                ObjectDesc::Rect(r) => flat(&format!("objects[{i}]"), r.edge_u, r.edge_v)?,
-                ObjectDesc::Sphere(s) => small(format!("objects[{i}].radius"), "radius", s.radius)?,
+                ObjectDesc::Rect(r) => flat(part, &format!("objects[{i}]"), r.edge_u, r.edge_v)?,
+                ObjectDesc::Sphere(s) => {
+                    small(part, format!("objects[{i}].radius"), "radius", s.radius)?
+                }
                 ObjectDesc::Plane(_)
                 | ObjectDesc::Box(_)
                 | ObjectDesc::Triangle(_)
@@ -1251,8 +1331,38 @@ impl SceneDesc {
     }
 }
 
+/// A part of the scene that sets its size (see
+/// [`SceneDesc::size_and_offset`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum SizePart {
+    Camera,
+    Light,
+    Object(usize),
+}
+
+/// The smallest box around `points`.
+fn box_around(points: &[Vec3Desc]) -> (Vec3Desc, Vec3Desc) {
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for p in points {
+        for i in 0..3 {
+            lo[i] = lo[i].min(p[i]);
+            hi[i] = hi[i].max(p[i]);
+        }
+    }
+    (lo, hi)
+}
+
+/// The largest side of the box `lo`..`hi` (0 for an empty one).
+fn side(lo: Vec3Desc, hi: Vec3Desc) -> f64 {
+    (0..3).map(|i| hi[i] - lo[i]).fold(0.0, f64::max)
+}
+
+fn add(a: Vec3Desc, b: Vec3Desc) -> Vec3Desc {
+    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
+}
+
 fn corners(c: Vec3Desc, u: Vec3Desc, v: Vec3Desc) -> [Vec3Desc; 4] {
-    let add = |a: Vec3Desc, b: Vec3Desc| [a[0] + b[0], a[1] + b[1], a[2] + b[2]];
     [c, add(c, u), add(add(c, u), v), add(c, v)]
 }
 

@@ -1703,3 +1703,43 @@ fn the_behind_a_wall_hint_shows_only_while_the_cutaway_is_off() {
     h.step();
     assert!(!h.state().notice().is_some_and(|n| n.contains(HINT)));
 }
+
+// ----- big scenes, loads that build, keys and small UI ----------------------
+
+use penumbra::app::settings::{PREVIEW_MAX_PIXELS, preview_size};
+
+/// A 16384² scene took the UI thread 39 s and 13 GB (its film, its copy
+/// and the texture, at full size): it is previewed at a display's pixels,
+/// its proportions kept, and its own size stays the scene's (and export's).
+#[test]
+fn a_scene_larger_than_a_display_is_previewed_at_a_displays_size() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("huge.json");
+    let mut huge = small_room();
+    huge.camera.width = 16384;
+    huge.camera.height = 16384;
+    huge.render.shadow_rays = 1;
+    std::fs::write(&path, huge.to_json()).unwrap();
+    let mut options = ViewerOptions::new(small_room());
+    options.refine_spp = 1;
+    let mut h = harness(options);
+    settle(&mut h);
+
+    let ctx = h.ctx.clone();
+    h.state_mut().open_scene(&ctx, &path);
+    loaded(&mut h);
+    let (w, h_px) = preview_size(16384, 16384);
+    assert!(w as u64 * h_px as u64 <= PREVIEW_MAX_PIXELS && w == h_px);
+    assert_eq!(h.state().scene_path(), Some(path.as_path()));
+    assert_eq!(h.state().shown_image().size, [w as usize, h_px as usize]);
+    let shown = h.state().render_desc().camera;
+    assert_eq!((shown.width, shown.height), (w, h_px));
+    assert_eq!(h.state().desc().camera.width, 16384);
+    h.get_by_label(&format!(
+        "Previewed at {w}×{h_px}; Save PNG writes 16384×16384"
+    ));
+
+    // Launched with it: the same.
+    let h2 = harness(ViewerOptions::new(huge));
+    assert_eq!(h2.state().shown_image().size, [w as usize, h_px as usize]);
+}

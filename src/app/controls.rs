@@ -261,6 +261,14 @@ pub fn controls_ui(
                     "Preview size relative to the scene's camera; export is always full size",
                 )
                 .changed();
+            let (w, h) = (desc.camera.width, desc.camera.height);
+            let shown = view.apply_size(w, h);
+            if shown != (w, h) {
+                ui.label(format!(
+                    "Previewed at {}×{}; Save PNG writes {w}×{h}",
+                    shown.0, shown.1
+                ));
+            }
         });
 
     egui::CollapsingHeader::new("Light")

@@ -344,7 +344,7 @@ fn worker_loop(inner: &Inner) {
     let mut live = LiveRender::default();
     let mut kept = Kept::default();
     loop {
-        let Some((req, panic_now, spent)) = inner.next(|s| {
+        let Some((req, panic_now, spent, last_film)) = inner.next(|s| {
             let req = s.pending.take()?;
             s.running = Some(req.cancel.clone());
             s.running_desc = Some((req.generation, req.desc.clone()));
@@ -353,17 +353,23 @@ fn worker_loop(inner: &Inner) {
             // a pixel keeps its last value until its first tile arrives, as
             // on the screen (every pass writes every pixel; clearing cost
             // a 6 MB write before each edit's first tile at 960×540).
-            let film = match s.film.take() {
-                Some((_, f)) if (f.width, f.height) == size => f,
-                _ => Film::new(size.0, size.1),
+            let last_film = match s.film.take() {
+                Some((_, f)) if (f.width, f.height) == size => Some(f),
+                _ => None,
             };
-            s.film = Some((req.generation, film));
             let panic_now = std::mem::take(&mut s.panic_next);
             s.started += 1;
-            Some((req, panic_now, s.spent.take()))
+            Some((req, panic_now, s.spent.take(), last_film))
         }) else {
             return;
         };
+        // A new size's image is made outside the lock, which the UI takes
+        // every frame (100 MB at the preview's largest).
+        let film = last_film.unwrap_or_else(|| {
+            let (w, h) = (req.desc.camera.width, req.desc.camera.height);
+            Film::new(w, h)
+        });
+        inner.lock().film = Some((req.generation, film));
         // Unless the UI or an export still holds it.
         if let Some(f) = spent.and_then(|f| Arc::try_unwrap(f).ok())
             && let Ok(film) = Arc::try_unwrap(f.film)

@@ -2,10 +2,36 @@
 //! the term checkboxes keep the slider's strength while a term is off,
 //! "reflections" keeps the chosen depth, and the resolution scale shrinks
 //! the image for a faster preview; hidden objects (the object list's
-//! toggles) are left out. [`ViewSettings::apply`] is the only place
+//! toggles) are left out; the preview never exceeds a display's pixels
+//! ([`PREVIEW_MAX_PIXELS`]). [`ViewSettings::apply`] is the only place
 //! they meet the scene.
 
 use crate::render::SceneDesc;
+
+/// The most pixels the viewer renders and shows (a 4K screen's): a larger
+/// scene is previewed at this many, its proportions kept, and written at
+/// its own size by *Save PNG*. At the format's 16384² the image's buffers
+/// (the render's film, the viewer's copy, the texture) took about 13 GB,
+/// filled and uploaded on the UI thread for 39 s.
+pub const PREVIEW_MAX_PIXELS: u64 = 3840 * 2160;
+
+/// The longest side the viewer previews (a texture's size every GPU takes).
+pub const PREVIEW_MAX_SIDE: u32 = 4096;
+
+/// `width`×`height` shrunk (proportions kept) to at most
+/// [`PREVIEW_MAX_PIXELS`] pixels and [`PREVIEW_MAX_SIDE`] a side.
+pub fn preview_size(width: u32, height: u32) -> (u32, u32) {
+    let (w, h) = (width.max(1) as f64, height.max(1) as f64);
+    let by_area = (PREVIEW_MAX_PIXELS as f64 / (w * h)).sqrt();
+    let by_side = PREVIEW_MAX_SIDE as f64 / w.max(h);
+    let s = by_area.min(by_side);
+    if s >= 1.0 {
+        return (width.max(1), height.max(1));
+    }
+    // Rounded down, so the product stays within the limit.
+    let side = |v: f64| ((v * s).floor() as u32).max(1);
+    (side(w), side(h))
+}
 
 #[derive(Debug, Clone, PartialEq)]
 pub struct ViewSettings {
@@ -39,8 +65,8 @@ impl ViewSettings {
     }
 
     /// The scene to render: `desc` with the toggles applied, at the
-    /// resolution scale (`full`: at the scene's own size, for export and
-    /// "save scene").
+    /// resolution scale within the preview's limit (`full`: at the scene's
+    /// own size, for export and "save scene").
     /// `self.apply(desc, full) == *other`, without copying the objects
     /// (the viewer asks every frame; a scene may hold 10⁶ of them).
     pub fn applied_equals(&self, desc: &SceneDesc, full: bool, other: &SceneDesc) -> bool {
@@ -81,11 +107,50 @@ impl ViewSettings {
             });
         }
         if !full {
-            let s = self.resolution_scale;
-            let side = |v: u32| ((v as f64 * s).round() as u32).clamp(1, 16384);
-            d.camera.width = side(desc.camera.width);
-            d.camera.height = side(desc.camera.height);
+            (d.camera.width, d.camera.height) =
+                self.apply_size(desc.camera.width, desc.camera.height);
         }
         d
+    }
+
+    /// The preview's size for a scene of `width`×`height`: at the
+    /// resolution scale, within the preview's limit.
+    pub fn apply_size(&self, width: u32, height: u32) -> (u32, u32) {
+        let s = self.resolution_scale;
+        let side = |v: u32| ((v as f64 * s).round() as u32).clamp(1, 16384);
+        preview_size(side(width), side(height))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_preview_larger_than_a_display_is_shrunk_with_its_proportions() {
+        assert_eq!(preview_size(960, 540), (960, 540));
+        assert_eq!(preview_size(3840, 2160), (3840, 2160));
+        assert_eq!(preview_size(7680, 4320), (3840, 2160));
+        let (w, h) = preview_size(16384, 16384);
+        assert_eq!(w, h);
+        assert!(w as u64 * h as u64 <= PREVIEW_MAX_PIXELS && w > 2800, "{w}");
+        // A thin strip: its long side, not its area, is the limit.
+        assert_eq!(preview_size(16384, 16), (4096, 4));
+        assert_eq!(preview_size(16384, 1), (4096, 1));
+    }
+
+    #[test]
+    fn the_scale_applies_before_the_limit_and_never_to_the_full_size() {
+        let mut desc = SceneDesc::from_json(crate::render::SEED_ROOM_JSON).unwrap();
+        desc.camera.width = 16384;
+        desc.camera.height = 8192;
+        let mut view = ViewSettings::for_scene(&desc);
+        let preview = view.apply(&desc, false).camera;
+        assert_eq!((preview.width, preview.height), preview_size(16384, 8192));
+        view.resolution_scale = 0.1;
+        let small = view.apply(&desc, false).camera;
+        assert_eq!((small.width, small.height), (1638, 819));
+        let full = view.apply(&desc, true).camera;
+        assert_eq!((full.width, full.height), (16384, 8192));
     }
 }

@@ -32,7 +32,7 @@ use super::reference::{
 };
 use super::render_job::{JobState, RenderJob};
 use super::scene_loader::{LoadKind, LoadResult, SceneLoads, progress_ui};
-use super::settings::ViewSettings;
+use super::settings::{ViewSettings, preview_size};
 use super::shortcuts::{self, Command, help_ui};
 use super::status::{Progress, status_ui};
 use super::timings::Timings;
@@ -273,11 +273,10 @@ impl Viewer {
             view: ViewSettings::for_scene(&desc),
         });
         let broken = options.startup_error.is_some();
-        let shown = ColorImage::filled(
-            [desc.camera.width as usize, desc.camera.height as usize],
-            EMPTY,
-        );
-        let linear = Film::new(desc.camera.width, desc.camera.height);
+        // The size the first render will have (the preview's).
+        let (width, height) = preview_size(desc.camera.width, desc.camera.height);
+        let shown = ColorImage::filled([width as usize, height as usize], EMPTY);
+        let linear = blank_film(width, height);
         Viewer {
             home_camera: desc.camera.clone(),
             reach: None,
@@ -748,7 +747,7 @@ impl Viewer {
         if self.shown.size != shown_size {
             // A new size: start from an empty picture of it.
             self.shown = ColorImage::filled(shown_size, EMPTY);
-            self.linear = Film::new(size.0, size.1);
+            self.linear = blank_film(size.0, size.1);
             let options = self.texture_options();
             if let Some(t) = &mut self.texture {
                 t.set(self.shown.clone(), options);
@@ -962,6 +961,19 @@ impl Viewer {
             Some(JobState::Finished(f)) if f.desc == full => Some(f.film.clone()),
             _ => None,
         };
+        if film.is_none()
+            && let Err(why) = full_size_memory(&full, &path)
+        {
+            let scene = self
+                .scene_path
+                .as_ref()
+                .map_or_else(|| "the seed room".into(), |p| p.display().to_string());
+            self.show_error(format!(
+                "{} not saved: {scene}: camera.width × camera.height: {why}",
+                path.display()
+            ));
+            return;
+        }
         self.io.save_png(ctx, full, film, path, self.display);
     }
 
@@ -2041,6 +2053,32 @@ impl eframe::App for Viewer {
 
     fn persist_egui_memory(&self) -> bool {
         self.persist
+    }
+}
+
+/// Whether a fresh render of `full` and its encoding for `path` fit in
+/// memory (the export renders at the scene's own size, which the preview
+/// may not be).
+fn full_size_memory(full: &SceneDesc, path: &Path) -> Result<(), String> {
+    use crate::render::output::FileKind;
+    // The film's 12 bytes a pixel and the encoder's (a PNG's 3, an EXR's 12).
+    let per_pixel = if FileKind::of(path).ok() == Some(FileKind::Exr) {
+        24
+    } else {
+        15
+    };
+    crate::render::memory::check_image_memory(full.camera.width, full.camera.height, per_pixel)
+}
+
+/// A black image for the viewer's copy of the linear values. Plain pages:
+/// `Film::new` asks for large ones, whose first touch can wait for the
+/// kernel to compact memory (0.1–0.25 s for 2880² on a loaded machine),
+/// which the UI thread must not.
+fn blank_film(width: u32, height: u32) -> Film {
+    Film {
+        width,
+        height,
+        pixels: vec![glam::Vec3::ZERO; width as usize * height as usize],
     }
 }
 

@@ -280,26 +280,15 @@ pub fn render(args: &RenderArgs) -> Result<(), CliError> {
 }
 
 /// Refuses (exit 2) an image too large for the memory the process may
-/// take: its film (12 bytes a pixel), the output's encoding buffer (an
-/// EXR's 12, a PNG's 3) and some room are asked of the allocator up front
-/// and given back, where an allocation failing half-way through would
-/// abort.
+/// take: its film (12 bytes a pixel) and the output's encoding buffer (an
+/// EXR's 12, a PNG's 3).
 fn check_memory(width: u32, height: u32, output: Option<FileKind>) -> Result<(), CliError> {
-    let pixels = width as usize * height as usize;
     let per_pixel = if output == Some(FileKind::Png) {
         15
     } else {
         24
     };
-    let bytes = pixels.saturating_mul(per_pixel).saturating_add(64 << 20);
-    let mut probe: Vec<u8> = Vec::new();
-    probe.try_reserve_exact(bytes).map_err(|_| {
-        CliError::input(format!(
-            "{width}×{height} needs about {:.1} GB of memory, more than this process can have",
-            bytes as f64 / 1e9
-        ))
-    })?;
-    Ok(())
+    crate::render::memory::check_image_memory(width, height, per_pixel).map_err(CliError::input)
 }
 
 /// Writes the `--stats` JSON: to standard output for `-`, else as the

@@ -14,6 +14,7 @@ pub mod film;
 pub mod generate;
 pub mod generate_mesh;
 pub mod geometry;
+pub mod memory;
 pub mod mesh;
 mod mesh_gltf;
 mod mesh_obj;

@@ -1,0 +1,39 @@
+//! Whether an image's buffers fit in the memory the process may take. The
+//! bytes are asked of the allocator up front and given back at once: an
+//! allocation that fails half-way through a render aborts the process,
+//! where a refusal before it can say why.
+
+/// Room kept beyond an image's own buffers (the scene, the threads' stacks).
+const HEADROOM: usize = 64 << 20;
+
+/// Checks that `width`×`height` pixels of `bytes_per_pixel` each (and some
+/// room) can be allocated now; the error says how much it would take.
+pub fn check_image_memory(width: u32, height: u32, bytes_per_pixel: usize) -> Result<(), String> {
+    let pixels = width as usize * height as usize;
+    let bytes = pixels
+        .saturating_mul(bytes_per_pixel)
+        .saturating_add(HEADROOM);
+    let mut probe: Vec<u8> = Vec::new();
+    // Reserved, never touched: no page is faulted in.
+    probe.try_reserve_exact(bytes).map_err(|_| {
+        format!(
+            "{width}×{height} needs about {:.1} GB of memory, more than this process can have",
+            bytes as f64 / 1e9
+        )
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_small_image_fits_and_one_beyond_the_address_space_does_not() {
+        assert!(check_image_memory(960, 540, 24).is_ok());
+        let err = check_image_memory(u32::MAX, u32::MAX, usize::MAX / 4).unwrap_err();
+        assert!(
+            err.starts_with("4294967295×4294967295 needs about"),
+            "{err}"
+        );
+    }
+}

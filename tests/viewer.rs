@@ -1707,6 +1707,7 @@ fn the_behind_a_wall_hint_shows_only_while_the_cutaway_is_off() {
 // ----- big scenes, loads that build, keys and small UI ----------------------
 
 use penumbra::app::settings::{PREVIEW_MAX_PIXELS, preview_size};
+use penumbra::render::EditClass;
 
 /// A 16384² scene took the UI thread 39 s and 13 GB (its film, its copy
 /// and the texture, at full size): it is previewed at a display's pixels,
@@ -1742,4 +1743,69 @@ fn a_scene_larger_than_a_display_is_previewed_at_a_displays_size() {
     // Launched with it: the same.
     let h2 = harness(ViewerOptions::new(huge));
     assert_eq!(h2.state().shown_image().size, [w as usize, h_px as usize]);
+}
+
+/// An opened scene is built (its meshes read) on the load thread, under
+/// the loading strip: one that does not build is refused before it
+/// replaces anything (the title never names it), and one that does is
+/// rendered over the objects and BVH built there, not built again.
+#[test]
+fn an_opened_scene_is_built_under_the_loading_strip_before_it_replaces_the_shown_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let missing = dir.path().join("missingmesh.json");
+    let mut json: serde_json::Value = serde_json::from_str(&small_room().to_json()).unwrap();
+    json["objects"]
+        .as_array_mut()
+        .unwrap()
+        .push(serde_json::json!(
+            {"type": "mesh", "file": "/nonexistent/nope.obj", "material": "white"}
+        ));
+    std::fs::write(&missing, json.to_string()).unwrap();
+    let mut h = harness(ViewerOptions::new(small_room()));
+    settle(&mut h);
+    let title = h.state().title();
+
+    h.state().hold_loads_for_tests(true);
+    let ctx = h.ctx.clone();
+    h.state_mut().open_scene(&ctx, &missing);
+    h.step();
+    h.get_by_label_contains(&format!("loading {}…", missing.display()));
+    h.state().hold_loads_for_tests(false);
+    loaded(&mut h);
+    // In the very frame the load ended: refused, nothing replaced.
+    let banner = h.state().banner().expect("a banner").to_string();
+    assert!(
+        banner.contains("missingmesh.json") && banner.contains("nope.obj"),
+        "{banner}"
+    );
+    assert_eq!(h.state().scene_path(), None);
+    assert_eq!(h.state().title(), title);
+    assert_eq!(h.state().desc(), &small_room());
+    // An edit now is on the scene shown, and stays.
+    h.state_mut().edit(|d, _| d.render.terms.ambient = 0.7);
+    settle(&mut h);
+    assert_eq!(h.state().desc().render.terms.ambient, 0.7);
+
+    // A scene with a mesh: built by the loader, so its first render only
+    // traces over it.
+    let obj = dir.path().join("box.obj");
+    std::fs::write(&obj, common::box_obj([1.0; 3])).unwrap();
+    let with_mesh = dir.path().join("withmesh.json");
+    json["objects"].as_array_mut().unwrap().pop();
+    json["objects"]
+        .as_array_mut()
+        .unwrap()
+        .push(serde_json::json!({"type": "mesh", "file": "box.obj", "material": "white"}));
+    std::fs::write(&with_mesh, json.to_string()).unwrap();
+    h.state_mut().open_scene(&ctx, &with_mesh);
+    loaded(&mut h);
+    assert_eq!(h.state().scene_path(), Some(with_mesh.as_path()));
+    assert!(h.state().title().starts_with("withmesh.json"));
+    settle(&mut h);
+    match h.state().render_state() {
+        Some(JobState::Finished(f)) => assert_eq!(f.class, EditClass::Retrace),
+        other => panic!("not finished: {other:?}"),
+    }
+    let desc = SceneDesc::load(&with_mesh).unwrap();
+    assert_eq!(finished(h.state()), core_render(&desc));
 }

@@ -17,8 +17,8 @@ use egui::Color32;
 use super::worker::{Shared, Stop, Worker};
 use crate::render::progressive::{CancelToken, RenderOptions, TileRect};
 use crate::render::{
-    DisplayTransform, EditClass, Film, LiveError, LiveRender, LiveReport, RenderSettings, Scene,
-    SceneDesc, ShadingParams, TileUpdate,
+    DisplayTransform, EditClass, Film, LiveError, LiveRender, LiveReport, Loaded, RenderSettings,
+    Scene, SceneDesc, ShadingParams, TileUpdate,
 };
 
 /// One finished tile, ready for `TextureHandle::set_partial`.
@@ -82,6 +82,9 @@ pub struct FinishedRender {
 struct Request {
     generation: u64,
     desc: SceneDesc,
+    /// A scene already built (by the loader thread), with the description
+    /// it was built for: rendered over instead of building it again.
+    built: Option<(SceneDesc, Loaded)>,
     cancel: CancelToken,
     at: Instant,
 }
@@ -177,12 +180,22 @@ impl RenderJob {
     /// Cancels whatever runs or waits and asks for a render of `desc`;
     /// returns its generation.
     pub fn restart(&self, desc: SceneDesc) -> u64 {
+        self.restart_built(desc, None)
+    }
+
+    /// As [`restart`](Self::restart), over `built`: a scene built for the
+    /// description it comes with (a request that replaces this one before
+    /// the worker takes it drops it).
+    pub fn restart_built(&self, desc: SceneDesc, built: Option<(SceneDesc, Loaded)>) -> u64 {
         let mut s = self.inner().lock();
         if let Some(c) = &s.running {
             c.cancel();
         }
+        let mut built = built;
         if let Some(old) = s.pending.take() {
             s.state = Some((old.generation, JobState::Cancelled));
+            // Newer than anything rendered: the worker still starts from it.
+            built = built.or(old.built);
         }
         if let Some((_, JobState::Finished(f))) = s.state.take() {
             s.spent = Some(f);
@@ -192,6 +205,7 @@ impl RenderJob {
         s.pending = Some(Request {
             generation,
             desc,
+            built,
             cancel: CancelToken::new(),
             at: Instant::now(),
         });
@@ -344,7 +358,7 @@ fn worker_loop(inner: &Inner) {
     let mut live = LiveRender::default();
     let mut kept = Kept::default();
     loop {
-        let Some((req, panic_now, spent, last_film)) = inner.next(|s| {
+        let Some((mut req, panic_now, spent, last_film)) = inner.next(|s| {
             let req = s.pending.take()?;
             s.running = Some(req.cancel.clone());
             s.running_desc = Some((req.generation, req.desc.clone()));
@@ -375,6 +389,9 @@ fn worker_loop(inner: &Inner) {
             && let Ok(film) = Arc::try_unwrap(f.film)
         {
             live.recycle(film);
+        }
+        if let Some((desc, loaded)) = req.built.take() {
+            live.adopt(&desc, loaded);
         }
         let generation = req.generation;
         // A panic anywhere in the render (our callback included) ends this

@@ -3,7 +3,10 @@
 //! thread of their own, so that a big scene (10⁶ objects parse for
 //! seconds), a big mesh, or a file that is not one (a FIFO, a device:
 //! refused by the core's loader before a byte is read) never stops the
-//! window.
+//! window. The thread also builds the scene to be shown (reading its mesh
+//! files: seconds for 10⁶ triangles) and hands it to the render: a scene
+//! that does not build is refused like one that does not parse, before it
+//! replaces anything, and the loading strip stays up while it builds.
 //!
 //! One load counts: a newer request supersedes the one under way (its
 //! result is dropped when it arrives), and a load can be cancelled. A
@@ -18,9 +21,19 @@ use std::sync::{Arc, Condvar, Mutex};
 use std::time::{Duration, Instant};
 
 use super::object_list::mesh_object;
+use super::settings::ViewSettings;
 use super::viewer::merge_reload;
-use crate::render::SceneDesc;
 use crate::render::scene_file::ObjectDesc;
+use crate::render::{Loaded, SceneDesc};
+
+/// A scene built for the description it comes with (the one the viewer
+/// renders: toggles applied, at the preview's size).
+pub type Built = (SceneDesc, Loaded);
+
+/// Bytes a pixel of the preview takes in the viewer: the render's film and
+/// the viewer's linear copy (12 each), the texture's bytes and their copy
+/// on the CPU (4 each), and as much again for tiles and refinement.
+const VIEWER_BYTES_PER_PIXEL: usize = 64;
 
 /// What the file is read for.
 #[derive(Debug, Clone)]
@@ -34,10 +47,16 @@ pub enum LoadKind {
     Reload {
         base: Option<SceneDesc>,
         mine: SceneDesc,
+        /// The viewer's toggles the merged scene will be shown with.
+        view: ViewSettings,
     },
     /// A mesh file to add to `scene` (it is placed in that scene's room),
-    /// in `material`.
-    AddMesh { scene: SceneDesc, material: String },
+    /// in `material`, shown with `view`.
+    AddMesh {
+        scene: SceneDesc,
+        material: String,
+        view: ViewSettings,
+    },
 }
 
 impl LoadKind {
@@ -55,7 +74,7 @@ impl LoadKind {
 #[derive(Debug, Clone)]
 #[allow(clippy::large_enum_variant)] // one per load, moved once
 pub enum LoadResult {
-    Opened(SceneDesc),
+    Opened(SceneDesc, Built),
     Reloaded {
         /// The file as read now.
         theirs: SceneDesc,
@@ -64,9 +83,10 @@ pub enum LoadResult {
         /// The edits it was merged with (the UI merges again if the scene
         /// was edited meanwhile).
         mine: SceneDesc,
+        built: Built,
     },
     /// The mesh read, as the object to add.
-    MeshRead(ObjectDesc),
+    MeshRead(ObjectDesc, Built),
     /// The message for the banner (names the file).
     Failed(String),
 }
@@ -207,38 +227,86 @@ impl SceneLoads {
     }
 }
 
-/// Reads (and for a reload merges) on the load thread; `None` once
-/// cancelled.
+/// Reads (and for a reload merges) on the load thread, and builds the
+/// scene to show; `None` once cancelled.
 fn load(path: &Path, kind: LoadKind, cancelled: &AtomicBool) -> Option<LoadResult> {
-    if let LoadKind::AddMesh { scene, material } = &kind {
-        let read = mesh_object(scene, path, material);
-        if cancelled.load(Ordering::Relaxed) {
-            return None;
-        }
-        return Some(read.map_or_else(LoadResult::Failed, LoadResult::MeshRead));
-    }
-    let theirs = match SceneDesc::load(path) {
-        Ok(d) => d,
-        Err(e) => return Some(LoadResult::Failed(e.to_string())),
-    };
-    if cancelled.load(Ordering::Relaxed) {
-        return None;
-    }
-    Some(match kind {
-        LoadKind::Open => LoadResult::Opened(theirs),
-        LoadKind::AddMesh { .. } => unreachable!("read above"),
-        LoadKind::Reload { base, mine } => {
-            let merged = match &base {
-                Some(base) => merge_reload(base, &mine, &theirs),
-                None => theirs.clone(),
+    let is_cancelled = || cancelled.load(Ordering::Relaxed);
+    let result = match kind {
+        LoadKind::AddMesh {
+            scene,
+            material,
+            view,
+        } => {
+            let object = match mesh_object(&scene, path, &material) {
+                Ok(o) => o,
+                Err(e) => return (!is_cancelled()).then_some(LoadResult::Failed(e)),
             };
-            LoadResult::Reloaded {
+            let mut with = scene;
+            with.objects.push(object.clone());
+            build(path, &with, &view, &is_cancelled).map(|b| LoadResult::MeshRead(object, b))
+        }
+        LoadKind::Open => {
+            let theirs = match SceneDesc::load(path) {
+                Ok(d) => d,
+                Err(e) => return Some(LoadResult::Failed(e.to_string())),
+            };
+            let view = ViewSettings::for_scene(&theirs);
+            build(path, &theirs, &view, &is_cancelled).map(|b| LoadResult::Opened(theirs, b))
+        }
+        LoadKind::Reload { base, mine, view } => {
+            let theirs = match SceneDesc::load(path) {
+                Ok(d) => d,
+                Err(e) => return Some(LoadResult::Failed(e.to_string())),
+            };
+            let (merged, view) = match &base {
+                Some(base) => (merge_reload(base, &mine, &theirs), view),
+                // Not read before (broken at launch): all of it.
+                None => (theirs.clone(), ViewSettings::for_scene(&theirs)),
+            };
+            build(path, &merged, &view, &is_cancelled).map(|built| LoadResult::Reloaded {
                 theirs,
                 merged,
                 mine,
-            }
+                built,
+            })
         }
-    })
+    };
+    if is_cancelled() {
+        return None;
+    }
+    Some(result.unwrap_or_else(LoadResult::Failed))
+}
+
+/// Builds `desc` as the viewer will show it (through `view`), once its
+/// preview's buffers are known to fit in memory; errors name the file.
+fn build(
+    path: &Path,
+    desc: &SceneDesc,
+    view: &ViewSettings,
+    is_cancelled: &dyn Fn() -> bool,
+) -> Result<Built, String> {
+    let shown = view.apply(desc, false);
+    let (w, h) = (shown.camera.width, shown.camera.height);
+    crate::render::memory::check_image_memory(w, h, VIEWER_BYTES_PER_PIXEL).map_err(|why| {
+        format!(
+            "{}: camera.width × camera.height ({}×{}, previewed at {w}×{h}): {why}",
+            path.display(),
+            desc.camera.width,
+            desc.camera.height
+        )
+    })?;
+    if is_cancelled() {
+        return Err(String::new());
+    }
+    let loaded = Loaded::new(&shown).map_err(|e| {
+        // A mesh's error names its own file; say which scene it is in.
+        let e = e.to_string();
+        match path.to_str() {
+            Some(p) if e.contains(p) => e,
+            _ => format!("{}: {e}", path.display()),
+        }
+    })?;
+    Ok((shown, loaded))
 }
 
 /// The strip shown while a load runs: what, how long, and Cancel; true if

@@ -31,7 +31,7 @@ use super::reference::{
     converged, reference_ui, same_limit,
 };
 use super::render_job::{JobState, RenderJob};
-use super::scene_loader::{LoadKind, LoadResult, SceneLoads, progress_ui};
+use super::scene_loader::{Built, LoadKind, LoadResult, SceneLoads, progress_ui};
 use super::settings::{ViewSettings, preview_size};
 use super::shortcuts::{self, Command, help_ui};
 use super::status::{Progress, status_ui};
@@ -173,6 +173,8 @@ pub struct Viewer {
     io: IoTasks,
     /// Scene files being read (open, hot reload) on their own thread.
     loads: SceneLoads,
+    /// The scene a load built, for the next render to start from.
+    built: Option<Built>,
     pick: Option<PickInfo>,
     timings: Timings,
     wiggle: Option<(Duration, Instant, u32)>,
@@ -322,6 +324,7 @@ impl Viewer {
             dialog: None,
             io: IoTasks::default(),
             loads: SceneLoads::default(),
+            built: None,
             pick: None,
             timings: Timings::new(options.log_timings),
             wiggle: options.wiggle.map(|d| (d, Instant::now(), 0)),
@@ -741,7 +744,7 @@ impl Viewer {
         }
         self.last_pass = None;
         self.progress = Progress::new(desc.render.sampling, desc.render.area_light_model);
-        let generation = job.restart(desc);
+        let generation = job.restart_built(desc, self.built.take());
         self.timings.on_change(generation, size);
         let shown_size = [size.0 as usize, size.1 as usize];
         if self.shown.size != shown_size {
@@ -774,6 +777,7 @@ impl Viewer {
         let kind = LoadKind::Reload {
             base: self.file_desc.clone(),
             mine: self.desc.clone(),
+            view: self.view.clone(),
         };
         self.loads.start(ctx, &path, kind);
     }
@@ -808,12 +812,17 @@ impl Viewer {
             return;
         };
         match result {
-            LoadResult::Opened(desc) => self.opened(ctx, &path, desc),
+            LoadResult::Opened(desc, built) => {
+                self.built = Some(built);
+                self.opened(ctx, &path, desc)
+            }
             LoadResult::Reloaded {
                 theirs,
                 merged,
                 mine,
+                built,
             } => {
+                self.built = Some(built);
                 // Edited while the file was read: merge those edits instead.
                 let merged = match &self.file_desc {
                     Some(base) if self.desc != mine => merge_reload(base, &self.desc, &theirs),
@@ -821,7 +830,8 @@ impl Viewer {
                 };
                 self.reloaded(&path, theirs, merged)
             }
-            LoadResult::MeshRead(object) => {
+            LoadResult::MeshRead(object, built) => {
+                self.built = Some(built);
                 self.desc.objects.push(object);
                 self.notice = Some(format!("added {}", path.display()));
                 self.restart();
@@ -887,6 +897,7 @@ impl Viewer {
 
     fn reloaded(&mut self, path: &Path, theirs: SceneDesc, merged: SceneDesc) {
         if self.scene_path.as_deref() != Some(path) {
+            self.built = None;
             return;
         }
         if self.file_desc.is_none() {
@@ -1340,6 +1351,7 @@ impl Viewer {
         let kind = LoadKind::AddMesh {
             scene: self.desc.clone(),
             material: super::object_list::mesh_material(&self.objects, &self.desc),
+            view: self.view.clone(),
         };
         self.loads.start(ctx, path, kind);
     }

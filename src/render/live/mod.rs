@@ -166,6 +166,19 @@ impl LiveRender {
         });
     }
 
+    /// Starts from `loaded`, built elsewhere (a viewer's loader thread)
+    /// for `desc`: the next render traces over its objects and BVH instead
+    /// of reading the meshes and building them again.
+    pub fn adopt(&mut self, desc: &SceneDesc, loaded: Loaded) {
+        self.current = Some(Current {
+            desc: desc.clone(),
+            scene: loaded.scene,
+            settings: loaded.settings,
+            shading: loaded.shading,
+            frame: None,
+        });
+    }
+
     /// Takes back an image this render gave, no longer needed: the next
     /// recombine or re-shade of the same size writes into it.
     pub fn recycle(&mut self, film: Film) {

@@ -1809,3 +1809,52 @@ fn an_opened_scene_is_built_under_the_loading_strip_before_it_replaces_the_shown
     let desc = SceneDesc::load(&with_mesh).unwrap();
     assert_eq!(finished(h.state()), core_render(&desc));
 }
+
+/// The help lists the camera's gestures from the tables the input reads:
+/// the walking keys and the right-drag look were missing.
+#[test]
+fn the_help_lists_the_walking_keys_and_every_drag() {
+    let mut h = harness(ViewerOptions::new(small_room()));
+    settle(&mut h);
+    h.key_press(egui::Key::F1);
+    h.step();
+    h.step();
+    h.get_by_label("W/A/S/D/Q/E");
+    h.get_by_label_contains("Walk forward, left, back, right, down, up");
+    h.get_by_label("Right-drag");
+    h.get_by_label_contains("Look around");
+    h.get_by_label("Middle-drag, Shift+drag");
+    h.get_by_label("Drag");
+    h.get_by_label("Wheel");
+}
+
+/// Escape closes an open menu or colour picker (the viewer's shortcut
+/// reader took the key before egui's popups saw it).
+#[test]
+fn escape_closes_a_menu_and_the_colour_picker() {
+    let mut h = harness(ViewerOptions::new(small_room()));
+    settle(&mut h);
+    h.get_by_label("File").click();
+    h.step();
+    h.step();
+    assert!(egui::Popup::is_any_open(&h.ctx), "the menu opened");
+    h.key_press(egui::Key::Escape);
+    h.step();
+    h.step();
+    assert!(
+        !egui::Popup::is_any_open(&h.ctx),
+        "Escape left the menu open"
+    );
+
+    h.get_all_by_role(Role::ColorWell).next().unwrap().click();
+    h.step();
+    h.step();
+    assert!(egui::Popup::is_any_open(&h.ctx), "the picker opened");
+    h.key_press(egui::Key::Escape);
+    h.step();
+    h.step();
+    assert!(
+        !egui::Popup::is_any_open(&h.ctx),
+        "Escape left the picker open"
+    );
+}

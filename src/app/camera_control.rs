@@ -19,18 +19,76 @@ const ORBIT_SPEED: f64 = 0.004;
 /// Zoom factor per point of wheel scroll.
 const ZOOM_SPEED: f64 = 0.002;
 /// Walking speed: the distance to the pivot per second (so it suits any
-/// scene's scale); Shift walks four times as fast.
+/// scene's scale); Shift walks [`WALK_FAST`] times as fast.
 const WALK_SPEED: f64 = 0.6;
+const WALK_FAST: u32 = 4;
 
-/// The walking keys: forward, back, left, right, down, up.
-pub const WALK_KEYS: [egui::Key; 6] = [
-    egui::Key::W,
-    egui::Key::S,
-    egui::Key::A,
-    egui::Key::D,
-    egui::Key::Q,
-    egui::Key::E,
+/// The walking keys: each key, where it goes, and its step along the view
+/// (forward), the image's right and the camera's up.
+pub const WALK_KEYS: [(egui::Key, &str, [f64; 3]); 6] = [
+    (egui::Key::W, "forward", [1.0, 0.0, 0.0]),
+    (egui::Key::A, "left", [0.0, -1.0, 0.0]),
+    (egui::Key::S, "back", [-1.0, 0.0, 0.0]),
+    (egui::Key::D, "right", [0.0, 1.0, 0.0]),
+    (egui::Key::Q, "down", [0.0, 0.0, -1.0]),
+    (egui::Key::E, "up", [0.0, 0.0, 1.0]),
 ];
+
+/// What a drag over the image does to the camera.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum DragMove {
+    Orbit,
+    Pan,
+    Look,
+}
+
+impl DragMove {
+    fn describe(self) -> &'static str {
+        match self {
+            DragMove::Orbit => "Orbit about the pivot",
+            DragMove::Pan => "Pan",
+            DragMove::Look => "Look around (the camera stands, the pivot turns)",
+        }
+    }
+}
+
+/// Which drag does what, first match wins: (button, Shift needed, the
+/// move, the gesture's name in the help).
+pub const DRAGS: [(PointerButton, bool, DragMove, &str); 4] = [
+    (PointerButton::Middle, false, DragMove::Pan, "Middle-drag"),
+    (PointerButton::Primary, true, DragMove::Pan, "Shift+drag"),
+    (PointerButton::Primary, false, DragMove::Orbit, "Drag"),
+    (
+        PointerButton::Secondary,
+        false,
+        DragMove::Look,
+        "Right-drag",
+    ),
+];
+
+/// The camera's gestures for the help, from the tables the input reads:
+/// (gesture, what it does).
+pub fn help_rows() -> Vec<(String, String)> {
+    let mut rows: Vec<(String, String)> = Vec::new();
+    for (_, _, m, name) in DRAGS {
+        // One row per move: "Middle-drag, Shift+drag: Pan".
+        match rows.iter_mut().find(|r| r.1 == m.describe()) {
+            Some(r) => r.0 = format!("{}, {name}", r.0),
+            None => rows.push((name.to_string(), m.describe().to_string())),
+        }
+    }
+    rows.push(("Wheel".into(), "Zoom towards the pivot".into()));
+    let keys: Vec<&str> = WALK_KEYS.iter().map(|(k, _, _)| k.name()).collect();
+    let ways: Vec<&str> = WALK_KEYS.iter().map(|(_, w, _)| *w).collect();
+    rows.push((
+        keys.join("/"),
+        format!(
+            "Walk {} (over the image; Shift: {WALK_FAST}× faster)",
+            ways.join(", ")
+        ),
+    ));
+    rows
+}
 
 /// How far the camera may go from the scene's finite part, in scene sizes:
 /// far enough to see the scene as a dot, near enough that its features stay
@@ -125,19 +183,18 @@ pub fn camera_input(
     let mut moved = false;
     let shift = ui.input(|i| i.modifiers.shift);
     let delta = response.drag_delta();
-    if delta != Vec2::ZERO {
-        if response.dragged_by(PointerButton::Middle)
-            || (shift && response.dragged_by(PointerButton::Primary))
-        {
-            pan(cam, delta, image_height);
-            moved = true;
-        } else if response.dragged_by(PointerButton::Primary) {
-            orbit(cam, delta);
-            moved = true;
+    let drag = DRAGS
+        .iter()
+        .find(|(button, needs_shift, _, _)| response.dragged_by(*button) && (shift || !needs_shift))
+        .map(|d| d.2);
+    if delta != Vec2::ZERO
+        && let Some(m) = drag
+    {
+        match m {
+            DragMove::Orbit => orbit(cam, delta),
+            DragMove::Pan => pan(cam, delta, image_height),
+            DragMove::Look => look(cam, delta),
         }
-    }
-    if delta != Vec2::ZERO && response.dragged_by(PointerButton::Secondary) {
-        look(cam, delta);
         moved = true;
     }
     if response.hovered() {
@@ -152,21 +209,21 @@ pub fn camera_input(
     if response.hovered() && !ui.ctx().egui_wants_keyboard_input() {
         let (keys, dt, command, fast) = ui.input(|i| {
             (
-                WALK_KEYS.map(|k| i.key_down(k)),
+                WALK_KEYS.map(|(k, _, _)| i.key_down(k)),
                 i.stable_dt.min(0.1) as f64,
                 i.modifiers.command || i.modifiers.alt,
                 i.modifiers.shift,
             )
         });
         if !command && keys.contains(&true) {
-            let axis = |plus: bool, minus: bool| plus as i32 as f64 - minus as i32 as f64;
-            let step = WALK_SPEED * dt * if fast { 4.0 } else { 1.0 };
-            walk(
-                cam,
-                axis(keys[0], keys[1]) * step,
-                axis(keys[3], keys[2]) * step,
-                axis(keys[5], keys[4]) * step,
-            );
+            let step = WALK_SPEED * dt * if fast { WALK_FAST as f64 } else { 1.0 };
+            let mut way = [0.0; 3];
+            for ((_, _, dir), down) in WALK_KEYS.iter().zip(keys) {
+                if down {
+                    (0..3).for_each(|a| way[a] += dir[a]);
+                }
+            }
+            walk(cam, way[0] * step, way[1] * step, way[2] * step);
             // Keep walking while the key is held, without input events.
             ui.ctx().request_repaint();
             moved = true;

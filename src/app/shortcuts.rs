@@ -130,15 +130,13 @@ pub const BINDINGS: &[(Command, &[KeyboardShortcut], &str)] = &[
     (
         Command::Escape,
         &[ks(NONE, Key::Escape)],
-        "Close the help, the inspector or a dialog",
+        "Close a menu or colour picker, the help, the inspector or a dialog",
     ),
 ];
 
-/// Mouse bindings, for the help.
+/// The image's mouse bindings and dropped files, for the help (the
+/// camera's come from [`super::camera_control::help_rows`]).
 pub const MOUSE: &[(&str, &str)] = &[
-    ("Drag", "Orbit about the pivot"),
-    ("Shift+drag, middle-drag", "Pan"),
-    ("Wheel", "Zoom towards the pivot"),
     (
         "Ctrl+wheel",
         "Zoom the image about the cursor (not the camera)",
@@ -147,7 +145,7 @@ pub const MOUSE: &[(&str, &str)] = &[
     ("Double-click", "Set the pivot there and inspect the pixel"),
     (
         "Drop a file",
-        "Open a scene (.json) or load a reference (.png/.exr)",
+        "Open a scene (.json), add a mesh (.obj/.ply/.gltf/.glb) or load a reference (.png/.exr)",
     ),
 ];
 
@@ -188,9 +186,12 @@ pub fn first_key(ctx: &egui::Context, command: Command) -> String {
 /// a text field has the keyboard, so only Escape counts.
 pub fn read(ctx: &egui::Context, typing: bool) -> Vec<Command> {
     let mut out = Vec::new();
+    // An open menu or colour picker is topmost: egui closes it on Escape,
+    // if the key is left to it.
+    let popup = egui::Popup::is_any_open(ctx);
     ctx.input_mut(|i| {
         for (command, keys, _) in BINDINGS {
-            if typing && *command != Command::Escape {
+            if typing && *command != Command::Escape || popup && *command == Command::Escape {
                 continue;
             }
             // `?` is Shift+/ on most layouts: any modifiers.
@@ -220,9 +221,11 @@ pub fn help_ui(ui: &mut egui::Ui) {
                 ui.label(*what);
                 ui.end_row();
             }
-            for (keys, what) in MOUSE {
-                ui.label(egui::RichText::new(*keys).strong());
-                ui.label(*what);
+            let camera = super::camera_control::help_rows();
+            let mouse = MOUSE.iter().map(|(k, w)| (k.to_string(), w.to_string()));
+            for (keys, what) in camera.into_iter().chain(mouse) {
+                ui.label(egui::RichText::new(keys).strong());
+                ui.label(what);
                 ui.end_row();
             }
         });

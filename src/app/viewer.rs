@@ -1585,7 +1585,7 @@ impl Viewer {
                 || i.smooth_scroll_delta != egui::Vec2::ZERO
                 || super::camera_control::WALK_KEYS
                     .iter()
-                    .any(|&k| i.key_down(k))
+                    .any(|&(k, _, _)| i.key_down(k))
         });
         // (A copy of the scene only when it changed: it may be 10⁶ objects.)
         if !gesture && !self.history.is_baseline(&self.desc, &self.view) {

@@ -1858,3 +1858,35 @@ fn escape_closes_a_menu_and_the_colour_picker() {
         "Escape left the picker open"
     );
 }
+
+/// Every text on screen with the colour picker open has its glyphs in the
+/// fonts (its copy button's 📋 drew as a box).
+#[test]
+fn the_colour_picker_draws_no_missing_glyph() {
+    let mut h = harness(ViewerOptions::new(small_room()));
+    settle(&mut h);
+    h.get_all_by_role(Role::ColorWell).next().unwrap().click();
+    h.step();
+    h.step();
+    let texts = std::cell::RefCell::new(Vec::new());
+    let _ = h
+        .query_all_by(|n| {
+            texts
+                .borrow_mut()
+                .extend([n.label(), n.value()].into_iter().flatten());
+            false
+        })
+        .count();
+    let texts = texts.into_inner();
+    assert!(
+        texts.iter().any(|t| t.starts_with("R ")),
+        "the picker opened"
+    );
+    let font = egui::FontId::proportional(14.0);
+    for t in texts {
+        assert!(
+            h.ctx.fonts_mut(|f| f.has_glyphs(&font, &t)),
+            "a glyph of {t:?} is missing"
+        );
+    }
+}

@@ -1890,3 +1890,22 @@ fn the_colour_picker_draws_no_missing_glyph() {
         );
     }
 }
+
+/// The exposure's value box keeps its width from "+0.0 EV" to "+10.0 EV",
+/// so the strip after it (and the slider's handle under the cursor)
+/// does not move.
+#[test]
+fn the_image_strip_does_not_shift_when_the_exposure_label_widens() {
+    let mut h = harness(ViewerOptions::new(small_room()));
+    settle(&mut h);
+    let reset = |h: &Harness<'static, Viewer>| h.get_by_role_and_label(Role::Button, "0").rect();
+    let before = reset(&h);
+    for exposure in [10.0, -10.0] {
+        let mut display = h.state().display();
+        display.exposure = exposure;
+        h.state_mut().set_display(display);
+        h.step();
+        h.step();
+        assert_eq!(reset(&h), before, "at {exposure} EV");
+    }
+}

@@ -31,13 +31,29 @@ pub fn toolbar_ui(
     ui.horizontal_wrapped(|ui| {
         ui.spacing_mut().slider_width = 90.0;
         ui.label("Exposure");
+        // The value's box as wide as its widest text, so that the strip
+        // does not shift (under the cursor) as "+0.0 EV" becomes "+10.0 EV".
+        let font = egui::TextStyle::Button.resolve(ui.style());
+        let widest = ["+10.0 EV", "-10.0 EV"]
+            .map(|t| {
+                ui.painter()
+                    .layout_no_wrap(t.into(), font.clone(), egui::Color32::WHITE)
+                    .size()
+                    .x
+            })
+            .into_iter()
+            .fold(0.0, f32::max);
         let r = ui
-            .add(
-                egui::Slider::new(&mut display.exposure, DisplayTransform::EXPOSURE_RANGE)
-                    .step_by(0.1)
-                    .custom_formatter(|v, _| format!("{v:+.1}"))
-                    .suffix(" EV"),
-            )
+            .scope(|ui| {
+                ui.spacing_mut().interact_size.x = widest + 2.0 * ui.spacing().button_padding.x;
+                ui.add(
+                    egui::Slider::new(&mut display.exposure, DisplayTransform::EXPOSURE_RANGE)
+                        .step_by(0.1)
+                        .custom_formatter(|v, _| format!("{v:+.1}"))
+                        .suffix(" EV"),
+                )
+            })
+            .inner
             .on_hover_text("Stops: the image is shown ×2^EV (display only; the render and an EXR stay linear)");
         out.display_changed |= r.changed();
         if ui

@@ -488,3 +488,36 @@ fn a_part_that_makes_the_scene_huge_is_named_with_the_feature_it_shrinks() {
     assert!(e.contains("below the smallest supported size"), "{e}");
     assert!(!e.contains("because of"), "{e}");
 }
+
+/// Messages of malformed arrays and objects say what is wrong where: an
+/// array of four for a vector read "trailing characters", a trailing comma
+/// had the path "render.?", and a missing top-level field pointed at the
+/// end of the file.
+#[test]
+fn array_lengths_trailing_commas_and_missing_fields_read_plainly() {
+    let e = error_of(|v| v["camera"]["position"] = json!([0, 4, -14, 1]));
+    assert!(
+        e.starts_with("camera.position: too many elements, expected an array of 3"),
+        "{e}"
+    );
+    let e = error_of(|v| {
+        v["objects"]
+            .as_array_mut()
+            .unwrap()
+            .push(json!({"type": "triangle",
+            "vertices": [[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]], "material": "white"}))
+    });
+    assert!(
+        e.starts_with("objects[8].vertices: invalid length 4, expected an array of 3"),
+        "{e}"
+    );
+    let text = SEED_ROOM_JSON.replace("\"seed\": 1,", "\"seed\": 1,,");
+    let e = SceneDesc::from_json(&text).unwrap_err().to_string();
+    assert!(e.starts_with("render: "), "{e}");
+    let mut v = seed();
+    v.as_object_mut().unwrap().remove("format");
+    let e = SceneDesc::from_json(&v.to_string())
+        .unwrap_err()
+        .to_string();
+    assert_eq!(e, "missing field `format`");
+}

@@ -688,7 +688,31 @@ fn path_error<E: std::fmt::Display>(
     err: serde_path_to_error::Error<E>,
 ) -> SceneError {
     let mut inner = err.path().to_string();
-    let message = err.inner().to_string();
+    let mut message = err.inner().to_string();
+    // A trailing comma leaves serde at a key it has not read: the path of
+    // the object that holds it, not "render.?".
+    if let Some(object) = inner.strip_suffix(".?") {
+        inner = object.to_string();
+    } else if inner == "?" {
+        inner = ".".to_string();
+    }
+    // An array longer than the fixed one it fills: serde_json says
+    // "trailing characters" (or, for an array of arrays, "expected fewer
+    // elements in array"). Every fixed array of the format has 3 elements.
+    if inner != "." {
+        if let Some(rest) = message.strip_prefix("trailing characters") {
+            message = format!("too many elements, expected an array of 3{rest}");
+        } else if message.contains("expected fewer elements in array") {
+            message = message.replace("expected fewer elements in array", "expected an array of 3");
+        }
+    }
+    // A missing field is found at its object's end, which points nowhere
+    // useful (the end of the file, for a top-level field).
+    if message.starts_with("missing field")
+        && let Some(at) = message.find(" at line ")
+    {
+        message.truncate(at);
+    }
     // serde names a duplicate field in the message, at its object's path:
     // the path of the field itself is the more useful one.
     if let Some(field) = message

@@ -345,19 +345,6 @@ fn boxes_with_min_above_max_are_refused() {
 }
 
 #[test]
-fn too_much_work_is_refused() {
-    assert_error(
-        |v| {
-            v["camera"]["width"] = json!(16384);
-            v["camera"]["height"] = json!(16384);
-            v["render"]["shadow_rays"] = json!(4096);
-        },
-        "render.shadow_rays",
-        "exceeds the limit",
-    );
-}
-
-#[test]
 fn errors_from_files_name_the_file() {
     let dir = tempfile::tempdir().unwrap();
     let dir = dir.path();

@@ -43,9 +43,6 @@ pub mod limits {
     pub const MAX_DEPTH: u32 = 16;
     /// Most camera samples per pixel.
     pub const MAX_SAMPLES_PER_PIXEL: u32 = 1024;
-    /// Most shadow rays traced for one image, counted as
-    /// pixels × shadow points per hit × max_depth (about an hour of work).
-    pub const MAX_SHADOW_WORK: u64 = 1 << 41;
     /// Smallest scene size (the largest side of the box around the camera,
     /// the light and every bounded object), in world units: below it the
     /// f32 shadow rays lose their precision (a room 2e-9 across is the
@@ -986,20 +983,6 @@ impl SceneDesc {
                 whole_ranges::SAMPLES.out_of_range(r.samples_per_pixel),
             ));
         }
-        let pixels = c.width as u64 * c.height as u64;
-        let points = super::sampling::points_per_hit(r.sampling, r.shadow_rays) as u64;
-        let spp = r.samples_per_pixel as u64;
-        let work = pixels * spp * points * r.max_depth as u64;
-        if work > MAX_SHADOW_WORK {
-            return Err(SceneError::new(
-                "render.shadow_rays",
-                format!(
-                    "{}×{} pixels × {spp} samples × {points} shadow points × depth {} = {work} shadow rays exceeds the limit of {MAX_SHADOW_WORK}",
-                    c.width, c.height, r.max_depth
-                ),
-            ));
-        }
-
         let l = &self.light;
         point("light.corner", l.corner)?;
         parallelogram("light", l.edge_u, l.edge_v)?;

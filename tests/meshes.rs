@@ -1228,3 +1228,21 @@ fn auto_shading_uses_the_normals_of_the_faces_that_have_them() {
     assert_eq!(with, [true, true, false, false]);
     assert_eq!(without, [false, false, true, true]);
 }
+
+/// Through `tobj` (a statement our reader does not know sends the file
+/// there), normals are used only if every face has them: `tobj` gives a
+/// face without normals one of the file's (here the smooth object's), so
+/// such a file is flat as a whole rather than shaded with a normal it does
+/// not have.
+#[test]
+fn tobj_files_use_normals_only_if_every_face_has_them() {
+    use penumbra::render::mesh::read_obj;
+    let smooth = "vp 0.5 0.5\no smooth\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1//1 2//1 3//1\n";
+    let raw = read_obj(smooth.as_bytes()).unwrap();
+    let normals = raw.face_normals.expect("every face has normals");
+    assert_eq!(raw.normals[normals[0][0] as usize], glam::DVec3::Z);
+    let mixed = format!("{smooth}o flat\nv 0 0 1\nv 1 0 1\nv 0 1 1\nf 4 5 6\n");
+    let raw = read_obj(mixed.as_bytes()).unwrap();
+    assert_eq!(raw.faces, [[0, 1, 2], [3, 4, 5]]);
+    assert!(raw.face_normals.is_none(), "{:?}", raw.face_normals);
+}

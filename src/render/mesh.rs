@@ -256,6 +256,19 @@ fn clean_obj(bytes: &[u8]) -> std::borrow::Cow<'_, [u8]> {
     std::borrow::Cow::Owned(out)
 }
 
+/// Whether every corner of every `f` statement names a normal (`v/t/n` or
+/// `v//n`), line continuations joined.
+fn every_corner_has_a_normal(bytes: &[u8]) -> bool {
+    let text = String::from_utf8_lossy(bytes)
+        .replace("\\\r\n", " ")
+        .replace("\\\n", " ");
+    text.lines().all(|line| {
+        let mut words = line.split_whitespace();
+        words.next() != Some("f")
+            || words.all(|corner| corner.split('/').nth(2).is_some_and(|n| !n.is_empty()))
+    })
+}
+
 /// Wavefront OBJ through `tobj` alone (see [`read_obj`]).
 pub fn read_obj_tobj(bytes: &[u8]) -> Result<RawMesh, String> {
     let options = tobj::LoadOptions {
@@ -275,6 +288,7 @@ pub fn read_obj_tobj(bytes: &[u8]) -> Result<RawMesh, String> {
     };
     let mut raw = RawMesh::default();
     let mut face_normals = Vec::new();
+    let every_face_has_normals = every_corner_has_a_normal(bytes);
     for m in &models {
         let mesh = &m.mesh;
         let base = raw.positions.len() as u32;
@@ -297,10 +311,12 @@ pub fn read_obj_tobj(bytes: &[u8]) -> Result<RawMesh, String> {
             }
             raw.faces.push([f[0] + base, f[1] + base, f[2] + base]);
         }
-        // `tobj` gives a model's normal indices only as one list: a model
-        // whose faces all have normals uses them, any other is flat.
+        // `tobj` gives a model's normal indices only as one list, and gives
+        // a face without them one of the file's normals: the file's faces
+        // all have normals, or none is used.
         let ncount = mesh.normals.len() / 3;
-        let with_normals = mesh.normal_indices.len() == mesh.indices.len()
+        let with_normals = every_face_has_normals
+            && mesh.normal_indices.len() == mesh.indices.len()
             && ncount > 0
             && mesh.normal_indices.iter().all(|&i| (i as usize) < ncount);
         for f in mesh

@@ -599,6 +599,25 @@ fn a_negative_number_is_refused_by_its_option() {
     assert!(files_in(&dir).is_empty());
 }
 
+/// An option followed by another option has no value: taking negative
+/// numbers must not make `--width --height 5` read `--height` as the width.
+#[test]
+fn an_option_followed_by_another_option_is_missing_its_value() {
+    for args in [
+        &["render", "--width", "--height", "5"][..],
+        &["render", "--depth", "--spp", "2"],
+        &["bench", "--runs", "--quick"],
+    ] {
+        let o = penumbra(args);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+        assert!(
+            err.contains(&format!("a value is required for '{}", args[1])),
+            "{args:?}: {err}"
+        );
+    }
+}
+
 /// `--filter-width` with `--filter box` is refused: the box has no width,
 /// and the width was dropped without a word.
 #[test]

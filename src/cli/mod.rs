@@ -2,10 +2,13 @@
 //! command returns a [`CliError`] whose exit code tells bad input (2) from
 //! other failures (1).
 //!
-//! Every numeric option takes values that begin with `-`
-//! (`allow_hyphen_values`): `--width -5` then reaches the option's own
-//! range check, whose message names the option and its range, where clap
-//! would have called `-5` an unexpected argument.
+//! Every numeric option takes negative numbers as values
+//! (`allow_negative_numbers`; the lists `--terms`, `--translate`,
+//! `--region` and bench's `--counts`, `--spheres` and `--meshes` take any
+//! value that begins with `-`, `-1,0,0` being no number): `--width -5`
+//! then reaches the option's own range check, whose message names the
+//! option and its range, where clap would have called `-5` an unexpected
+//! argument. `--width --height 5` still says that `--width` wants a value.
 
 pub mod bench;
 mod compare_cmd;
@@ -71,12 +74,12 @@ pub struct ViewArgs {
     pub no_persist: bool,
     /// Change the ambient slider by itself every SECS seconds (six times),
     /// to measure `--log-timings` without a person at the mouse.
-    #[arg(long, allow_hyphen_values = true, value_name = "SECS", hide = true)]
+    #[arg(long, allow_negative_numbers = true, value_name = "SECS", hide = true)]
     pub wiggle: Option<f64>,
     /// Once the requested quality is reached and nothing changes, refine
     /// the image with more camera samples per pixel up to this many (1:
     /// never; default 16).
-    #[arg(long, allow_hyphen_values = true, value_parser = clap::value_parser!(u32).range(1..=1024))]
+    #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..=1024))]
     pub refine_spp: Option<u32>,
 }
 
@@ -85,26 +88,26 @@ pub struct ViewArgs {
 pub struct SceneOverrides {
     /// Image width in pixels (alone: the height follows at the scene's
     /// aspect ratio).
-    #[arg(long, allow_hyphen_values = true, value_parser = clap::value_parser!(u32).range(1..=16384))]
+    #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..=16384))]
     pub width: Option<u32>,
     /// Image height in pixels (alone: the width follows at the scene's
     /// aspect ratio).
-    #[arg(long, allow_hyphen_values = true, value_parser = clap::value_parser!(u32).range(1..=16384))]
+    #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..=16384))]
     pub height: Option<u32>,
     /// Shadow rays per hit point.
-    #[arg(long, allow_hyphen_values = true, value_parser = clap::value_parser!(u32).range(1..=4096))]
+    #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..=4096))]
     pub shadow_rays: Option<u32>,
     /// Placement of shadow-ray points on the light.
     #[arg(long, value_enum)]
     pub sampling: Option<SamplingArg>,
     /// Most surface hits along one camera path (1 = no reflections).
-    #[arg(long, allow_hyphen_values = true, value_parser = clap::value_parser!(u32).range(1..=16))]
+    #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..=16))]
     pub depth: Option<u32>,
     /// Area-light model.
     #[arg(long, value_enum)]
     pub model: Option<ModelArg>,
     /// Random seed.
-    #[arg(long, allow_hyphen_values = true)]
+    #[arg(long, allow_negative_numbers = true)]
     pub seed: Option<u64>,
     /// Multipliers of the ambient, diffuse and specular terms, e.g. 1,0,0.
     #[arg(long, allow_hyphen_values = true, value_parser = parse_terms)]
@@ -120,21 +123,21 @@ pub struct SceneOverrides {
     /// Multiply every coordinate and length of the scene (camera included)
     /// by this factor: the same image to within rounding (RMSE below 1e-7),
     /// not always bit for bit.
-    #[arg(long, allow_hyphen_values = true, value_parser = parse_scale)]
+    #[arg(long, allow_negative_numbers = true, value_parser = parse_scale)]
     pub scale: Option<f64>,
     /// Move the whole scene (camera included) by x,y,z: the same image to
     /// within rounding (RMSE below 1e-7), not always bit for bit.
     #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
     pub translate: Option<[f64; 3]>,
     /// Camera samples per pixel (anti-aliasing; `render.samples_per_pixel`).
-    #[arg(long, allow_hyphen_values = true, value_parser = clap::value_parser!(u32).range(1..=1024))]
+    #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..=1024))]
     pub spp: Option<u32>,
     /// Reconstruction filter of several samples per pixel (default
     /// blackman-harris).
     #[arg(long, value_enum)]
     pub filter: Option<FilterArg>,
     /// Width of the Blackman–Harris filter in pixels (default 1.5).
-    #[arg(long, allow_hyphen_values = true, value_parser = parse_filter_width)]
+    #[arg(long, allow_negative_numbers = true, value_parser = parse_filter_width)]
     pub filter_width: Option<f32>,
 }
 
@@ -184,7 +187,7 @@ pub struct RenderArgs {
     #[command(flatten)]
     pub overrides: SceneOverrides,
     /// Worker threads (default: all cores).
-    #[arg(long, allow_hyphen_values = true, value_parser = clap::value_parser!(u32).range(1..=1024))]
+    #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..=1024))]
     pub threads: Option<u32>,
     /// Trace every shadow ray, skipping nothing (to measure what skipping
     /// saves; the image is the same).
@@ -224,7 +227,7 @@ fn parse_region(s: &str) -> Result<TileRect, String> {
 #[derive(Debug, Args)]
 pub struct GenerateArgs {
     /// About this many triangles (the torus has 2 · around · across).
-    #[arg(long, allow_hyphen_values = true, default_value_t = 1_000_000, value_parser = clap::value_parser!(u32).range(18..=20_000_000))]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 1_000_000, value_parser = clap::value_parser!(u32).range(18..=20_000_000))]
     pub triangles: u32,
     /// The OBJ file to write.
     #[arg(short, long)]

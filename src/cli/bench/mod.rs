@@ -56,13 +56,13 @@ pub struct BenchArgs {
     pub quick: bool,
     /// Renders per measurement; the median time is reported (default 3;
     /// 5 for --scaling and at least 5 for --target).
-    #[arg(long, allow_hyphen_values = true, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..=1000))]
     pub runs: Option<u32>,
     /// Shadow-ray counts to sweep, e.g. 1,4,16 (default 1,4,16,64,256,1024).
     #[arg(long, allow_hyphen_values = true, value_delimiter = ',', value_parser = clap::value_parser!(u32).range(1..=4096))]
     pub counts: Option<Vec<u32>>,
     /// Stratified shadow rays per hit of the reference image.
-    #[arg(long, allow_hyphen_values = true, default_value_t = reference::REFERENCE_RAYS, value_parser = clap::value_parser!(u32).range(1..=4096))]
+    #[arg(long, allow_negative_numbers = true, default_value_t = reference::REFERENCE_RAYS, value_parser = clap::value_parser!(u32).range(1..=4096))]
     pub reference_rays: u32,
     /// Where references are cached (EXR, keyed by a hash of the scene).
     #[arg(long, default_value = "target/penumbra-cache")]
@@ -80,19 +80,19 @@ pub struct BenchArgs {
     #[arg(long)]
     pub plot: Option<PathBuf>,
     /// Image width in pixels (default: the scene's; 160 with --quick).
-    #[arg(long, allow_hyphen_values = true, value_parser = clap::value_parser!(u32).range(1..=16384))]
+    #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..=16384))]
     pub width: Option<u32>,
     /// Image height in pixels (default: the width at the scene's aspect).
-    #[arg(long, allow_hyphen_values = true, value_parser = clap::value_parser!(u32).range(1..=16384))]
+    #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..=16384))]
     pub height: Option<u32>,
     /// Most surface hits along one camera path.
-    #[arg(long, allow_hyphen_values = true, value_parser = clap::value_parser!(u32).range(1..=16))]
+    #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..=16))]
     pub depth: Option<u32>,
     /// Random seed of the renders (the reference uses its own).
-    #[arg(long, allow_hyphen_values = true)]
+    #[arg(long, allow_negative_numbers = true)]
     pub seed: Option<u64>,
     /// Worker threads (default: all cores).
-    #[arg(long, allow_hyphen_values = true, value_parser = clap::value_parser!(u32).range(1..=1024))]
+    #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..=1024))]
     pub threads: Option<u32>,
     /// Replace the scene with the seed room holding N random spheres; a
     /// comma-separated list runs each N (at most 999 995: with the room's
@@ -100,7 +100,7 @@ pub struct BenchArgs {
     #[arg(long, allow_hyphen_values = true, value_delimiter = ',', value_parser = clap::value_parser!(u32).range(1..=generate::MAX_SPHERES as i64))]
     pub spheres: Option<Vec<u32>>,
     /// Seed of the sphere generator.
-    #[arg(long, allow_hyphen_values = true, default_value_t = 1)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 1)]
     pub sphere_seed: u64,
     /// With --spheres: anywhere in the room (5 % of its volume; more
     /// spheres make a denser fog) or one layer on the floor (30 % of it).
@@ -153,7 +153,7 @@ pub struct BenchArgs {
     #[arg(long)]
     pub exact: bool,
     /// Camera samples per pixel of the renders (anti-aliasing).
-    #[arg(long, allow_hyphen_values = true, value_parser = clap::value_parser!(u32).range(1..=1024))]
+    #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..=1024))]
     pub spp: Option<u32>,
     /// Time the seed room, the bunny room and the room with a generated
     /// torus of each of these triangle counts (load and render).

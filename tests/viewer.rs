@@ -1631,10 +1631,10 @@ fn save_png_after_a_failed_render_says_so_and_the_banner_goes_with_the_fix() {
     assert_eq!(h.state().banner(), None);
 }
 
-#[test]
-fn a_scene_whose_mesh_is_missing_keeps_the_scene_before_and_its_name() {
-    let dir = tempfile::tempdir().unwrap();
-    let path = dir.path().join("missingmesh.json");
+/// `missingmesh.json` in `dir`: the small room with a mesh whose file is
+/// not there (it parses, but does not build).
+fn room_with_a_missing_mesh(dir: &Path) -> std::path::PathBuf {
+    let path = dir.join("missingmesh.json");
     let mut json: serde_json::Value = serde_json::from_str(&small_room().to_json()).unwrap();
     json["objects"]
         .as_array_mut()
@@ -1643,6 +1643,13 @@ fn a_scene_whose_mesh_is_missing_keeps_the_scene_before_and_its_name() {
             {"type": "mesh", "file": "/nonexistent/nope.obj", "material": "white"}
         ));
     std::fs::write(&path, json.to_string()).unwrap();
+    path
+}
+
+#[test]
+fn a_scene_whose_mesh_is_missing_keeps_the_scene_before_and_its_name() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = room_with_a_missing_mesh(dir.path());
     let mut h = harness(ViewerOptions::new(small_room()));
     settle(&mut h);
     let title = h.state().title();
@@ -1752,15 +1759,7 @@ fn a_scene_larger_than_a_display_is_previewed_at_a_displays_size() {
 #[test]
 fn an_opened_scene_is_built_under_the_loading_strip_before_it_replaces_the_shown_one() {
     let dir = tempfile::tempdir().unwrap();
-    let missing = dir.path().join("missingmesh.json");
-    let mut json: serde_json::Value = serde_json::from_str(&small_room().to_json()).unwrap();
-    json["objects"]
-        .as_array_mut()
-        .unwrap()
-        .push(serde_json::json!(
-            {"type": "mesh", "file": "/nonexistent/nope.obj", "material": "white"}
-        ));
-    std::fs::write(&missing, json.to_string()).unwrap();
+    let missing = room_with_a_missing_mesh(dir.path());
     let mut h = harness(ViewerOptions::new(small_room()));
     settle(&mut h);
     let title = h.state().title();
@@ -1791,7 +1790,7 @@ fn an_opened_scene_is_built_under_the_loading_strip_before_it_replaces_the_shown
     let obj = dir.path().join("box.obj");
     std::fs::write(&obj, common::box_obj([1.0; 3])).unwrap();
     let with_mesh = dir.path().join("withmesh.json");
-    json["objects"].as_array_mut().unwrap().pop();
+    let mut json: serde_json::Value = serde_json::from_str(&small_room().to_json()).unwrap();
     json["objects"]
         .as_array_mut()
         .unwrap()

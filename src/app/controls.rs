@@ -26,6 +26,14 @@ fn slider<'a, N: egui::emath::Numeric>(value: &'a mut N, range: RangeInclusive<N
     slider_within(value, range.clone(), range)
 }
 
+/// A shininess slider (the override's or a material's): logarithmic over
+/// 1–10⁶, any positive value typed.
+fn shininess_slider<'a>(value: &'a mut f64, text: &str) -> Slider<'a> {
+    slider_within(value, 1.0..=MAX_SHININESS, ABOVE_ZERO..=MAX_SHININESS)
+        .logarithmic(true)
+        .text(text)
+}
+
 /// A slider over `rail` whose dragged or typed values are clamped to
 /// `limits` and whose number field refuses NaN and infinities, so no edit
 /// can leave the format's range (a scene saved with one would not load).
@@ -175,15 +183,7 @@ pub fn controls_ui(
                 }
                 ui.add_enabled_ui(on, |ui| {
                     if ui
-                        .add(
-                            slider_within(
-                                &mut view.shininess,
-                                1.0..=MAX_SHININESS,
-                                ABOVE_ZERO..=MAX_SHININESS,
-                            )
-                            .logarithmic(true)
-                            .text("Shininess"),
-                        )
+                        .add(shininess_slider(&mut view.shininess, "Shininess"))
                         .changed()
                     {
                         desc.render.shininess_override = Some(view.shininess);
@@ -371,15 +371,7 @@ fn material_ui(ui: &mut Ui, state: &mut ControlsState, desc: &mut SceneDesc) -> 
         }
     });
     changed |= ui
-        .add(
-            slider_within(
-                &mut m.shininess,
-                1.0..=MAX_SHININESS,
-                ABOVE_ZERO..=MAX_SHININESS,
-            )
-            .logarithmic(true)
-            .text("Material shininess"),
-        )
+        .add(shininess_slider(&mut m.shininess, "Material shininess"))
         .changed();
     changed |= ui
         .add(slider(&mut m.reflectivity, 0.0..=1.0).text("Reflectivity"))

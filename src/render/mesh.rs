@@ -198,9 +198,10 @@ fn split_vertices(
         let face = std::array::from_fn(|k| {
             *index.entry((f[k], nf[k])).or_insert_with(|| {
                 part.positions.push(positions[f[k] as usize]);
-                part.normals.push(match file_normals.get(nf[k] as usize) {
-                    Some(&n) if *nf != NO_NORMAL => tf.normal(n),
-                    _ => DVec3::ZERO,
+                part.normals.push(if *nf == NO_NORMAL {
+                    DVec3::ZERO
+                } else {
+                    tf.normal(file_normals[nf[k] as usize])
                 });
                 (part.positions.len() - 1) as u32
             })
@@ -319,14 +320,13 @@ pub fn read_obj_tobj(bytes: &[u8]) -> Result<RawMesh, String> {
             && mesh.normal_indices.len() == mesh.indices.len()
             && ncount > 0
             && mesh.normal_indices.iter().all(|&i| (i as usize) < ncount);
-        for f in mesh
-            .normal_indices
-            .chunks_exact(3)
-            .take(if with_normals { usize::MAX } else { 0 })
-        {
-            face_normals.push([f[0] + nbase, f[1] + nbase, f[2] + nbase]);
-        }
-        if !with_normals {
+        if with_normals {
+            face_normals.extend(
+                mesh.normal_indices
+                    .chunks_exact(3)
+                    .map(|f| [f[0] + nbase, f[1] + nbase, f[2] + nbase]),
+            );
+        } else {
             face_normals.resize(raw.faces.len(), NO_NORMAL);
         }
     }

@@ -297,22 +297,24 @@ fn elements<const N: usize>(
     Ok(out)
 }
 
+/// `length` bytes of `data` from `start`, if they lie inside it.
+fn within(data: &[u8], start: usize, length: usize) -> Option<&[u8]> {
+    let end = start.checked_add(length)?;
+    data.get(start..end)
+}
+
 /// The bytes of a buffer view, checked to lie inside its buffer.
 fn view_bytes<'b>(view: &gltf::buffer::View, buffers: &'b [Vec<u8>]) -> Result<&'b [u8], String> {
     let buffer = &buffers[view.buffer().index()];
     let (start, length) = (view.offset(), view.length());
-    start
-        .checked_add(length)
-        .filter(|&end| end <= buffer.len())
-        .map(|end| &buffer[start..end])
-        .ok_or_else(|| {
-            format!(
-                "bufferView {} ({length} bytes from byte {start}) reaches beyond buffer {} ({} bytes)",
-                view.index(),
-                view.buffer().index(),
-                buffer.len()
-            )
-        })
+    within(buffer, start, length).ok_or_else(|| {
+        format!(
+            "bufferView {} ({length} bytes from byte {start}) reaches beyond buffer {} ({} bytes)",
+            view.index(),
+            view.buffer().index(),
+            buffer.len()
+        )
+    })
 }
 
 /// `length` bytes from `offset` in a view, checked.
@@ -323,17 +325,13 @@ fn span<'b>(
     length: usize,
 ) -> Result<&'b [u8], String> {
     let data = view_bytes(view, buffers)?;
-    offset
-        .checked_add(length)
-        .filter(|&end| end <= data.len())
-        .map(|end| &data[offset..end])
-        .ok_or_else(|| {
-            format!(
-                "{length} bytes from byte {offset} reach beyond bufferView {} ({} bytes)",
-                view.index(),
-                data.len()
-            )
-        })
+    within(data, offset, length).ok_or_else(|| {
+        format!(
+            "{length} bytes from byte {offset} reach beyond bufferView {} ({} bytes)",
+            view.index(),
+            data.len()
+        )
+    })
 }
 
 /// One element of `N` little-endian components of type `kind` at the

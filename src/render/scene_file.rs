@@ -390,58 +390,30 @@ mod whole_ranges {
     use super::limits::*;
     use crate::render::whole_number::WholeRange;
 
-    pub const FORMAT: WholeRange = WholeRange {
-        lo: 0,
-        hi: u32::MAX as u64,
-        unit: "",
-    };
-    pub const SIDE: WholeRange = WholeRange {
-        lo: 1,
-        hi: MAX_SIDE as u64,
-        unit: " pixels",
-    };
-    pub const SHADOW_RAYS: WholeRange = WholeRange {
-        lo: 1,
-        hi: MAX_SHADOW_RAYS as u64,
-        unit: "",
-    };
-    pub const DEPTH: WholeRange = WholeRange {
-        lo: 1,
-        hi: MAX_DEPTH as u64,
-        unit: "",
-    };
-    pub const SEED: WholeRange = WholeRange {
-        lo: 0,
-        hi: u64::MAX,
-        unit: "",
-    };
-    pub const SAMPLES: WholeRange = WholeRange {
-        lo: 1,
-        hi: MAX_SAMPLES_PER_PIXEL as u64,
-        unit: "",
-    };
+    pub const FORMAT: WholeRange = WholeRange::new(0, u32::MAX as u64, "");
+    pub const SIDE: WholeRange = WholeRange::new(1, MAX_SIDE as u64, " pixels");
+    pub const SHADOW_RAYS: WholeRange = WholeRange::new(1, MAX_SHADOW_RAYS as u64, "");
+    pub const DEPTH: WholeRange = WholeRange::new(1, MAX_DEPTH as u64, "");
+    pub const SEED: WholeRange = WholeRange::new(0, u64::MAX, "");
+    pub const SAMPLES: WholeRange = WholeRange::new(1, MAX_SAMPLES_PER_PIXEL as u64, "");
 }
 
-/// Readers of the whole-number fields (see `whole_number.rs`); any
-/// version number is read, and `validate` names the supported one.
-fn format_version<'de, D: serde::Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
-    deserialize_whole(d, whole_ranges::FORMAT)
+/// A serde reader (`deserialize_with`) of a whole-number field of type
+/// `$t` within `$range` (see `whole_number.rs`).
+macro_rules! whole_field {
+    ($name:ident: $t:ty, $range:expr) => {
+        fn $name<'de, D: serde::Deserializer<'de>>(d: D) -> Result<$t, D::Error> {
+            deserialize_whole(d, $range)
+        }
+    };
 }
-fn image_side<'de, D: serde::Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
-    deserialize_whole(d, whole_ranges::SIDE)
-}
-fn shadow_rays<'de, D: serde::Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
-    deserialize_whole(d, whole_ranges::SHADOW_RAYS)
-}
-fn max_depth<'de, D: serde::Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
-    deserialize_whole(d, whole_ranges::DEPTH)
-}
-fn seed<'de, D: serde::Deserializer<'de>>(d: D) -> Result<u64, D::Error> {
-    deserialize_whole(d, whole_ranges::SEED)
-}
-fn samples_per_pixel<'de, D: serde::Deserializer<'de>>(d: D) -> Result<u32, D::Error> {
-    deserialize_whole(d, whole_ranges::SAMPLES)
-}
+// Any version number is read; `validate` names the supported one.
+whole_field!(format_version: u32, whole_ranges::FORMAT);
+whole_field!(image_side: u32, whole_ranges::SIDE);
+whole_field!(shadow_rays: u32, whole_ranges::SHADOW_RAYS);
+whole_field!(max_depth: u32, whole_ranges::DEPTH);
+whole_field!(seed: u64, whole_ranges::SEED);
+whole_field!(samples_per_pixel: u32, whole_ranges::SAMPLES);
 
 /// An optional number: absent is `None` (the field's default), `null` is
 /// refused as what it is not (the format says "a number or absent").

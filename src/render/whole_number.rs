@@ -5,7 +5,6 @@
 //! refused `64.0` and said "expected u32").
 
 use std::fmt;
-use std::marker::PhantomData;
 
 use serde::Deserializer;
 use serde::de::{Error, Unexpected, Visitor};
@@ -22,6 +21,10 @@ pub struct WholeRange {
 }
 
 impl WholeRange {
+    pub const fn new(lo: u64, hi: u64, unit: &'static str) -> WholeRange {
+        WholeRange { lo, hi, unit }
+    }
+
     /// "`value` is out of range, expected lo..=hi unit": one wording for
     /// the reader and the validation of scenes built in code.
     pub fn out_of_range(&self, value: impl fmt::Display) -> String {
@@ -45,16 +48,12 @@ where
     D: Deserializer<'de>,
     T: TryFrom<u64>,
 {
-    let v = d.deserialize_any(WholeVisitor {
-        range,
-        out: PhantomData,
-    })?;
+    let v = d.deserialize_any(WholeVisitor { range })?;
     T::try_from(v).map_err(|_| D::Error::custom(range.out_of_range(v)))
 }
 
 struct WholeVisitor {
     range: WholeRange,
-    out: PhantomData<u64>,
 }
 
 impl WholeVisitor {
@@ -105,15 +104,8 @@ mod tests {
 
     fn read(json: &str, lo: u64, hi: u64) -> Result<u32, String> {
         let mut de = serde_json::Deserializer::from_str(json);
-        deserialize_whole::<_, u32>(
-            &mut de,
-            WholeRange {
-                lo,
-                hi,
-                unit: " pixels",
-            },
-        )
-        .map_err(|e| e.to_string())
+        deserialize_whole::<_, u32>(&mut de, WholeRange::new(lo, hi, " pixels"))
+            .map_err(|e| e.to_string())
     }
 
     #[test]

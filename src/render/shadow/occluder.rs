@@ -34,6 +34,11 @@ pub(super) enum Occluder {
     },
     /// `dist`: signed distance of p from the plane.
     Plane { normal: Vec3, dist: f32 },
+    /// A plane whose normal (in f32) has one non-zero component, `along`,
+    /// on axis `axis` (a room's walls): its cosine with a direction is that
+    /// component times the direction's, the value the full dot product
+    /// gives (the other products are zeros), in one multiplication.
+    AxisPlane { axis: u8, along: f32, dist: f32 },
     /// See `geometry/triangle.rs`.
     Triangle(TriangleOccluder),
 }
@@ -75,10 +80,17 @@ impl Occluder {
                     dist: r.normal.dot(to_corner) as f32,
                 }
             }
-            Shape::Plane(pl) => Occluder::Plane {
-                normal: pl.normal.as_vec3(),
-                dist: pl.signed_distance(p) as f32,
-            },
+            Shape::Plane(pl) => {
+                let (normal, dist) = (pl.normal.as_vec3(), pl.signed_distance(p) as f32);
+                match pl.axis {
+                    Some(axis) => Occluder::AxisPlane {
+                        axis,
+                        along: normal[axis as usize],
+                        dist,
+                    },
+                    None => Occluder::Plane { normal, dist },
+                }
+            }
             Shape::Triangle(t) => Occluder::Triangle(t.occluder(p, reach)),
         }
     }
@@ -139,6 +151,16 @@ impl Occluder {
             Occluder::Plane { normal, dist } => {
                 for j in 0..n {
                     vis[j] *= cleared(plane_blocks(normal, dist, dx[j], dy[j], dz[j]));
+                }
+            }
+            Occluder::AxisPlane { axis, along, dist } => {
+                let component = match axis {
+                    0 => dx,
+                    1 => dy,
+                    _ => dz,
+                };
+                for j in 0..n {
+                    vis[j] *= cleared(axis_plane_blocks(along, dist, component[j]));
                 }
             }
             // Borrowed: a copy would put the vertices the f64 recheck reads
@@ -268,6 +290,17 @@ pub(super) fn slab_bounds(half: Vec3, origin: Vec3) -> (Vec3, Vec3) {
 #[inline(always)]
 pub(super) fn plane_blocks(normal: Vec3, dist: f32, x: f32, y: f32, z: f32) -> bool {
     let end = dist + (normal.x * x + normal.y * y + normal.z * z) * RAY_END;
+    dist * end < 0.0
+}
+
+/// [`plane_blocks`] of a plane whose normal is `along` times an axis, for
+/// a direction whose component on that axis is `c`: the same decision
+/// (its cosine is `along · c` exactly: the full dot product adds only
+/// zeros to it, which change the sign of a zero at most, and a zero
+/// cosine leaves `end` = `dist`, unblocked either way).
+#[inline(always)]
+pub(super) fn axis_plane_blocks(along: f32, dist: f32, c: f32) -> bool {
+    let end = dist + (along * c) * RAY_END;
     dist * end < 0.0
 }
 

@@ -12,7 +12,7 @@ use super::occluder::{Dirs, Occluder};
 use super::packet::{PacketScratch, Packets, packet};
 use super::pyramid::ShadowPyramid;
 use super::ray_packet::{PACKET, RayBins};
-use crate::render::geometry::{Aabb, Primitive, Shape};
+use crate::render::geometry::{Aabb, Bvh, Primitive, Shape};
 use crate::render::math::{WIDE_POINTS, avx2_dispatch, avx512_dispatch};
 use crate::render::scene::Scene;
 use crate::render::settings::RenderSettings;
@@ -40,6 +40,47 @@ avx512_dispatch!(
     /// one dispatch, for all of a hit point's candidates).
     fn block_all(occs: &[Candidate], d: Dirs, vis: &mut [f32]) => block_all_generic if vis.len() >= WIDE_POINTS
 );
+
+avx512_dispatch!(
+    /// [`block_all`] of the candidates among `listed` (all objects where
+    /// it is `ObjectBits::MAX`), each made and tested in turn; whether
+    /// there was one.
+    fn block_candidates(
+        culling: &Culling<'_>,
+        listed: ObjectBits,
+        objects: &[u32],
+        d: Dirs,
+        vis: &mut [f32],
+    ) -> bool => block_candidates_generic if vis.len() >= WIDE_POINTS
+);
+
+#[inline(always)]
+fn block_candidates_generic(
+    culling: &Culling<'_>,
+    listed: ObjectBits,
+    objects: &[u32],
+    d: Dirs,
+    vis: &mut [f32],
+) -> bool {
+    let mut any = false;
+    let mut block = |i: u32| {
+        if let Some(c) = culling.candidate(i) {
+            any = true;
+            c.occ.block_inline(d, vis);
+        }
+    };
+    if listed == ObjectBits::MAX {
+        let scene = culling.scene;
+        for &i in scene.unbounded.iter().chain(scene.bounded.iter()) {
+            block(i);
+        }
+    } else {
+        for i in each_bit(listed, objects) {
+            block(i);
+        }
+    }
+    any
+}
 
 #[inline(always)]
 fn block_all_generic(occs: &[Candidate], d: Dirs, vis: &mut [f32]) {
@@ -143,6 +184,37 @@ pub(crate) fn visibility_inline(
         reach: longest_ray(q.point, &corners),
     };
 
+    let adaptive = settings.adaptive && count >= 4 * ADAPTIVE_PROBES;
+    let walks_packets = skip && bvh.is_some() && scene.shadow_bvh.is_some();
+    if !umbra_tested && !adaptive && !walks_packets {
+        // Nothing reads the candidates twice: each one blocks the rays as
+        // it is made, in the same order, instead of being stored and read
+        // back (the same tests, so the same bits and counts).
+        let (d, vis) = (
+            Dirs {
+                x: &buf.dx,
+                y: &buf.dy,
+                z: &buf.dz,
+            }
+            .range(0..count),
+            &mut buf.vis[..count],
+        );
+        let listed_traced = block_candidates(&culling, listed, buf.cells.objects(), d, vis);
+        if !listed_traced && bvh.is_none() {
+            stats.shadow_unoccluded += facing;
+            return;
+        }
+        let tree_traced = culling.block_by_tree(bvh, d, vis);
+        let tested = if listed_traced || tree_traced {
+            facing
+        } else {
+            0
+        };
+        stats.shadow += tested;
+        stats.shadow_unoccluded += facing - tested;
+        return;
+    }
+
     // Objects outside the BVH (planes, and all objects of small scenes).
     buf.occluders.clear();
     if listed == ObjectBits::MAX {
@@ -242,31 +314,15 @@ pub(crate) fn visibility_inline(
             }
             return tested;
         }
-        let mut traced = !occluders.is_empty();
-        // The BVH, nearest nodes first, each leaf's objects blocking rays at
-        // once, until no ray is left (an any-hit traversal for the whole
-        // packet; the result does not depend on the order).
-        let (d, vis) = (d.range(0..count), &mut vis[..count]);
-        if let Some(bvh) = bvh
-            && (!skip || vis.iter().any(|&v| v != 0.0))
-        {
-            bvh.visit_near_first(
-                q.point,
-                |b| !skip || pyramid.get().may_overlap(b),
-                |i| {
-                    let Some(c) = culling.candidate(i) else {
-                        return true;
-                    };
-                    traced = true;
-                    c.occ.block(d, vis);
-                    !skip || vis.iter().any(|&v| v != 0.0)
-                },
-            );
+        let tree_traced = culling.block_by_tree(bvh, d.range(0..count), &mut vis[..count]);
+        if tree_traced || !occluders.is_empty() {
+            facing
+        } else {
+            0
         }
-        if traced { facing } else { 0 }
     };
 
-    if settings.adaptive && count >= 4 * ADAPTIVE_PROBES {
+    if adaptive {
         // Adaptive (biased): trace a spread subset first; if its facing rays
         // all agree, give every facing ray their answer.
         // The points nearest the light's four corners and four edge
@@ -427,6 +483,34 @@ pub(super) fn longest_ray(p: DVec3, corners: &[DVec3; 4]) -> f32 {
 }
 
 impl Culling<'_> {
+    /// Clears `vis[j]` for every ray an object of `bvh` blocks: the tree,
+    /// nearest nodes first, each leaf's objects blocking rays at once, until
+    /// no ray is left (an any-hit traversal for the whole packet; the
+    /// result does not depend on the order). Whether some object of the
+    /// tree was a candidate.
+    #[inline(always)]
+    fn block_by_tree(&self, bvh: Option<&Bvh>, d: Dirs, vis: &mut [f32]) -> bool {
+        let mut traced = false;
+        let skip = self.skip;
+        if let Some(bvh) = bvh
+            && (!skip || vis.iter().any(|&v| v != 0.0))
+        {
+            bvh.visit_near_first(
+                self.q.point,
+                |b| !skip || self.pyramid.get().may_overlap(b),
+                |i| {
+                    let Some(c) = self.candidate(i) else {
+                        return true;
+                    };
+                    traced = true;
+                    c.occ.block(d, vis);
+                    !skip || vis.iter().any(|&v| v != 0.0)
+                },
+            );
+        }
+        traced
+    }
+
     /// Object `i` as a possible occluder of the hit point, unless it can
     /// certainly block nothing. A function, not a closure, so that it is
     /// inlined into (and compiled for the same CPU features as) the

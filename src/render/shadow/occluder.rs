@@ -517,6 +517,43 @@ mod tests {
         );
     }
 
+    /// A plane whose normal lies on an axis decides every ray as the full
+    /// plane test: random points and directions, directions with zero
+    /// components, points on the plane, both signs of the normal.
+    #[test]
+    fn an_axis_plane_decides_as_the_full_plane_test() {
+        let mut rng = Rng::new(5);
+        let mut u = |lo: f32, hi: f32| lo + (hi - lo) * rng.next_f32();
+        let (mut checked, mut blocked) = (0, 0);
+        for case in 0..3000 {
+            let axis = case % 3;
+            let along = if case % 2 == 0 { 1.0 } else { -1.0 };
+            let mut normal = Vec3::ZERO;
+            normal[axis] = along;
+            let dist = match case % 7 {
+                0 => 0.0,
+                1 => -0.0,
+                _ => u(-10.0, 10.0),
+            };
+            let mut d = [u(-20.0, 20.0), u(-20.0, 20.0), u(-20.0, 20.0)];
+            match case % 5 {
+                0 => d[axis] = 0.0,
+                1 => d[axis] = -0.0,
+                2 => d[(axis + 1) % 3] = -0.0,
+                _ => {}
+            }
+            let full = plane_blocks(normal, dist, d[0], d[1], d[2]);
+            assert_eq!(
+                axis_plane_blocks(along, dist, d[axis]),
+                full,
+                "normal {normal}, dist {dist}, direction {d:?}"
+            );
+            checked += 1;
+            blocked += full as u32;
+        }
+        assert!(checked == 3000 && blocked > 300, "{blocked} rays blocked");
+    }
+
     /// The seed room's tall box.
     fn tall_box() -> Cuboid {
         Cuboid::new(

@@ -472,22 +472,35 @@ fn an_output_that_is_an_input_is_refused_through_links() {
 /// an ambient-only image takes moments, writing 200 MB longer), sends
 /// `signal`, and returns the exit status and stderr.
 fn signal_during_write(signal: &str) -> (std::process::ExitStatus, String, Vec<String>) {
+    let render = [
+        "render",
+        "--width",
+        "4096",
+        "--height",
+        "4096",
+        "--shadow-rays",
+        "1",
+        "--depth",
+        "1",
+        "--terms",
+        "1,0,0",
+    ];
+    signal_during_write_of(&render, "big.exr", signal)
+}
+
+/// [`signal_during_write`] for the command `args`, which writes `-o
+/// target` (a name in a scratch folder) for long enough to be stopped.
+fn signal_during_write_of(
+    args: &[&str],
+    target: &str,
+    signal: &str,
+) -> (std::process::ExitStatus, String, Vec<String>) {
     let dir = scratch();
-    let target = dir.path().join("big.exr");
+    let target = dir.path().join(target);
     std::fs::write(&target, b"precious").unwrap();
     let mut child = bin()
-        .args(["render", "-o", target.to_str().unwrap()])
-        .args([
-            "--width",
-            "4096",
-            "--height",
-            "4096",
-            "--shadow-rays",
-            "1",
-            "--depth",
-            "1",
-        ])
-        .args(["--terms", "1,0,0"])
+        .args(args)
+        .args(["-o", target.to_str().unwrap()])
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
@@ -548,6 +561,29 @@ fn other_fatal_signals_during_the_write_remove_the_temporary_file() {
     }
 }
 
+/// `generate` writes as `render` does: a signal stops the write, the
+/// target untouched and no temporary file left (it wrote the OBJ in
+/// place, and a signal left it cut short).
+#[test]
+fn a_signal_during_generate_leaves_the_target_untouched() {
+    // 150 MB of OBJ text: about a second of writing.
+    let generate = ["generate", "--triangles", "4000000"];
+    for signal in ["TERM", "HUP", "INT"] {
+        let (status, err, left) = signal_during_write_of(&generate, "torus.obj", signal);
+        assert_eq!(status.code(), Some(1), "{signal}: {err}");
+        assert_eq!(
+            err.trim(),
+            "penumbra: interrupted: no file written",
+            "{signal}"
+        );
+        assert_eq!(left, vec!["torus.obj"], "{signal}");
+    }
+    use std::os::unix::process::ExitStatusExt;
+    let (status, _, left) = signal_during_write_of(&generate, "torus.obj", "USR1");
+    assert_eq!(status.signal(), Some(libc::SIGUSR1));
+    assert_eq!(left, vec!["torus.obj"]);
+}
+
 #[test]
 fn sigterm_during_the_render_stops_it_without_a_file() {
     let dir = scratch();
@@ -600,6 +636,31 @@ fn a_file_size_limit_fails_the_write_with_its_own_words() {
         "{:?}",
         files_in(dir.path())
     );
+}
+
+/// A failed `generate` (here a file-size limit, which killed it with
+/// SIGXFSZ half way through the file) says so in one line naming the
+/// file, and leaves an existing file as it was and no temporary file.
+#[test]
+fn a_failed_generate_keeps_the_existing_file() {
+    let dir = scratch();
+    let out = dir.path().join("torus.obj");
+    std::fs::write(&out, b"precious").unwrap();
+    // 100 blocks of 1 KiB: far less than the OBJ of 100 000 triangles (4 MB).
+    let script = format!(
+        "ulimit -f 100; exec '{}' generate --triangles 100000 -o '{}'",
+        env!("CARGO_BIN_EXE_penumbra"),
+        out.display()
+    );
+    let o = Command::new("sh").args(["-c", &script]).output().unwrap();
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    let named = format!("penumbra: {}: ", out.display());
+    assert!(err.starts_with(&named), "{err}");
+    assert!(err.contains("File too large"), "{err}");
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert_eq!(std::fs::read(&out).unwrap(), b"precious");
+    assert_eq!(files_in(dir.path()), vec!["torus.obj"]);
 }
 
 // ---------------------------------------------------------------- item 7

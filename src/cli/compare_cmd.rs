@@ -3,7 +3,7 @@ use crate::render::CancelToken;
 use crate::render::Film;
 use crate::render::TileRect;
 use crate::render::compare::{compare as compare_films, diff_image};
-use crate::render::output::{FileKind, read_film, write_rgb8, writes_interrupted};
+use crate::render::output::{FileKind, read_film, write_rgb8};
 use crate::render::region::{Part, read_part};
 
 /// What `compare --diff` says when interrupted, as an interrupted render
@@ -71,13 +71,8 @@ pub fn compare(args: &CompareArgs) -> Result<(), CliError> {
         // The write is stopped as render's is: it fails, the target
         // untouched.
         super::safety::handle_signals(&CancelToken::new());
-        write_rgb8(path, a.width, a.height, &rgb).map_err(|e| {
-            if writes_interrupted() {
-                CliError::other(INTERRUPTED_BEFORE_DIFF)
-            } else {
-                CliError::other(e)
-            }
-        })?;
+        write_rgb8(path, a.width, a.height, &rgb)
+            .map_err(|e| super::safety::write_failure(e, INTERRUPTED_BEFORE_DIFF))?;
         report += &format!(
             "diff {} (black = equal, white = {:.3e})\n",
             path.display(),

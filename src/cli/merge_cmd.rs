@@ -3,7 +3,7 @@
 
 use super::{CliError, MergeArgs};
 use crate::render::CancelToken;
-use crate::render::output::{FileKind, write_film, writes_interrupted};
+use crate::render::output::{FileKind, write_film};
 use crate::render::region::{merge as merge_parts, read_part};
 
 /// What an interrupted merge says, as an interrupted render does.
@@ -31,13 +31,7 @@ pub fn merge(args: &MergeArgs) -> Result<(), CliError> {
     let film = merge_parts(&parts).map_err(CliError::input)?;
     // The write is stopped as render's is: it fails, the target untouched.
     super::safety::handle_signals(&CancelToken::new());
-    write_film(&film, &args.output).map_err(|e| {
-        if writes_interrupted() {
-            CliError::other(INTERRUPTED)
-        } else {
-            CliError::other(e)
-        }
-    })?;
+    write_film(&film, &args.output).map_err(|e| super::safety::write_failure(e, INTERRUPTED))?;
     eprintln!("{}×{} from {} parts", film.width, film.height, parts.len());
     Ok(())
 }

@@ -25,7 +25,8 @@ pub use compare_cmd::compare;
 pub use merge_cmd::merge;
 pub use render_cmd::{load_desc, load_scene, render};
 
-use crate::render::{AreaLightModel, FilterKind, Sampling, TileRect};
+use crate::render::output::INTERRUPTED_MESSAGE;
+use crate::render::{AreaLightModel, CancelToken, FilterKind, Sampling, TileRect};
 
 #[derive(Debug, Parser)]
 #[command(
@@ -249,8 +250,11 @@ pub fn generate(args: &GenerateArgs) -> Result<(), CliError> {
         )));
     }
     safety::refuse_missing_folder(&args.output, "output")?;
+    // SIGINT, SIGTERM and SIGHUP stop the write as they stop render's: no
+    // file is written and an existing one is untouched.
+    safety::handle_signals(&CancelToken::new());
     let n = crate::render::generate_mesh::write_torus_obj(&args.output, args.triangles as usize)
-        .map_err(|e| CliError::other(format!("{}: {e}", args.output.display())))?;
+        .map_err(|e| safety::write_failure(e, INTERRUPTED_MESSAGE))?;
     println!("{}: a torus of {n} triangles", args.output.display());
     Ok(())
 }

@@ -5,7 +5,7 @@ use std::time::{Duration, Instant};
 use indicatif::{ProgressBar, ProgressStyle};
 
 use super::{CliError, RenderArgs, SceneOverrides};
-use crate::render::output::{FileKind, PngCodes, write_atomic, write_film, writes_interrupted};
+use crate::render::output::{FileKind, PngCodes, write_atomic, write_film};
 use crate::render::region::{Part, check_region, fingerprint, write_part};
 use crate::render::{
     CancelToken, Loaded, RenderOptions, Scene, SceneDesc, TileRect, TileUpdate, on_threads,
@@ -251,13 +251,7 @@ pub fn render(args: &RenderArgs) -> Result<(), CliError> {
                 None => write_film(&report.film, &args.output),
             },
         };
-        written.map_err(|e| {
-            if writes_interrupted() {
-                CliError::other("interrupted: no image written")
-            } else {
-                CliError::other(e)
-            }
-        })?;
+        written.map_err(|e| super::safety::write_failure(e, "interrupted: no image written"))?;
         Ok((report, writing.elapsed(), rayon::current_num_threads()))
     })
     .ok_or_else(|| CliError::other("cannot start the worker threads"))??;

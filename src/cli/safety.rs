@@ -7,7 +7,7 @@ use std::sync::atomic::{AtomicPtr, AtomicUsize, Ordering};
 
 use super::CliError;
 use crate::render::CancelToken;
-use crate::render::output::{interrupt_writes, remove_temp_files};
+use crate::render::output::{interrupt_writes, remove_temp_files, writes_interrupted};
 
 /// Signals whose default action ends the process and that a handler can
 /// catch, other than the three that stop a render gracefully (SIGINT,
@@ -57,6 +57,17 @@ pub fn handle_signals(cancel: &CancelToken) {
             install_remove_and_die(signal);
         }
         libc::signal(libc::SIGXFSZ, libc::SIG_IGN);
+    }
+}
+
+/// A failed atomic write as the command reports it (exit 1, as other I/O
+/// failures): `interrupted` when a signal stopped it ([`handle_signals`]),
+/// else the write's own error, which names the file.
+pub fn write_failure(error: impl std::fmt::Display, interrupted: &str) -> CliError {
+    if writes_interrupted() {
+        CliError::other(interrupted)
+    } else {
+        CliError::other(error)
     }
 }
 

@@ -7,6 +7,9 @@
 use std::io::Write;
 use std::path::Path;
 
+use super::error::ImageError;
+use super::output::write_atomic;
+
 /// Major and minor radius: 2.8 wide and 0.8 (±5 %) thick, lying in the
 /// xz plane around the origin.
 const MAJOR: f64 = 1.0;
@@ -22,10 +25,19 @@ pub fn torus_segments(triangles: usize) -> (usize, usize) {
 }
 
 /// Writes the torus of about `triangles` triangles as OBJ; returns the
-/// exact count (2 · around · across).
-pub fn write_torus_obj(path: &Path, triangles: usize) -> std::io::Result<usize> {
+/// exact count (2 · around · across). The write is atomic, as an image's
+/// ([`write_atomic`]): a failed or interrupted one leaves no file and an
+/// existing file untouched.
+pub fn write_torus_obj(path: &Path, triangles: usize) -> Result<usize, ImageError> {
     let (nu, nv) = torus_segments(triangles);
-    let mut out = std::io::BufWriter::with_capacity(1 << 20, std::fs::File::create(path)?);
+    write_atomic(path, |out| {
+        write_torus(out, nu, nv).map_err(|e| e.to_string())
+    })?;
+    Ok(2 * nu * nv)
+}
+
+/// The OBJ text of the torus of `nu` segments around and `nv` across.
+fn write_torus(out: &mut impl Write, nu: usize, nv: usize) -> std::io::Result<()> {
     writeln!(
         out,
         "# penumbra generate torus: {} triangles ({nu} around × {nv} across)",
@@ -53,8 +65,7 @@ pub fn write_torus_obj(path: &Path, triangles: usize) -> std::io::Result<usize> 
             writeln!(out, "f {a} {b} {c}\nf {a} {c} {d}")?;
         }
     }
-    out.flush()?;
-    Ok(2 * nu * nv)
+    Ok(())
 }
 
 /// The height of the torus's lowest point above its centre plane.

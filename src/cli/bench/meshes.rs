@@ -61,8 +61,7 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
     }
     for &n in counts {
         let file = dir.path().join(format!("torus-{n}.obj"));
-        let exact = write_torus_obj(&file, n as usize)
-            .map_err(|e| CliError::other(format!("{}: {e}", file.display())))?;
+        let exact = write_torus_obj(&file, n as usize).map_err(CliError::other)?;
         let lift = TORUS_HALF_HEIGHT * TORUS_SCALE + 0.0013;
         let m = mesh_desc(&file, TORUS_SCALE, [0.0, lift, 0.5], 0.0);
         rooms.push((format!("torus {exact}"), room_with(&base, m), exact));

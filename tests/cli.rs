@@ -600,13 +600,21 @@ fn a_negative_number_is_refused_by_its_option() {
 }
 
 /// An option followed by another option has no value: taking negative
-/// numbers must not make `--width --height 5` read `--height` as the width.
+/// numbers must not make `--width --height 5` read `--height` as the width,
+/// nor taking any value beginning with `-` (the lists, for `--region
+/// -1,0,10,10`) make `--region --width 5` read `--width` as the region.
 #[test]
 fn an_option_followed_by_another_option_is_missing_its_value() {
     for args in [
         &["render", "--width", "--height", "5"][..],
         &["render", "--depth", "--spp", "2"],
         &["bench", "--runs", "--quick"],
+        &["render", "--region", "--width", "5"],
+        &["render", "--terms", "--adaptive"],
+        &["render", "--translate", "--scale", "2"],
+        &["bench", "--counts", "--quick"],
+        &["bench", "--spheres", "--scaling"],
+        &["bench", "--meshes", "--quick"],
     ] {
         let o = penumbra(args);
         let err = stderr(&o);

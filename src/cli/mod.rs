@@ -8,7 +8,8 @@
 //! value that begins with `-`, `-1,0,0` being no number): `--width -5`
 //! then reaches the option's own range check, whose message names the
 //! option and its range, where clap would have called `-5` an unexpected
-//! argument. `--width --height 5` still says that `--width` wants a value.
+//! argument. `--width --height 5` still says that `--width` wants a value,
+//! and so does `--region --width 5` ([`ListValue`]).
 
 pub mod bench;
 mod compare_cmd;
@@ -16,8 +17,11 @@ mod merge_cmd;
 mod render_cmd;
 pub mod safety;
 
+use std::ffi::OsStr;
 use std::path::PathBuf;
 
+use clap::builder::TypedValueParser;
+use clap::error::{ContextKind, ContextValue, ErrorKind};
 use clap::{Args, Parser, Subcommand};
 
 pub use bench::{BenchArgs, bench};
@@ -111,7 +115,7 @@ pub struct SceneOverrides {
     #[arg(long, allow_negative_numbers = true)]
     pub seed: Option<u64>,
     /// Multipliers of the ambient, diffuse and specular terms, e.g. 1,0,0.
-    #[arg(long, allow_hyphen_values = true, value_parser = parse_terms)]
+    #[arg(long, allow_hyphen_values = true, value_parser = ListValue(parse_terms))]
     pub terms: Option<[f64; 3]>,
     /// Adaptive shadow rays: a few first, the rest only where they disagree
     /// (faster, biased).
@@ -128,7 +132,7 @@ pub struct SceneOverrides {
     pub scale: Option<f64>,
     /// Move the whole scene (camera included) by x,y,z: the same image to
     /// within rounding (RMSE below 1e-7), not always bit for bit.
-    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    #[arg(long, allow_hyphen_values = true, value_parser = ListValue(parse_vec3))]
     pub translate: Option<[f64; 3]>,
     /// Camera samples per pixel (anti-aliasing; `render.samples_per_pixel`).
     #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..=1024))]
@@ -201,7 +205,7 @@ pub struct RenderArgs {
     /// Render only the crop window X,Y,W,H (pixels from the top-left) into
     /// an EXR that records its place in the whole image; `penumbra merge`
     /// stitches such parts into the image a whole render gives.
-    #[arg(long, allow_hyphen_values = true, value_name = "X,Y,W,H", value_parser = parse_region, conflicts_with = "progressive")]
+    #[arg(long, allow_hyphen_values = true, value_name = "X,Y,W,H", value_parser = ListValue(parse_region), conflicts_with = "progressive")]
     pub region: Option<TileRect>,
     /// Also write the render's times and every ray count to FILE as JSON,
     /// for scripts (`-`: standard output). Of the line on standard error,
@@ -310,6 +314,46 @@ impl From<ModelArg> for AreaLightModel {
             ModelArg::Exact => AreaLightModel::Exact,
         }
     }
+}
+
+/// The value parser of a list option that takes values beginning with `-`
+/// (`allow_hyphen_values`, so that `--region -1,0,10,10` reaches the range
+/// check): a value that looks like a long option, `--` and a letter, is
+/// the next option, not this one's value (`--region --width 5`), and is
+/// refused as clap refuses `--width --height 5`: a value is required for
+/// `--region`. Anything else goes to the list's own parser `P`.
+#[derive(Clone)]
+pub struct ListValue<P>(pub P);
+
+impl<P: TypedValueParser> TypedValueParser for ListValue<P> {
+    type Value = P::Value;
+
+    fn parse_ref(
+        &self,
+        cmd: &clap::Command,
+        arg: Option<&clap::Arg>,
+        value: &OsStr,
+    ) -> Result<P::Value, clap::Error> {
+        if !is_long_option(value) {
+            return self.0.parse_ref(cmd, arg, value);
+        }
+        // clap's own error for an option without a value: an empty
+        // InvalidValue, "a value is required for '--region <X,Y,W,H>' but
+        // none was supplied".
+        let mut e = clap::Error::new(ErrorKind::InvalidValue).with_cmd(cmd);
+        let name = arg.map_or_else(|| "...".to_owned(), |a| a.to_string());
+        e.insert(ContextKind::InvalidArg, ContextValue::String(name));
+        e.insert(
+            ContextKind::InvalidValue,
+            ContextValue::String(String::new()),
+        );
+        Err(e)
+    }
+}
+
+/// Whether `value` looks like a long option's name: `--` and a letter.
+fn is_long_option(value: &OsStr) -> bool {
+    matches!(value.as_encoded_bytes(), [b'-', b'-', c, ..] if c.is_ascii_alphabetic())
 }
 
 /// Three comma-separated finite numbers (`names` says which), each at

@@ -36,7 +36,7 @@ use std::time::Duration;
 
 use clap::Args;
 
-use super::{CliError, SceneOverrides, load_desc};
+use super::{CliError, ListValue, SceneOverrides, load_desc};
 use crate::render::{CancelToken, Loaded, RenderOptions, RenderReport, SceneDesc, generate};
 
 pub use reference::{Reference, reference, reference_key};
@@ -59,7 +59,7 @@ pub struct BenchArgs {
     #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..=1000))]
     pub runs: Option<u32>,
     /// Shadow-ray counts to sweep, e.g. 1,4,16 (default 1,4,16,64,256,1024).
-    #[arg(long, allow_hyphen_values = true, value_delimiter = ',', value_parser = clap::value_parser!(u32).range(1..=4096))]
+    #[arg(long, allow_hyphen_values = true, value_delimiter = ',', value_parser = ListValue(clap::value_parser!(u32).range(1..=4096)))]
     pub counts: Option<Vec<u32>>,
     /// Stratified shadow rays per hit of the reference image.
     #[arg(long, allow_negative_numbers = true, default_value_t = reference::REFERENCE_RAYS, value_parser = clap::value_parser!(u32).range(1..=4096))]
@@ -97,7 +97,7 @@ pub struct BenchArgs {
     /// Replace the scene with the seed room holding N random spheres; a
     /// comma-separated list runs each N (at most 999 995: with the room's
     /// own 5 objects, the format's 1 000 000).
-    #[arg(long, allow_hyphen_values = true, value_delimiter = ',', value_parser = clap::value_parser!(u32).range(1..=generate::MAX_SPHERES as i64))]
+    #[arg(long, allow_hyphen_values = true, value_delimiter = ',', value_parser = ListValue(clap::value_parser!(u32).range(1..=generate::MAX_SPHERES as i64)))]
     pub spheres: Option<Vec<u32>>,
     /// Seed of the sphere generator.
     #[arg(long, allow_negative_numbers = true, default_value_t = 1)]
@@ -157,7 +157,7 @@ pub struct BenchArgs {
     pub spp: Option<u32>,
     /// Time the seed room, the bunny room and the room with a generated
     /// torus of each of these triangle counts (load and render).
-    #[arg(long, allow_hyphen_values = true, value_delimiter = ',', value_parser = clap::value_parser!(u32).range(18..=20_000_000))]
+    #[arg(long, allow_hyphen_values = true, value_delimiter = ',', value_parser = ListValue(clap::value_parser!(u32).range(18..=20_000_000)))]
     pub meshes: Option<Vec<u32>>,
 }
 

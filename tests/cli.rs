@@ -599,6 +599,51 @@ fn a_negative_number_is_refused_by_its_option() {
     assert!(files_in(&dir).is_empty());
 }
 
+/// A seed out of its range, `--seed -1` included, is refused as every other
+/// whole number out of range is (`-5 is not in 1..=16384`), where clap's
+/// u64 parser said "invalid digit found in string"; the largest seed
+/// renders.
+#[test]
+fn a_seed_out_of_range_gets_the_range_message_of_the_other_numbers() {
+    let dir = scratch_dir("seed");
+    let out = dir.join("x.png");
+    let out = out.to_str().unwrap();
+    let width = stderr(&penumbra(&["render", "-o", out, "--width", "-5"]));
+    assert!(
+        width.contains("for '--width <WIDTH>': -5 is not in 1..=16384"),
+        "{width}"
+    );
+    let max = u64::MAX.to_string();
+    let cases: [(&[&str], &str, &str); 4] = [
+        (
+            &["render", "-o", out, "--seed", "-1"],
+            "--seed <SEED>",
+            "-1",
+        ),
+        (
+            &["render", "-o", out, "--seed", "18446744073709551616"],
+            "--seed <SEED>",
+            "18446744073709551616",
+        ),
+        (&["bench", "--seed", "-1"], "--seed <SEED>", "-1"),
+        (
+            &["bench", "--sphere-seed", "-1"],
+            "--sphere-seed <SPHERE_SEED>",
+            "-1",
+        ),
+    ];
+    for (args, option, typed) in cases {
+        let o = penumbra(args);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+        let want = format!("for '{option}': {typed} is not in 0..={max}");
+        assert!(err.contains(&want), "{args:?}: {want:?} in {err}");
+    }
+    assert!(files_in(&dir).is_empty());
+    let o = render_small(dir.join("max.png").as_path(), &["--seed", &max]);
+    assert!(o.status.success(), "{}", stderr(&o));
+}
+
 /// An option followed by another option has no value: taking negative
 /// numbers must not make `--width --height 5` read `--height` as the width,
 /// nor taking any value beginning with `-` (the lists, for `--region

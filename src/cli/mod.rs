@@ -112,7 +112,7 @@ pub struct SceneOverrides {
     #[arg(long, value_enum)]
     pub model: Option<ModelArg>,
     /// Random seed.
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(long, allow_negative_numbers = true, value_parser = parse_seed)]
     pub seed: Option<u64>,
     /// Multipliers of the ambient, diffuse and specular terms, e.g. 1,0,0.
     #[arg(long, allow_hyphen_values = true, value_parser = ListValue(parse_terms))]
@@ -390,6 +390,21 @@ fn parse_vec3(s: &str) -> Result<[f64; 3], String> {
 
 fn parse_terms(s: &str) -> Result<[f64; 3], String> {
     parse_triple(s, "ambient,diffuse,specular", 0.0)
+}
+
+/// A seed: any u64. A whole number outside that range (`-1`) is refused
+/// in the words of the other numeric options' range check (`-5 is not in
+/// 1..=16384`), where clap's u64 parser said "invalid digit found in
+/// string"; anything else as clap says it.
+fn parse_seed(s: &str) -> Result<u64, String> {
+    if let Some(seed) = s.parse::<i128>().ok().and_then(|n| u64::try_from(n).ok()) {
+        return Ok(seed);
+    }
+    let digits = s.strip_prefix(['-', '+']).unwrap_or(s);
+    if !digits.is_empty() && digits.bytes().all(|b| b.is_ascii_digit()) {
+        return Err(format!("{s} is not in 0..={}", u64::MAX));
+    }
+    s.parse::<u64>().map_err(|e| e.to_string())
 }
 
 fn parse_scale(s: &str) -> Result<f64, String> {

@@ -36,7 +36,7 @@ use std::time::Duration;
 
 use clap::Args;
 
-use super::{CliError, ListValue, SceneOverrides, load_desc};
+use super::{CliError, ListValue, SceneOverrides, load_desc, parse_seed};
 use crate::render::{CancelToken, Loaded, RenderOptions, RenderReport, SceneDesc, generate};
 
 pub use reference::{Reference, reference, reference_key};
@@ -89,7 +89,7 @@ pub struct BenchArgs {
     #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..=16))]
     pub depth: Option<u32>,
     /// Random seed of the renders (the reference uses its own).
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(long, allow_negative_numbers = true, value_parser = parse_seed)]
     pub seed: Option<u64>,
     /// Worker threads (default: all cores).
     #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..=1024))]
@@ -100,7 +100,7 @@ pub struct BenchArgs {
     #[arg(long, allow_hyphen_values = true, value_delimiter = ',', value_parser = ListValue(clap::value_parser!(u32).range(1..=generate::MAX_SPHERES as i64)))]
     pub spheres: Option<Vec<u32>>,
     /// Seed of the sphere generator.
-    #[arg(long, allow_negative_numbers = true, default_value_t = 1)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 1, value_parser = parse_seed)]
     pub sphere_seed: u64,
     /// With --spheres: anywhere in the room (5 % of its volume; more
     /// spheres make a denser fog) or one layer on the floor (30 % of it).

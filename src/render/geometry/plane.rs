@@ -8,8 +8,8 @@ pub struct Plane {
     /// Unit normal.
     pub normal: DVec3,
     pub offset: f64,
-    /// The axis of the normal where, in f32, it has one non-zero
-    /// component: shadow rays then test it in one multiplication.
+    /// The axis of the normal where, in f32, it is ± that axis: shadow
+    /// rays then test it in one multiplication.
     pub(crate) axis: Option<u8>,
 }
 
@@ -23,12 +23,10 @@ impl Plane {
         Plane {
             normal,
             offset: normal.dot(point),
-            axis: match normal.as_vec3().cmpne(glam::Vec3::ZERO).bitmask() {
-                0b001 => Some(0),
-                0b010 => Some(1),
-                0b100 => Some(2),
-                _ => None,
-            },
+            axis: [glam::Vec3::X, glam::Vec3::Y, glam::Vec3::Z]
+                .iter()
+                .position(|&axis| normal.as_vec3().abs() == axis)
+                .map(|k| k as u8),
         }
     }
 

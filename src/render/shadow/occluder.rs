@@ -34,11 +34,15 @@ pub(super) enum Occluder {
     },
     /// `dist`: signed distance of p from the plane.
     Plane { normal: Vec3, dist: f32 },
-    /// A plane whose normal (in f32) has one non-zero component, `along`,
-    /// on axis `axis` (a room's walls): its cosine with a direction is that
-    /// component times the direction's, the value the full dot product
-    /// gives (the other products are zeros), in one multiplication.
-    AxisPlane { axis: u8, along: f32, dist: f32 },
+    /// A plane whose normal (in f32) is ± axis `axis` (a room's walls):
+    /// its cosine with a direction is ± the direction's component, the
+    /// value the full dot product gives (the other products are zeros).
+    /// `signed_end`: that sign times [`RAY_END`].
+    AxisPlane {
+        axis: u8,
+        signed_end: f32,
+        dist: f32,
+    },
     /// See `geometry/triangle.rs`.
     Triangle(TriangleOccluder),
 }
@@ -85,7 +89,7 @@ impl Occluder {
                 match pl.axis {
                     Some(axis) => Occluder::AxisPlane {
                         axis,
-                        along: normal[axis as usize],
+                        signed_end: normal[axis as usize] * RAY_END,
                         dist,
                     },
                     None => Occluder::Plane { normal, dist },
@@ -153,14 +157,18 @@ impl Occluder {
                     vis[j] *= cleared(plane_blocks(normal, dist, dx[j], dy[j], dz[j]));
                 }
             }
-            Occluder::AxisPlane { axis, along, dist } => {
+            Occluder::AxisPlane {
+                axis,
+                signed_end,
+                dist,
+            } => {
                 let component = match axis {
                     0 => dx,
                     1 => dy,
                     _ => dz,
                 };
                 for j in 0..n {
-                    vis[j] *= cleared(axis_plane_blocks(along, dist, component[j]));
+                    vis[j] *= cleared(axis_plane_blocks(signed_end, dist, component[j]));
                 }
             }
             // Borrowed: a copy would put the vertices the f64 recheck reads
@@ -293,14 +301,15 @@ pub(super) fn plane_blocks(normal: Vec3, dist: f32, x: f32, y: f32, z: f32) -> b
     dist * end < 0.0
 }
 
-/// [`plane_blocks`] of a plane whose normal is `along` times an axis, for
-/// a direction whose component on that axis is `c`: the same decision
-/// (its cosine is `along · c` exactly: the full dot product adds only
-/// zeros to it, which change the sign of a zero at most, and a zero
-/// cosine leaves `end` = `dist`, unblocked either way).
+/// [`plane_blocks`] of a plane whose normal is ± an axis, for a direction
+/// whose component on that axis is `c`; `signed_end`: the sign times
+/// [`RAY_END`]. The same decision: the full dot product is ±c exactly (it
+/// adds only zeros, which change the sign of a zero at most, and a zero
+/// cosine leaves `end` = `dist`, unblocked either way), and (±c)·RAY_END
+/// = c·(±RAY_END), a negation being exact.
 #[inline(always)]
-pub(super) fn axis_plane_blocks(along: f32, dist: f32, c: f32) -> bool {
-    let end = dist + (along * c) * RAY_END;
+pub(super) fn axis_plane_blocks(signed_end: f32, dist: f32, c: f32) -> bool {
+    let end = dist + c * signed_end;
     dist * end < 0.0
 }
 
@@ -544,7 +553,7 @@ mod tests {
             }
             let full = plane_blocks(normal, dist, d[0], d[1], d[2]);
             assert_eq!(
-                axis_plane_blocks(along, dist, d[axis]),
+                axis_plane_blocks(along * RAY_END, dist, d[axis]),
                 full,
                 "normal {normal}, dist {dist}, direction {d:?}"
             );

@@ -9,6 +9,7 @@
 //! is rendered.
 
 use std::collections::BTreeMap;
+use std::fmt::Display;
 use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
@@ -943,7 +944,7 @@ impl SceneDesc {
             ("diffuse", r.terms.diffuse),
             ("specular", r.terms.specular),
         ] {
-            scalar(&format!("render.terms.{name}"), v, 0.0, MAX_COLOUR)?;
+            scalar(format_args!("render.terms.{name}"), v, 0.0, MAX_COLOUR)?;
         }
         colour("render.background", r.background)?;
         if let Some(s) = r.shininess_override {
@@ -973,11 +974,11 @@ impl SceneDesc {
         }
         for (name, m) in &self.materials {
             let p = format!("materials.{name}");
-            colour(&format!("{p}.ambient"), m.ambient)?;
-            colour(&format!("{p}.diffuse"), m.diffuse)?;
-            colour(&format!("{p}.specular"), m.specular)?;
-            positive(&format!("{p}.shininess"), m.shininess, MAX_SHININESS)?;
-            scalar(&format!("{p}.reflectivity"), m.reflectivity, 0.0, 1.0)?;
+            colour(format_args!("{p}.ambient"), m.ambient)?;
+            colour(format_args!("{p}.diffuse"), m.diffuse)?;
+            colour(format_args!("{p}.specular"), m.specular)?;
+            positive(format_args!("{p}.shininess"), m.shininess, MAX_SHININESS)?;
+            scalar(format_args!("{p}.reflectivity"), m.reflectivity, 0.0, 1.0)?;
         }
 
         if self.objects.len() > MAX_OBJECTS {
@@ -990,7 +991,7 @@ impl SceneDesc {
             ));
         }
         for (i, o) in self.objects.iter().enumerate() {
-            let p = format!("objects[{i}]");
+            let p = ObjectPath(i);
             if !self.materials.contains_key(o.material()) {
                 let known: Vec<&str> = self.materials.keys().map(String::as_str).take(20).collect();
                 return Err(SceneError::new(
@@ -1004,16 +1005,16 @@ impl SceneDesc {
             }
             match o {
                 ObjectDesc::Plane(pl) => {
-                    point(&format!("{p}.point"), pl.point)?;
-                    direction(&format!("{p}.normal"), pl.normal)?;
+                    point(format_args!("{p}.point"), pl.point)?;
+                    direction(format_args!("{p}.normal"), pl.normal)?;
                 }
                 ObjectDesc::Rect(rc) => {
-                    point(&format!("{p}.corner"), rc.corner)?;
+                    point(format_args!("{p}.corner"), rc.corner)?;
                     parallelogram(&p, rc.edge_u, rc.edge_v)?;
                 }
                 ObjectDesc::Box(b) => {
-                    point(&format!("{p}.min"), b.min)?;
-                    point(&format!("{p}.max"), b.max)?;
+                    point(format_args!("{p}.min"), b.min)?;
+                    point(format_args!("{p}.max"), b.max)?;
                     for axis in 0..3 {
                         if b.min[axis] > b.max[axis] {
                             return Err(SceneError::new(
@@ -1026,16 +1027,16 @@ impl SceneDesc {
                             ));
                         }
                     }
-                    scalar(&format!("{p}.rotate_y_deg"), b.rotate_y_deg, -1e6, 1e6)?;
-                    point(&format!("{p}.translate"), b.translate)?;
+                    scalar(format_args!("{p}.rotate_y_deg"), b.rotate_y_deg, -1e6, 1e6)?;
+                    point(format_args!("{p}.translate"), b.translate)?;
                 }
                 ObjectDesc::Sphere(s) => {
-                    point(&format!("{p}.center"), s.center)?;
-                    positive(&format!("{p}.radius"), s.radius, MAX_COORD)?;
+                    point(format_args!("{p}.center"), s.center)?;
+                    positive(format_args!("{p}.radius"), s.radius, MAX_COORD)?;
                 }
                 ObjectDesc::Triangle(t) => {
                     for (k, v) in t.vertices.iter().enumerate() {
-                        point(&format!("{p}.vertices[{k}]"), *v)?;
+                        point(format_args!("{p}.vertices[{k}]"), *v)?;
                     }
                 }
                 ObjectDesc::Mesh(m) => {
@@ -1046,15 +1047,15 @@ impl SceneDesc {
                         ));
                     }
                     match m.scale {
-                        MeshScale::Uniform(s) => positive(&format!("{p}.scale"), s, MAX_COORD)?,
+                        MeshScale::Uniform(s) => positive(format_args!("{p}.scale"), s, MAX_COORD)?,
                         MeshScale::PerAxis(v) => {
                             for (k, s) in v.iter().enumerate() {
-                                positive(&format!("{p}.scale[{k}]"), *s, MAX_COORD)?;
+                                positive(format_args!("{p}.scale[{k}]"), *s, MAX_COORD)?;
                             }
                         }
                     }
-                    scalar(&format!("{p}.rotate_y_deg"), m.rotate_y_deg, -1e6, 1e6)?;
-                    point(&format!("{p}.translate"), m.translate)?;
+                    scalar(format_args!("{p}.rotate_y_deg"), m.rotate_y_deg, -1e6, 1e6)?;
+                    point(format_args!("{p}.translate"), m.translate)?;
                 }
             }
         }
@@ -1214,7 +1215,11 @@ impl SceneDesc {
             ));
         }
         let least = MIN_FEATURE * size;
-        let small = |part: SizePart, path: String, what: &str, v: f64| -> Result<(), SceneError> {
+        let small = |part: SizePart,
+                     path: std::fmt::Arguments<'_>,
+                     what: &str,
+                     v: f64|
+         -> Result<(), SceneError> {
             if v >= least {
                 return Ok(());
             }
@@ -1236,35 +1241,41 @@ impl SceneDesc {
                     sig(without)
                 );
             }
-            Err(SceneError::new(path, message))
+            Err(SceneError::new(path.to_string(), message))
         };
-        let flat =
-            |part: SizePart, path: &str, u: Vec3Desc, v: Vec3Desc| -> Result<(), SceneError> {
-                let (nu, nv) = (norm(u), norm(v));
-                small(part, format!("{path}.edge_u"), "length", nu)?;
-                small(part, format!("{path}.edge_v"), "length", nv)?;
-                // Width across the longer edge: area / longer edge.
-                let width = nu.min(nv) * sin_angle(u, v);
-                small(
-                    part,
-                    format!("{path}.edge_v"),
-                    "width (area / longer edge)",
-                    width,
-                )
-            };
+        let flat = |part: SizePart,
+                    path: &dyn Display,
+                    u: Vec3Desc,
+                    v: Vec3Desc|
+         -> Result<(), SceneError> {
+            let (nu, nv) = (norm(u), norm(v));
+            small(part, format_args!("{path}.edge_u"), "length", nu)?;
+            small(part, format_args!("{path}.edge_v"), "length", nv)?;
+            // Width across the longer edge: area / longer edge.
+            let width = nu.min(nv) * sin_angle(u, v);
+            small(
+                part,
+                format_args!("{path}.edge_v"),
+                "width (area / longer edge)",
+                width,
+            )
+        };
         flat(
             SizePart::Light,
-            "light",
+            &"light",
             self.light.edge_u,
             self.light.edge_v,
         )?;
         for (i, o) in self.objects.iter().enumerate() {
             let part = SizePart::Object(i);
             match o {
-                ObjectDesc::Rect(r) => flat(part, &format!("objects[{i}]"), r.edge_u, r.edge_v)?,
-                ObjectDesc::Sphere(s) => {
-                    small(part, format!("objects[{i}].radius"), "radius", s.radius)?
-                }
+                ObjectDesc::Rect(r) => flat(part, &ObjectPath(i), r.edge_u, r.edge_v)?,
+                ObjectDesc::Sphere(s) => small(
+                    part,
+                    format_args!("objects[{i}].radius"),
+                    "radius",
+                    s.radius,
+                )?,
                 ObjectDesc::Plane(_)
                 | ObjectDesc::Box(_)
                 | ObjectDesc::Triangle(_)
@@ -1517,17 +1528,31 @@ pub(super) fn num(v: f64) -> String {
     }
 }
 
+/// `objects[i]`, the path of an object, written only when printed.
+struct ObjectPath(usize);
+
+impl Display for ObjectPath {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "objects[{}]", self.0)
+    }
+}
+
 /// A measured number for a message: four significant digits.
 fn sig(v: f64) -> String {
     format!("{v:.3e}")
 }
 
-fn scalar(path: &str, v: f64, lo: f64, hi: f64) -> Result<(), SceneError> {
+// The checks take their field's path as anything that prints it, so that
+// an object's paths are written only for a message: as strings they were
+// most of `validate`'s time (0.17 s for 750 000 spheres, now 0.035 s), and
+// the viewer validates the scene on every edit.
+
+fn scalar(path: impl Display, v: f64, lo: f64, hi: f64) -> Result<(), SceneError> {
     if v.is_finite() && v >= lo && v <= hi {
         Ok(())
     } else {
         Err(SceneError::new(
-            path,
+            path.to_string(),
             format!(
                 "{} is out of range, expected a number in [{lo}, {hi}]",
                 num(v)
@@ -1536,12 +1561,12 @@ fn scalar(path: &str, v: f64, lo: f64, hi: f64) -> Result<(), SceneError> {
     }
 }
 
-fn positive(path: &str, v: f64, hi: f64) -> Result<(), SceneError> {
+fn positive(path: impl Display, v: f64, hi: f64) -> Result<(), SceneError> {
     if v.is_finite() && v > 0.0 && v <= hi {
         Ok(())
     } else {
         Err(SceneError::new(
-            path,
+            path.to_string(),
             format!(
                 "{} is out of range, expected a number > 0 and <= {hi}",
                 num(v)
@@ -1550,7 +1575,7 @@ fn positive(path: &str, v: f64, hi: f64) -> Result<(), SceneError> {
     }
 }
 
-fn point(path: &str, v: Vec3Desc) -> Result<(), SceneError> {
+fn point(path: impl Display, v: Vec3Desc) -> Result<(), SceneError> {
     for (i, x) in v.iter().enumerate() {
         if !(x.is_finite() && x.abs() <= limits::MAX_COORD) {
             return Err(SceneError::new(
@@ -1566,39 +1591,45 @@ fn point(path: &str, v: Vec3Desc) -> Result<(), SceneError> {
     Ok(())
 }
 
-fn direction(path: &str, v: Vec3Desc) -> Result<(), SceneError> {
-    point(path, v)?;
+fn direction(path: impl Display, v: Vec3Desc) -> Result<(), SceneError> {
+    point(&path, v)?;
     if norm(v) == 0.0 {
         return Err(SceneError::new(
-            path,
+            path.to_string(),
             "is the zero vector, expected a non-zero direction",
         ));
     }
     Ok(())
 }
 
-fn colour(path: &str, v: Vec3Desc) -> Result<(), SceneError> {
+fn colour(path: impl Display, v: Vec3Desc) -> Result<(), SceneError> {
     for (i, x) in v.iter().enumerate() {
-        scalar(&format!("{path}[{i}]"), *x, 0.0, limits::MAX_COLOUR)?;
+        scalar(format_args!("{path}[{i}]"), *x, 0.0, limits::MAX_COLOUR)?;
     }
     Ok(())
 }
 
 /// A parallelogram (light or rect): edges non-zero and not parallel.
-fn parallelogram(path: &str, u: Vec3Desc, v: Vec3Desc) -> Result<(), SceneError> {
-    let pu = format!("{path}.edge_u");
-    let pv = format!("{path}.edge_v");
-    point(&pu, u)?;
-    point(&pv, v)?;
+fn parallelogram(path: impl Display, u: Vec3Desc, v: Vec3Desc) -> Result<(), SceneError> {
+    point(format_args!("{path}.edge_u"), u)?;
+    point(format_args!("{path}.edge_v"), v)?;
+    let pu = || format!("{path}.edge_u");
+    let pv = || format!("{path}.edge_v");
     if norm(u) == 0.0 {
-        return Err(SceneError::new(pu, "is the zero vector: the area is zero"));
+        return Err(SceneError::new(
+            pu(),
+            "is the zero vector: the area is zero",
+        ));
     }
     if norm(v) == 0.0 {
-        return Err(SceneError::new(pv, "is the zero vector: the area is zero"));
+        return Err(SceneError::new(
+            pv(),
+            "is the zero vector: the area is zero",
+        ));
     }
     if sin_angle(u, v) < 1e-9 {
         return Err(SceneError::new(
-            pv,
+            pv(),
             "is parallel to edge_u: the area is zero, expected two independent edges",
         ));
     }

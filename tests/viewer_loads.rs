@@ -1,7 +1,8 @@
 //! Scene and mesh files in the viewer are read off the UI thread: frames go on
 //! while a load runs, a newer load supersedes an older one, a load can be
 //! cancelled, and a FIFO or device in place of a scene is refused with a
-//! banner instead of freezing the window.
+//! banner instead of freezing the window. The scene named on the command
+//! line, and an edit that needs the scene built again, are built there too.
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -11,11 +12,12 @@ use std::time::Duration;
 use egui::accesskit::Role;
 mod common;
 
-use common::viewer::{WAIT, harness, small_room, step_until};
+use common::viewer::{WAIT, harness, harness_of, settle, small_room, step_until};
 use egui_kittest::Harness;
 use egui_kittest::kittest::Queryable;
+use penumbra::app::render_job::JobState;
 use penumbra::app::{Viewer, ViewerOptions};
-use penumbra::render::SceneDesc;
+use penumbra::render::{EditClass, SceneDesc};
 
 /// Drops `path` on the window and runs the frame that takes it.
 fn drop_file(h: &mut Harness<'static, Viewer>, path: &Path) {
@@ -208,4 +210,192 @@ fn a_dropped_mesh_is_read_while_frames_go_on_and_can_be_cancelled() {
     assert!(h.state().wait_for_loads(WAIT));
     h.step();
     assert_eq!(h.state().desc().objects.len(), before + 1);
+}
+
+/// `name` in `dir`: the small room with a mesh of `mesh`, a file beside
+/// it, as its last object.
+fn room_with_mesh(dir: &Path, name: &str, mesh: &str) -> PathBuf {
+    let path = dir.join(name);
+    let mut json: serde_json::Value = serde_json::from_str(&small_room().to_json()).unwrap();
+    json["objects"]
+        .as_array_mut()
+        .unwrap()
+        .push(serde_json::json!({"type": "mesh", "file": mesh, "material": "white"}));
+    std::fs::write(&path, json.to_string()).unwrap();
+    path
+}
+
+/// The render's latest image, once it finished, and the cost class of the
+/// edit that made it.
+fn finished_render(v: &Viewer) -> (penumbra::render::Film, EditClass) {
+    match v.render_state() {
+        Some(JobState::Finished(f)) => ((*f.film).clone(), f.class),
+        other => panic!("render did not finish: {other:?}"),
+    }
+}
+
+fn core_render(desc: &SceneDesc) -> penumbra::render::Film {
+    penumbra::render::Loaded::new(desc).unwrap().render_image()
+}
+
+/// `penumbra scene.json`: the scene named on the command line is read and
+/// built on the load thread under the loading strip, as one opened from
+/// the File menu (it was read before the window opened, and its meshes by
+/// the render worker with no strip: a big mesh showed nothing for
+/// seconds). Frames go on meanwhile, nothing else renders, and the render
+/// traces over the scene the loader built.
+#[test]
+fn a_scene_named_on_the_command_line_is_built_under_the_loading_strip() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("box.obj"), common::box_obj([1.0; 3])).unwrap();
+    let path = room_with_mesh(dir.path(), "withmesh.json", "box.obj");
+    let args = penumbra::cli::ViewArgs {
+        scene: Some(path.clone()),
+        refine_spp: Some(1),
+        ..Default::default()
+    };
+    let viewer = Viewer::new(ViewerOptions::from_args(&args).expect("the viewer starts"));
+    // The load thread waits (test hook), whatever the machine's speed.
+    viewer.hold_loads_for_tests(true);
+    let mut h = harness_of(viewer);
+    for _ in 0..10 {
+        h.step();
+    }
+    let (loading, _, verb) = h
+        .state()
+        .loading()
+        .expect("the scene loads on the load thread");
+    assert_eq!((loading, verb), (path.as_path(), "loading"));
+    h.get_by_label_contains(&format!("loading {}…", path.display()));
+    h.get_by_role_and_label(Role::Button, "Cancel");
+    assert_eq!(
+        h.state().renders_started(),
+        0,
+        "something rendered meanwhile"
+    );
+    assert!(h.state().title().starts_with("withmesh.json"));
+
+    h.state().hold_loads_for_tests(false);
+    assert!(h.state().wait_for_loads(WAIT));
+    h.step();
+    assert!(h.state().loading().is_none());
+    assert_eq!(h.state().scene_path(), Some(path.as_path()));
+    assert!(h.state().banner().is_none(), "{:?}", h.state().banner());
+    settle(&mut h);
+    // Traced over the loader's scene, not built again by the worker.
+    let (film, class) = finished_render(h.state());
+    assert_eq!(class, EditClass::Retrace);
+    assert_eq!(film, core_render(&SceneDesc::load(&path).unwrap()));
+
+    // Cancelled at launch: the seed room, rendered, and no file named.
+    let viewer = Viewer::new(ViewerOptions::from_args(&args).unwrap());
+    viewer.hold_loads_for_tests(true);
+    let mut h = harness_of(viewer);
+    h.step();
+    h.get_by_role_and_label(Role::Button, "Cancel").click();
+    h.step();
+    assert!(h.state().loading().is_none());
+    h.state().hold_loads_for_tests(false);
+    settle(&mut h);
+    assert_eq!(h.state().scene_path(), None);
+    assert_eq!(
+        h.state().desc(),
+        &SceneDesc::from_json(penumbra::render::SEED_ROOM_JSON).unwrap()
+    );
+    assert!(h.state().renders_started() > 0);
+    assert!(h.state().notice().unwrap().contains("cancelled loading"));
+}
+
+/// An edit that needs the scene built again (here a mesh's file) is built
+/// on the load thread under the strip, with the render on the scene
+/// before until it is (the worker read the mesh itself, with no strip);
+/// one that does not build leaves the scene before it, with a banner
+/// naming the field, and Cancel does the same without one.
+#[test]
+fn an_edit_that_rebuilds_the_scene_is_built_under_the_loading_strip_or_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("a.obj"), common::box_obj([1.0; 3])).unwrap();
+    std::fs::write(dir.path().join("b.obj"), common::box_obj([0.5, 2.0, 0.5])).unwrap();
+    let path = room_with_mesh(dir.path(), "room.json", "a.obj");
+    let desc = SceneDesc::load(&path).unwrap();
+    let mesh = desc.objects.len() - 1;
+    let set_mesh = |d: &mut SceneDesc, file: &str| match &mut d.objects[mesh] {
+        penumbra::render::scene_file::ObjectDesc::Mesh(m) => m.file = file.into(),
+        other => panic!("not a mesh: {other:?}"),
+    };
+    let mut options = ViewerOptions::new(desc.clone());
+    options.scene_path = Some(path.clone());
+    let mut h = harness(options);
+    settle(&mut h);
+    let generation = h.state().render_generation();
+
+    h.state().hold_loads_for_tests(true);
+    h.state_mut().edit(|d, _| set_mesh(d, "b.obj"));
+    for _ in 0..10 {
+        h.step();
+    }
+    let (_, _, verb) = h
+        .state()
+        .loading()
+        .expect("the edit builds on the load thread");
+    assert_eq!(verb, "building");
+    h.get_by_label_contains(&format!("building {}…", path.display()));
+    assert_eq!(
+        h.state().render_generation(),
+        generation,
+        "the worker got it"
+    );
+    h.state().hold_loads_for_tests(false);
+    settle(&mut h);
+    let mut edited = desc.clone();
+    set_mesh(&mut edited, "b.obj");
+    assert_eq!(h.state().desc(), &edited);
+    let (film, class) = finished_render(h.state());
+    assert_eq!(class, EditClass::Retrace);
+    assert_eq!(film, core_render(&edited));
+
+    // A file that is not there: the scene before stays, rendered, and the
+    // banner names the field.
+    h.state_mut().edit(|d, _| set_mesh(d, "nope.obj"));
+    settle(&mut h);
+    let banner = h.state().banner().expect("a banner").to_string();
+    assert!(
+        banner.contains(&format!("objects[{mesh}].file")) && banner.contains("nope.obj"),
+        "{banner}"
+    );
+    h.get_by_label_contains("does not build");
+    assert_eq!(h.state().desc(), &edited);
+    assert_eq!(finished_render(h.state()).0, film);
+
+    // Cancelled: the same, without a banner.
+    h.get_by_role_and_label(Role::Button, "Dismiss").click();
+    h.step();
+    h.state().hold_loads_for_tests(true);
+    h.state_mut().edit(|d, _| set_mesh(d, "a.obj"));
+    h.step();
+    h.get_by_role_and_label(Role::Button, "Cancel").click();
+    h.step();
+    h.state().hold_loads_for_tests(false);
+    settle(&mut h);
+    assert_eq!(h.state().desc(), &edited);
+    assert!(h.state().banner().is_none());
+    assert!(h.state().notice().unwrap().contains("cancelled building"));
+    assert_eq!(finished_render(h.state()).0, film);
+
+    // With an object hidden (left out of the scene built): the banner
+    // names the mesh by its place in the scene, which comes back whole.
+    h.state_mut().edit(|_, v| v.hidden = vec![0]);
+    settle(&mut h);
+    let shown = h.state().render_desc();
+    assert_eq!(finished_render(h.state()).0, core_render(&shown));
+    h.state_mut().edit(|d, _| set_mesh(d, "nope.obj"));
+    settle(&mut h);
+    let banner = h.state().banner().expect("a banner").to_string();
+    assert!(
+        banner.contains(&format!("objects[{mesh}].file")),
+        "{banner}"
+    );
+    assert_eq!(h.state().desc(), &edited);
+    assert_eq!(h.state().view_settings().hidden, vec![0]);
+    assert_eq!(h.state().render_desc(), shown);
 }

@@ -38,33 +38,30 @@ pub mod worker;
 
 use std::time::Duration;
 
-pub use viewer::{Persisted, PickInfo, Viewer, ViewerOptions};
+pub use viewer::{LaunchScene, Persisted, PickInfo, Viewer, ViewerOptions};
 
 use crate::cli::ViewArgs;
 use crate::render::SceneDesc;
 use crate::render::scene::SEED_ROOM_JSON;
 
 impl ViewerOptions {
-    /// Reads the scene named on the command line (the seed room if none).
-    /// A file that is missing or broken is no reason to give up: the
-    /// viewer starts on the seed room with the error in its banner and
-    /// loads the file once it is valid.
+    /// The viewer the command line asks for: the scene it names is opened
+    /// once the window is up, read and built on the load thread under the
+    /// loading strip (see [`LaunchScene`]); the seed room if none. A file
+    /// that is missing or broken is no reason to give up: the viewer shows
+    /// the seed room with the error in its banner and loads the file once
+    /// it is valid.
     pub fn from_args(args: &ViewArgs) -> Result<ViewerOptions, String> {
-        let seed = || SceneDesc::from_json(SEED_ROOM_JSON).map_err(|e| e.to_string());
-        let (desc, startup_error) = match &args.scene {
-            Some(p) => match SceneDesc::load(p) {
-                Ok(d) => (d, None),
-                Err(e) => (seed()?, Some(e.to_string())),
-            },
-            None => (seed()?, None),
-        };
+        let seed = SceneDesc::from_json(SEED_ROOM_JSON).map_err(|e| e.to_string())?;
         Ok(ViewerOptions {
-            desc,
-            scene_path: args.scene.clone(),
             log_timings: args.log_timings,
             wiggle: args.wiggle.map(Duration::from_secs_f64),
             refine_spp: args.refine_spp.unwrap_or(DEFAULT_REFINE_SPP),
-            startup_error,
+            open_at_launch: args
+                .scene
+                .clone()
+                .map(|path| LaunchScene { path, named: true }),
+            ..ViewerOptions::new(seed)
         })
     }
 }
@@ -91,7 +88,6 @@ pub fn run(args: &ViewArgs) -> Result<(), String> {
         persist_window: persist,
         ..Default::default()
     };
-    let log_timings = args.log_timings;
     eframe::run_native(
         "penumbra",
         native,
@@ -102,17 +98,12 @@ pub fn run(args: &ViewArgs) -> Result<(), String> {
                 .and_then(|s| eframe::get_value(s, Persisted::KEY));
             let mut options = options;
             // A bare `penumbra` goes on with the last scene, if it still
-            // loads (else the seed room, quietly).
-            if !named
-                && let Some(p) = stored.as_ref().and_then(|s| s.last_scene.clone())
-                && let Ok(desc) = SceneDesc::load(&p)
-            {
-                options = ViewerOptions {
-                    scene_path: Some(p),
-                    log_timings,
-                    wiggle: options.wiggle,
-                    ..ViewerOptions::new(desc)
-                };
+            // opens (else the seed room, quietly).
+            if !named && let Some(p) = stored.as_ref().and_then(|s| s.last_scene.clone()) {
+                options.open_at_launch = Some(LaunchScene {
+                    path: p,
+                    named: false,
+                });
             }
             let mut viewer = Viewer::new(options);
             viewer.persist = persist;

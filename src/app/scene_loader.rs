@@ -7,6 +7,9 @@
 //! files: seconds for 10⁶ triangles) and hands it to the render: a scene
 //! that does not build is refused like one that does not parse, before it
 //! replaces anything, and the loading strip stays up while it builds.
+//! An edit that needs the scene built again (its objects or the set of
+//! materials changed) is built here too, so the render never reads meshes
+//! itself, with the strip and Cancel as for an open.
 //!
 //! One load counts: a newer request supersedes the one under way (its
 //! result is dropped when it arrives), and a load can be cancelled. A
@@ -57,6 +60,12 @@ pub enum LoadKind {
         material: String,
         view: ViewSettings,
     },
+    /// An edit of `scene` that needs it built again, shown with `view`;
+    /// the path only names the scene (nothing is read from it).
+    Rebuild {
+        scene: SceneDesc,
+        view: ViewSettings,
+    },
 }
 
 impl LoadKind {
@@ -66,6 +75,7 @@ impl LoadKind {
             LoadKind::Open => "loading",
             LoadKind::Reload { .. } => "reloading",
             LoadKind::AddMesh { .. } => "reading mesh",
+            LoadKind::Rebuild { .. } => "building",
         }
     }
 }
@@ -87,6 +97,8 @@ pub enum LoadResult {
     },
     /// The mesh read, as the object to add.
     MeshRead(ObjectDesc, Built),
+    /// The edited scene, built.
+    Rebuilt(Built),
     /// The message for the banner (names the file).
     Failed(String),
 }
@@ -126,8 +138,9 @@ impl Default for SceneLoads {
 }
 
 impl SceneLoads {
-    /// Starts reading `path`; a load under way is superseded.
-    pub fn start(&mut self, ctx: &egui::Context, path: &Path, kind: LoadKind) {
+    /// Starts reading `path`; a load under way is superseded. Returns the
+    /// load's id (see [`poll`](Self::poll)).
+    pub fn start(&mut self, ctx: &egui::Context, path: &Path, kind: LoadKind) -> u64 {
         if let Some(old) = self.running.take() {
             old.cancelled.store(true, Ordering::Relaxed);
         }
@@ -176,6 +189,7 @@ impl SceneLoads {
                 LoadResult::Failed(format!("{}: cannot start a loader thread", path.display())),
             ));
         }
+        id
     }
 
     /// Stops waiting for the load under way; the path it was reading.
@@ -186,20 +200,20 @@ impl SceneLoads {
     }
 
     /// The result of the latest load, once it arrived (older ones are
-    /// dropped), with the path it read.
-    pub fn poll(&mut self) -> Option<(PathBuf, LoadResult)> {
+    /// dropped), with its id and the path it read.
+    pub fn poll(&mut self) -> Option<(u64, PathBuf, LoadResult)> {
         let mut out = None;
         for (id, result) in self.rx.try_iter() {
             if self.running.as_ref().is_some_and(|r| r.id == id) {
                 let r = self.running.take().expect("checked");
-                out = Some((r.path, result));
+                out = Some((id, r.path, result));
             }
         }
         out
     }
 
     /// The load under way: its path, how long it has run, and what it does
-    /// ("loading", "reloading", "reading mesh").
+    /// ("loading", "reloading", "reading mesh", "building").
     pub fn busy(&self) -> Option<(&Path, Duration, &'static str)> {
         self.running
             .as_ref()
@@ -253,6 +267,9 @@ fn load(path: &Path, kind: LoadKind, cancelled: &AtomicBool) -> Option<LoadResul
             let view = ViewSettings::for_scene(&theirs);
             build(path, &theirs, &view, &is_cancelled).map(|b| LoadResult::Opened(theirs, b))
         }
+        LoadKind::Rebuild { scene, view } => {
+            build(path, &scene, &view, &is_cancelled).map(LoadResult::Rebuilt)
+        }
         LoadKind::Reload { base, mine, view } => {
             let theirs = match SceneDesc::load(path) {
                 Ok(d) => d,
@@ -300,13 +317,40 @@ fn build(
     }
     let loaded = Loaded::new(&shown).map_err(|e| {
         // A mesh's error names its own file; say which scene it is in.
-        let e = e.to_string();
+        let e = with_scene_indices(e, &view.hidden).to_string();
         match path.to_str() {
             Some(p) if e.contains(p) => e,
             _ => format!("{}: {e}", path.display()),
         }
     })?;
     Ok((shown, loaded))
+}
+
+/// `error` of the scene shown, with the object it names (`objects[2]`,
+/// counted among the objects shown) named by its place in the scene as
+/// edited, which also holds the `hidden` ones.
+fn with_scene_indices(
+    mut error: crate::render::SceneError,
+    hidden: &[usize],
+) -> crate::render::SceneError {
+    let Some(rest) = error.path.strip_prefix("objects[") else {
+        return error;
+    };
+    let Some((index, tail)) = rest.split_once(']') else {
+        return error;
+    };
+    let Ok(shown) = index.parse::<usize>() else {
+        return error;
+    };
+    // `hidden` is sorted: each hidden index at or before the object moves it on.
+    let mut index = shown;
+    for &h in hidden {
+        if h <= index {
+            index += 1;
+        }
+    }
+    error.path = format!("objects[{index}]{tail}");
+    error
 }
 
 /// The strip shown while a load runs: what, how long, and Cancel; true if

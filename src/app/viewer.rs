@@ -38,8 +38,8 @@ use super::status::{Progress, status_ui};
 use super::timings::Timings;
 use super::watch::SceneWatcher;
 use crate::render::scene::HitTarget;
-use crate::render::scene_file::CameraDesc;
-use crate::render::{DisplayTransform, Film, SceneDesc};
+use crate::render::scene_file::{CameraDesc, ObjectDesc};
+use crate::render::{DisplayTransform, EditClass, Film, SceneDesc, classify};
 
 /// Background of the image area and of an image not yet rendered.
 const EMPTY: Color32 = Color32::from_rgb(24, 24, 24);
@@ -47,6 +47,10 @@ const EMPTY: Color32 = Color32::from_rgb(24, 24, 24);
 /// The status line's hint while the camera stands behind a plane with the
 /// cut-away off.
 const BEHIND_A_WALL: &str = "the camera is behind a wall: C (cut-away) sees through it";
+
+/// What names the built-in scene where a file's path would (the loading
+/// strip's "building the seed room…").
+const SEED_ROOM: &str = "the seed room";
 
 /// A whole texture.
 const FULL_UV: egui::Rect = egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0));
@@ -64,10 +68,21 @@ pub struct ViewerOptions {
     /// Refine a finished image with camera samples up to this many per
     /// pixel while nothing changes (1: never, as for `new`).
     pub refine_spp: u32,
-    /// Why the scene file could not be read at launch: the viewer then
-    /// shows it in the banner over the seed room, watches the file and
-    /// loads it once it is valid.
-    pub startup_error: Option<String>,
+    /// A scene file to open once the window is up (in place of `desc`).
+    pub open_at_launch: Option<LaunchScene>,
+}
+
+/// The scene file a launch opens: read and built on the load thread as
+/// *File → Open* does, under the loading strip with its timer and Cancel,
+/// while the window draws. Nothing renders until it arrives; if it does
+/// not open (or is cancelled) the viewer shows the seed room.
+#[derive(Debug, Clone)]
+pub struct LaunchScene {
+    pub path: PathBuf,
+    /// Named on the command line: a file that does not open is named in
+    /// the banner, and watched and opened once it is valid. Otherwise (the
+    /// last session's scene) the seed room is shown without a word.
+    pub named: bool,
 }
 
 impl ViewerOptions {
@@ -79,7 +94,7 @@ impl ViewerOptions {
             log_timings: false,
             wiggle: None,
             refine_spp: 1,
-            startup_error: None,
+            open_at_launch: None,
         }
     }
 }
@@ -175,6 +190,16 @@ pub struct Viewer {
     loads: SceneLoads,
     /// The scene a load built, for the next render to start from.
     built: Option<Built>,
+    /// The scene file the launch is opening, until it arrives.
+    launch: Option<Launching>,
+    /// The build of an edit that needs the scene built again, under way.
+    rebuild: Option<Rebuild>,
+    /// What the render was last asked for: an edit is compared with it to
+    /// tell whether it needs the scene built again, and it comes back if
+    /// that build fails or is cancelled.
+    render_base: Option<RenderBase>,
+    /// egui's context, once the first frame has run (loads repaint it).
+    ctx: Option<egui::Context>,
     pick: Option<PickInfo>,
     timings: Timings,
     wiggle: Option<(Duration, Instant, u32)>,
@@ -260,6 +285,79 @@ struct Replaced {
     recent: Vec<PathBuf>,
 }
 
+/// The launch's scene file being read and built (see [`LaunchScene`]).
+struct Launching {
+    scene: LaunchScene,
+    /// Its load's id, once the first frame started it.
+    load: Option<u64>,
+}
+
+/// An edited scene being built on the load thread.
+struct Rebuild {
+    load: u64,
+    /// The scene to render being built (toggles applied).
+    target: SceneDesc,
+}
+
+/// The state the render was last asked to show, kept with one copy of
+/// the objects (a scene may hold 10⁶).
+struct RenderBase {
+    /// The scene with the toggles applied: what the render got.
+    shown: SceneDesc,
+    /// The scene as edited, without its objects, and the view.
+    head: SceneDesc,
+    view: ViewSettings,
+    /// The objects the view hides (left out of `shown`), in order.
+    hidden_objects: Vec<ObjectDesc>,
+}
+
+impl RenderBase {
+    /// The scene as edited and the view that gave `shown`.
+    fn state(&self) -> (SceneDesc, ViewSettings) {
+        let total = self.shown.objects.len() + self.hidden_objects.len();
+        let (mut shown, mut hidden) = (self.shown.objects.iter(), self.hidden_objects.iter());
+        let objects = (0..total)
+            .filter_map(|i| match self.view.hidden.binary_search(&i) {
+                Ok(_) => hidden.next(),
+                Err(_) => shown.next(),
+            })
+            .cloned()
+            .collect();
+        let desc = SceneDesc {
+            objects,
+            ..head_of(&self.head)
+        };
+        (desc, self.view.clone())
+    }
+}
+
+/// `desc` without its objects.
+fn head_of(desc: &SceneDesc) -> SceneDesc {
+    SceneDesc {
+        format: desc.format,
+        camera: desc.camera.clone(),
+        render: desc.render.clone(),
+        light: desc.light.clone(),
+        materials: desc.materials.clone(),
+        objects: Vec::new(),
+        base_dir: desc.base_dir.clone(),
+    }
+}
+
+/// Makes `target` equal to `source`, copying the objects only if they
+/// differ (comparing them allocates nothing; a copy of 10⁶ takes longer
+/// than a frame).
+fn copy_scene(target: &mut SceneDesc, source: &SceneDesc) {
+    if target.objects != source.objects {
+        target.objects = source.objects.clone();
+    }
+    let objects = std::mem::take(&mut target.objects);
+    *target = SceneDesc {
+        objects,
+        ..head_of(source)
+    };
+}
+
 /// What waits for "discard unsaved edits?".
 #[derive(Debug, Clone, PartialEq)]
 pub enum Confirm {
@@ -274,7 +372,6 @@ impl Viewer {
             desc: desc.clone(),
             view: ViewSettings::for_scene(&desc),
         });
-        let broken = options.startup_error.is_some();
         // The size the first render will have (the preview's).
         let (width, height) = preview_size(desc.camera.width, desc.camera.height);
         let shown = ColorImage::filled([width as usize, height as usize], EMPTY);
@@ -285,11 +382,7 @@ impl Viewer {
             replaced: None,
             view: ViewSettings::for_scene(&desc),
             progress: Progress::new(desc.render.sampling, desc.render.area_light_model),
-            file_desc: options
-                .scene_path
-                .as_ref()
-                .filter(|_| !broken)
-                .map(|_| desc.clone()),
+            file_desc: options.scene_path.as_ref().map(|_| desc.clone()),
             saved: desc.clone(),
             history,
             confirm: None,
@@ -318,13 +411,19 @@ impl Viewer {
             blocks: false,
             compare: Compare::default(),
             handled: 0,
-            banner: options.startup_error,
+            banner: None,
             banner_from_render: false,
             notice: None,
             dialog: None,
             io: IoTasks::default(),
             loads: SceneLoads::default(),
             built: None,
+            launch: options
+                .open_at_launch
+                .map(|scene| Launching { scene, load: None }),
+            rebuild: None,
+            render_base: None,
+            ctx: None,
             pick: None,
             timings: Timings::new(options.log_timings),
             wiggle: options.wiggle.map(|d| (d, Instant::now(), 0)),
@@ -552,8 +651,10 @@ impl Viewer {
     /// The window title: the scene's name, with " •" while unsaved.
     pub fn title(&self) -> String {
         let name = self
-            .scene_path
+            .launch
             .as_ref()
+            .map(|l| &l.scene.path)
+            .or(self.scene_path.as_ref())
             .and_then(|p| p.file_name())
             .map(|n| n.to_string_lossy().into_owned())
             .unwrap_or_else(|| "seed room".into());
@@ -721,9 +822,33 @@ impl Viewer {
     // ----- actions -------------------------------------------------------
 
     /// Cancels the running render and starts one of the current settings.
+    /// An edit that needs the scene built again (its objects or the set of
+    /// materials changed) is built on the load thread first, under the
+    /// loading strip; the render stays on the scene before until it
+    /// arrives. Nothing renders while the launch's scene loads.
     pub fn restart(&mut self) {
-        let Some(job) = &self.job else { return };
+        if self.job.is_none() || self.launch.is_some() {
+            return;
+        }
         let desc = self.view.apply(&self.desc, false);
+        let rebuilds = |from: &SceneDesc| classify(from, &desc) == EditClass::Rebuild;
+        // A scene built for another set of objects is of no use.
+        let built = self.built.take().filter(|(d, _)| !rebuilds(d));
+        if built.is_none()
+            && let Some(base) = &self.render_base
+            && rebuilds(&base.shown)
+        {
+            // The build under way serves unless the objects changed again.
+            if self.rebuild.as_ref().is_none_or(|r| rebuilds(&r.target)) {
+                self.start_rebuild(desc);
+            }
+            return;
+        }
+        if self.rebuild.take().is_some() {
+            // The edit that needed it was undone.
+            self.loads.cancel();
+        }
+        let Some(job) = &self.job else { return };
         let size = (desc.camera.width, desc.camera.height);
         // A reference computed for another image is of no use: stop it.
         if let Some(ReferenceTask {
@@ -744,7 +869,25 @@ impl Viewer {
         }
         self.last_pass = None;
         self.progress = Progress::new(desc.render.sampling, desc.render.area_light_model);
-        let generation = job.restart_built(desc, self.built.take());
+        let hidden_objects = (self.view.hidden.iter())
+            .filter_map(|&i| self.desc.objects.get(i).cloned())
+            .collect();
+        let (head, view) = (head_of(&self.desc), self.view.clone());
+        match &mut self.render_base {
+            Some(base) => {
+                copy_scene(&mut base.shown, &desc);
+                (base.head, base.view, base.hidden_objects) = (head, view, hidden_objects);
+            }
+            None => {
+                self.render_base = Some(RenderBase {
+                    shown: desc.clone(),
+                    head,
+                    view,
+                    hidden_objects,
+                })
+            }
+        }
+        let generation = job.restart_built(desc, built);
         self.timings.on_change(generation, size);
         let shown_size = [size.0 as usize, size.1 as usize];
         if self.shown.size != shown_size {
@@ -758,11 +901,42 @@ impl Viewer {
         }
     }
 
+    /// Builds `shown`, the edited scene to render, on the load thread.
+    fn start_rebuild(&mut self, shown: SceneDesc) {
+        let Some(ctx) = self.ctx.clone() else { return };
+        let name = self
+            .scene_path
+            .clone()
+            .unwrap_or_else(|| PathBuf::from(SEED_ROOM));
+        let kind = LoadKind::Rebuild {
+            scene: self.desc.clone(),
+            view: self.view.clone(),
+        };
+        let load = self.start_load(&ctx, &name, kind);
+        self.rebuild = Some(Rebuild {
+            load,
+            target: shown,
+        });
+    }
+
+    /// Starts a load, which supersedes the one under way: a launch's gives
+    /// way to the seed room meanwhile, and an edit whose build it was is
+    /// built again by the next render if the new load does not take it in.
+    fn start_load(&mut self, ctx: &egui::Context, path: &Path, kind: LoadKind) -> u64 {
+        self.rebuild = None;
+        let launch = self.launch.take();
+        let id = self.loads.start(ctx, path, kind);
+        if launch.is_some() {
+            self.restart();
+        }
+        id
+    }
+
     /// Opens a scene file: read on the load thread (a newer open or reload
     /// supersedes it); on failure the banner shows why and the current
     /// scene stays.
     pub fn open_scene(&mut self, ctx: &egui::Context, path: &Path) {
-        self.loads.start(ctx, path, LoadKind::Open);
+        self.start_load(ctx, path, LoadKind::Open);
     }
 
     /// Reads the watched file again, on the load thread. The rule for
@@ -779,19 +953,52 @@ impl Viewer {
             mine: self.desc.clone(),
             view: self.view.clone(),
         };
-        self.loads.start(ctx, &path, kind);
+        self.start_load(ctx, &path, kind);
     }
 
     /// A load under way: its path, how long it has run, what it does
-    /// ("loading", "reloading", "reading mesh").
+    /// ("loading", "reloading", "reading mesh", "building").
     pub fn loading(&self) -> Option<(&Path, Duration, &'static str)> {
         self.loads.busy()
     }
 
-    /// Stops waiting for the load under way (the scene shown stays).
+    /// Stops waiting for the load under way (the scene shown stays: for
+    /// the launch's, the seed room; for an edit's build, the scene before
+    /// the edit).
     pub fn cancel_load(&mut self) {
-        if let Some(p) = self.loads.cancel() {
-            self.notice = Some(format!("cancelled loading {}", p.display()));
+        let Some(p) = self.loads.cancel() else { return };
+        self.notice = Some(format!("cancelled loading {}", p.display()));
+        if self.launch.take().is_some() {
+            self.restart();
+        } else if self.rebuild.take().is_some() {
+            self.notice = Some(format!(
+                "cancelled building {}: the scene before the edit stays",
+                p.display()
+            ));
+            self.back_to_render_base();
+        } else {
+            self.build_if_unbuilt();
+        }
+    }
+
+    /// Back to the state the render shows (an edit whose build failed or
+    /// was cancelled is dropped).
+    fn back_to_render_base(&mut self) {
+        if let Some(base) = &self.render_base {
+            (self.desc, self.view) = base.state();
+        }
+        self.pick = None;
+        self.restart();
+    }
+
+    /// Builds the edited scene if the render is not on it: a load that
+    /// superseded its build failed or was cancelled.
+    fn build_if_unbuilt(&mut self) {
+        let unbuilt = self.render_base.as_ref().is_some_and(|base| {
+            classify(&base.shown, &self.view.apply(&self.desc, false)) == EditClass::Rebuild
+        });
+        if unbuilt {
+            self.restart();
         }
     }
 
@@ -808,13 +1015,15 @@ impl Viewer {
 
     /// Takes a finished load.
     fn poll_loads(&mut self, ctx: &egui::Context) {
-        let Some((path, result)) = self.loads.poll() else {
+        let Some((id, path, result)) = self.loads.poll() else {
             return;
         };
+        let launch = self.launch.take_if(|l| l.load == Some(id));
+        let rebuild = self.rebuild.take_if(|r| r.load == id);
         match result {
             LoadResult::Opened(desc, built) => {
                 self.built = Some(built);
-                self.opened(ctx, &path, desc)
+                self.opened(ctx, &path, desc, launch.is_some())
             }
             LoadResult::Reloaded {
                 theirs,
@@ -836,12 +1045,46 @@ impl Viewer {
                 self.notice = Some(format!("added {}", path.display()));
                 self.restart();
             }
-            LoadResult::Failed(e) => self.show_error(e),
+            LoadResult::Rebuilt(built) => {
+                self.built = Some(built);
+                self.restart();
+            }
+            LoadResult::Failed(e) => {
+                if let Some(l) = launch {
+                    self.launch_failed(ctx, l.scene, e);
+                } else if rebuild.is_some() {
+                    self.show_error(format!(
+                        "the edited scene does not build, the scene before the edit stays: {e}"
+                    ));
+                    self.back_to_render_base();
+                } else {
+                    self.show_error(e);
+                    self.build_if_unbuilt();
+                }
+            }
         }
     }
 
-    fn opened(&mut self, ctx: &egui::Context, path: &Path, desc: SceneDesc) {
-        let view = ViewSettings::for_scene(&desc);
+    /// The launch's scene did not open: the seed room, and for a file
+    /// named on the command line the reason in the banner and the file
+    /// watched, opened once it is valid (as a reload of a file never read).
+    fn launch_failed(&mut self, ctx: &egui::Context, scene: LaunchScene, why: String) {
+        if scene.named {
+            self.scene_path = Some(scene.path);
+            self.file_desc = None;
+            self.watch(ctx);
+            self.show_error(why);
+        }
+        self.restart();
+    }
+
+    /// Takes an opened scene (`at_launch`: the launch's, which keeps the
+    /// resolution scale the last session left).
+    fn opened(&mut self, ctx: &egui::Context, path: &Path, desc: SceneDesc, at_launch: bool) {
+        let mut view = ViewSettings::for_scene(&desc);
+        if at_launch {
+            view.resolution_scale = self.view.resolution_scale;
+        }
         let history = History::new(Snapshot {
             desc: desc.clone(),
             view: view.clone(),
@@ -992,6 +1235,9 @@ impl Viewer {
     /// cannot be rendered, at full size either), saying so in the banner;
     /// true if refused. The message goes with the next good render.
     fn refuse_png(&mut self) -> bool {
+        if self.refuse_while_launching() {
+            return true;
+        }
         let Some(JobState::Failed(why)) = self.job.as_ref().map(RenderJob::state) else {
             return false;
         };
@@ -1000,10 +1246,24 @@ impl Viewer {
         true
     }
 
+    /// While the launch's scene loads there is nothing of it to save (the
+    /// seed room behind it is not what was asked for): true if so.
+    fn refuse_while_launching(&mut self) -> bool {
+        let Some(l) = &self.launch else { return false };
+        self.notice = Some(format!(
+            "nothing to save yet: {} is loading",
+            l.scene.path.display()
+        ));
+        true
+    }
+
     /// Writes the settings as a scene file that renders to the same image.
     /// A scene the format refuses is not written (it would not load
     /// again): the banner says why.
     pub fn save_scene(&mut self, ctx: &egui::Context, mut path: PathBuf) {
+        if self.refuse_while_launching() {
+            return;
+        }
         if path.extension().is_none() {
             path.set_extension("json");
         }
@@ -1353,7 +1613,7 @@ impl Viewer {
             material: super::object_list::mesh_material(&self.objects, &self.desc),
             view: self.view.clone(),
         };
-        self.loads.start(ctx, path, kind);
+        self.start_load(ctx, path, kind);
     }
 
     /// Opens the path dialog. It starts in the folder last used in it;
@@ -1467,7 +1727,10 @@ impl Viewer {
                 .as_ref()
                 .map_or(JobState::Running, RenderJob::state);
             let readout = self.readout();
-            status_ui(ui, &self.progress, &state, self.io.busy(), readout.as_ref());
+            // Nothing renders while the launch's scene loads.
+            if self.launch.is_none() {
+                status_ui(ui, &self.progress, &state, self.io.busy(), readout.as_ref());
+            }
             if let Some(n) = &self.notice {
                 ui.add(egui::Label::new(n.as_str()).wrap());
             }
@@ -1477,6 +1740,16 @@ impl Viewer {
                 .default_size(360.0)
                 .show(ui, |ui| {
                     egui::ScrollArea::vertical().show(ui, |ui| {
+                        if let Some(l) = &self.launch {
+                            // Not the seed room's settings: it is not shown.
+                            // (The panel keeps the width the controls take.)
+                            ui.set_min_width(ui.available_width());
+                            ui.label(
+                                egui::RichText::new(l.scene.path.display().to_string()).strong(),
+                            );
+                            ui.weak("Its settings show here once it is read.");
+                            return;
+                        }
                         if let Some(p) = &self.scene_path {
                             ui.label(egui::RichText::new(p.display().to_string()).strong());
                         } else {
@@ -1752,15 +2025,20 @@ impl Viewer {
         }
     }
 
-    /// First frame: the worker, the texture, the watcher, the first render.
+    /// First frame: the worker, the texture, the watcher, the first render
+    /// (or the launch's load).
     fn start(&mut self, ctx: &egui::Context) {
         if self.job.is_some() {
             return;
         }
+        self.ctx = Some(ctx.clone());
         self.job = Some(RenderJob::with_refinement(ctx.clone(), self.refine_spp));
         self.errors = Some(ErrorJob::new(ctx.clone()));
         self.texture = Some(ctx.load_texture("render", self.shown.clone(), self.texture_options()));
         self.watch(ctx);
+        if let Some(l) = &mut self.launch {
+            l.load = Some(self.loads.start(ctx, &l.scene.path, LoadKind::Open));
+        }
         self.restart();
     }
 

@@ -22,16 +22,27 @@ pub fn small_room() -> SceneDesc {
 }
 
 pub fn harness(options: ViewerOptions) -> Harness<'static, Viewer> {
+    harness_of(Viewer::new(options))
+}
+
+/// A harness around a viewer made by the test (to set its test hooks
+/// before the first frame).
+pub fn harness_of(viewer: Viewer) -> Harness<'static, Viewer> {
     Harness::builder()
         .with_size([1280.0, 960.0])
         // Real frame times, so that two clicks make a double-click.
         .with_step_dt(1.0 / 60.0)
-        .build_ui_state(|ui, v: &mut Viewer| v.show(ui, None), Viewer::new(options))
+        .build_ui_state(|ui, v: &mut Viewer| v.show(ui, None), viewer)
 }
 
-/// Waits for the latest render to end, then runs a frame so its last
+/// Waits for the load under way (a scene or an edit being built), a frame
+/// to take it, then the latest render to end, and a frame so its last
 /// tiles reach the texture.
 pub fn settle(h: &mut Harness<'static, Viewer>) {
+    if h.state().loading().is_some() {
+        assert!(h.state().wait_for_loads(WAIT), "a load did not end");
+        h.step();
+    }
     assert!(h.state().wait_for_render(WAIT), "render did not finish");
     h.step();
 }

@@ -1369,7 +1369,7 @@ fn a_dropped_mesh_joins_the_scene_and_its_toggle_hides_it() {
 
 // ----- limits of typed values and camera moves, failed states --------------
 
-use penumbra::render::scene_file::limits::{MAX_COLOUR, MAX_COORD};
+use penumbra::render::scene_file::limits::MAX_COLOUR;
 
 /// Types `text` into a number field as a person does: focus (which
 /// selects its text), type, Enter.
@@ -1445,12 +1445,10 @@ fn typed_numbers_are_clamped_to_the_formats_limits_and_nan_is_refused() {
     type_into(&mut h, x, "inf");
     assert_eq!(h.state().desc().light, light);
 
-    // 1e300 stops at the format's largest coordinate.
+    // 1e300 stops at the format's largest coordinate, which makes the
+    // scene too large for its features: refused, the light stays.
     type_into(&mut h, x, "1e300");
-    let centre = light_centre(h.state().desc());
-    assert!((centre[0] - MAX_COORD).abs() <= 1.0, "{centre:?}");
-    let corner = h.state().desc().light.corner;
-    assert!(corner.iter().all(|c| c.abs() <= MAX_COORD), "{corner:?}");
+    assert_eq!(h.state().desc().light, light);
     type_into(&mut h, x, "0");
     assert!(light_centre(h.state().desc())[0].abs() < 1e-9);
 
@@ -1473,6 +1471,45 @@ fn typed_numbers_are_clamped_to_the_formats_limits_and_nan_is_refused() {
     h.state_mut().save_scene(&ctx, path.clone());
     h.state_mut().wait_for_saves(WAIT);
     SceneDesc::load(&path).expect("the saved scene loads");
+}
+
+/// An edit the loader would refuse for a limit across fields (a light
+/// centre of 1e9 makes the scene so large that the room's sphere falls
+/// below its size floor) is refused with a banner naming the field and
+/// the limit, the last valid value kept: no failed render, no NaN.
+#[test]
+fn an_edit_the_loader_would_refuse_is_undone_and_named_in_the_banner() {
+    let mut h = harness(ViewerOptions::new(small_room()));
+    settle(&mut h);
+    let light = h.state().desc().light.clone();
+    let image = h.state().shown_image().clone();
+    let x = |h: &Harness<'static, Viewer>| h.get_by_role_and_label(Role::SpinButton, "x").rect();
+
+    type_into(&mut h, x, "1e9");
+    assert_eq!(h.state().desc().light, light);
+    let banner = h.state().banner().expect("a banner").to_string();
+    assert!(
+        banner.contains("light.corner")
+            && banner.contains("smallest supported size")
+            && banner.contains("because of the light"),
+        "{banner}"
+    );
+    h.get_by_label_contains("edit refused");
+    settle(&mut h);
+    assert!(matches!(
+        h.state().render_state(),
+        Some(JobState::Finished(_))
+    ));
+    assert_eq!(h.state().shown_image(), &image);
+    assert!(light_centre(h.state().desc()).iter().all(|c| c.is_finite()));
+
+    // A valid value is taken, and the banner goes with it.
+    type_into(&mut h, x, "0.5");
+    assert!((light_centre(h.state().desc())[0] - 0.5).abs() < 1e-12);
+    assert_eq!(h.state().banner(), None);
+    settle(&mut h);
+    let moved = h.state().desc().clone();
+    assert_eq!(finished(h.state()), core_render(&moved));
 }
 
 #[test]

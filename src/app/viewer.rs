@@ -198,6 +198,11 @@ pub struct Viewer {
     /// tell whether it needs the scene built again, and it comes back if
     /// that build fails or is cancelled.
     render_base: Option<RenderBase>,
+    /// The scene's fields and the view as last accepted: an edit the
+    /// loader would refuse goes back to them.
+    accepted: Option<Accepted>,
+    /// The banner shows a refused edit (cleared by the next good one).
+    banner_from_edit: bool,
     /// egui's context, once the first frame has run (loads repaint it).
     ctx: Option<egui::Context>,
     pick: Option<PickInfo>,
@@ -331,6 +336,25 @@ impl RenderBase {
     }
 }
 
+/// Everything an edit in the panel or on the image may change but the
+/// objects: those take only another material (always a valid one) or a
+/// visibility toggle (a view setting), and copying 10⁶ of them on every
+/// edit would stall the window.
+struct Accepted {
+    /// The scene without its objects.
+    head: SceneDesc,
+    view: ViewSettings,
+}
+
+impl Accepted {
+    fn of(desc: &SceneDesc, view: &ViewSettings) -> Accepted {
+        Accepted {
+            head: head_of(desc),
+            view: view.clone(),
+        }
+    }
+}
+
 /// `desc` without its objects.
 fn head_of(desc: &SceneDesc) -> SceneDesc {
     SceneDesc {
@@ -356,6 +380,33 @@ fn copy_scene(target: &mut SceneDesc, source: &SceneDesc) {
         objects,
         ..head_of(source)
     };
+}
+
+/// The JSON paths of the fields (leaves, a vector counting as one) whose
+/// values differ between two scenes without objects: what an edit changed.
+fn changed_fields(before: &SceneDesc, after: &SceneDesc) -> Vec<String> {
+    use serde_json::Value;
+    fn walk(path: &str, a: Option<&Value>, b: Option<&Value>, out: &mut Vec<String>) {
+        if let (Some(Value::Object(a)), Some(Value::Object(b))) = (a, b) {
+            let mut keys: Vec<&String> = a.keys().chain(b.keys()).collect();
+            keys.sort();
+            keys.dedup();
+            for k in keys {
+                let p = if path.is_empty() {
+                    k.clone()
+                } else {
+                    format!("{path}.{k}")
+                };
+                walk(&p, a.get(k), b.get(k), out);
+            }
+        } else if a != b {
+            out.push(path.to_string());
+        }
+    }
+    let value = |d: &SceneDesc| serde_json::to_value(d).ok();
+    let mut out = Vec::new();
+    walk("", value(before).as_ref(), value(after).as_ref(), &mut out);
+    out
 }
 
 /// What waits for "discard unsaved edits?".
@@ -413,6 +464,7 @@ impl Viewer {
             handled: 0,
             banner: None,
             banner_from_render: false,
+            banner_from_edit: false,
             notice: None,
             dialog: None,
             io: IoTasks::default(),
@@ -423,6 +475,7 @@ impl Viewer {
                 .map(|scene| Launching { scene, load: None }),
             rebuild: None,
             render_base: None,
+            accepted: None,
             ctx: None,
             pick: None,
             timings: Timings::new(options.log_timings),
@@ -485,7 +538,8 @@ impl Viewer {
         &self.desc
     }
 
-    /// Edits the scene as a control would; the render restarts.
+    /// Edits the scene and restarts the render, as a control would but
+    /// unchecked: tests reach states the controls refuse with it.
     pub fn edit(&mut self, f: impl FnOnce(&mut SceneDesc, &mut ViewSettings)) {
         f(&mut self.desc, &mut self.view);
         self.restart();
@@ -766,7 +820,7 @@ impl Viewer {
             b = b.union(o);
         }
         frame_all(&mut self.desc.camera, b.min, b.max);
-        self.restart();
+        self.commit_edit();
     }
 
     /// Sets the orbit pivot to the surface under image pixel (px, py) of
@@ -831,6 +885,7 @@ impl Viewer {
             return;
         }
         let desc = self.view.apply(&self.desc, false);
+        self.accepted = Some(Accepted::of(&self.desc, &self.view));
         let rebuilds = |from: &SceneDesc| classify(from, &desc) == EditClass::Rebuild;
         // A scene built for another set of objects is of no use.
         let built = self.built.take().filter(|(d, _)| !rebuilds(d));
@@ -1243,6 +1298,7 @@ impl Viewer {
         };
         self.banner = Some(format!("nothing to save: the render failed ({why})"));
         self.banner_from_render = true;
+        self.banner_from_edit = false;
         true
     }
 
@@ -1592,6 +1648,50 @@ impl Viewer {
     fn show_error(&mut self, message: String) {
         self.banner = Some(message);
         self.banner_from_render = false;
+        self.banner_from_edit = false;
+    }
+
+    /// Renders an edit made in the panel or on the image if the loader
+    /// would take the scene (`SceneDesc::validate`: every field's range,
+    /// and the limits across fields, such as a light moved so far that the
+    /// room's features fall below the floor the scene's size sets). An
+    /// edit it refuses is undone, back to the last state accepted, and
+    /// the banner names the field edited, the field refused and the limit:
+    /// never a failed render.
+    fn commit_edit(&mut self) {
+        // The toggles only lower values to 0 or 1, which every scene
+        // takes; hidden objects change the scene's size.
+        let checked = if self.view.hidden.is_empty() {
+            self.desc.validate()
+        } else {
+            self.view.apply(&self.desc, true).validate()
+        };
+        let (Err(e), Some(accepted)) = (checked, self.accepted.take()) else {
+            if std::mem::take(&mut self.banner_from_edit) {
+                self.banner = None;
+            }
+            self.restart();
+            return;
+        };
+        let mut edited = changed_fields(&accepted.head, &head_of(&self.desc));
+        if accepted.view.hidden != self.view.hidden {
+            edited.push("the objects shown".into());
+        }
+        let Accepted { head, view } = accepted;
+        let d = &mut self.desc;
+        (d.camera, d.render, d.light, d.materials) =
+            (head.camera, head.render, head.light, head.materials);
+        self.view = view;
+        self.accepted = Some(Accepted::of(&self.desc, &self.view));
+        let what = match edited.as_slice() {
+            [] => "the edit".to_string(),
+            fields => fields.join(", "),
+        };
+        self.banner = Some(format!(
+            "{what}: edit refused, the value before it stays: {e}"
+        ));
+        self.banner_from_render = false;
+        self.banner_from_edit = true;
     }
 
     fn show_results(&mut self, results: Vec<Result<String, String>>) {
@@ -1806,7 +1906,7 @@ impl Viewer {
         // The render restarts before a command acts on the new state.
         if changed {
             self.pick = None;
-            self.restart();
+            self.commit_edit();
             changed = false;
         }
         for c in commands {
@@ -1848,7 +1948,7 @@ impl Viewer {
         }
         self.overlays(&ctx);
         if changed {
-            self.restart();
+            self.commit_edit();
         }
 
         // A drag, a wheel scroll or a walk (W/A/S/D held) is one undo step,
@@ -2178,6 +2278,7 @@ impl Viewer {
                 }
                 self.banner = Some(msg);
                 self.banner_from_render = true;
+                self.banner_from_edit = false;
             }
             JobState::Running | JobState::Cancelled => {}
         }

@@ -1369,7 +1369,7 @@ fn a_dropped_mesh_joins_the_scene_and_its_toggle_hides_it() {
 
 // ----- limits of typed values and camera moves, failed states --------------
 
-use penumbra::render::scene_file::limits::MAX_COLOUR;
+use penumbra::render::scene_file::limits::{MAX_COLOUR, MAX_COORD};
 
 /// Types `text` into a number field as a person does: focus (which
 /// selects its text), type, Enter.
@@ -1429,14 +1429,16 @@ fn typed_numbers_are_clamped_to_the_formats_limits_and_nan_is_refused() {
     settle(&mut h);
     let x = |h: &Harness<'static, Viewer>| h.get_by_role_and_label(Role::SpinButton, "x").rect();
 
-    // A slider's number field: the light depth stops at the slider's end.
+    // A slider's number field: the light depth stops at the longest edge
+    // the format takes.
     let depth = |h: &Harness<'static, Viewer>| slider_field(h, "Light depth");
     type_into(&mut h, depth, "1e300");
     let edge = h.state().desc().light.edge_v;
     let len = edge.iter().map(|c| c * c).sum::<f64>().sqrt();
-    assert!((len - 20.0).abs() < 1e-9, "{len}");
+    assert!(len <= MAX_COORD && len > 0.999 * MAX_COORD, "{len}");
     type_into(&mut h, depth, "NaN");
     assert_eq!(h.state().desc().light.edge_v, edge);
+    type_into(&mut h, depth, "2");
 
     // NaN (egui made it inf) and "inf" are refused: the light stays.
     let light = h.state().desc().light.clone();
@@ -1471,6 +1473,77 @@ fn typed_numbers_are_clamped_to_the_formats_limits_and_nan_is_refused() {
     h.state_mut().save_scene(&ctx, path.clone());
     h.state_mut().wait_for_saves(WAIT);
     SceneDesc::load(&path).expect("the saved scene loads");
+}
+
+/// The length of a light edge.
+fn length(v: [f64; 3]) -> f64 {
+    v.iter().map(|c| c * c).sum::<f64>().sqrt()
+}
+
+/// The light's width and depth cover every size the loader takes (they
+/// were 0.01–20): a light 50 wide loads and shows 50, and a drag or a
+/// typed value reaches any size the scene takes; one it does not take is
+/// refused, never clamped into the slider's range.
+#[test]
+fn the_light_size_controls_cover_every_size_the_loader_takes() {
+    let mut d = small_room();
+    d.light.corner = [-25.0, 7.99, -1.0];
+    d.light.edge_u = [50.0, 0.0, 0.0];
+    d.light.edge_v = [0.0, 0.0, 0.004];
+    let mut h = harness(ViewerOptions::new(d.clone()));
+    settle(&mut h);
+    assert_eq!(
+        h.state().desc(),
+        &d,
+        "showing the controls changed the light"
+    );
+    let value = |h: &Harness<'static, Viewer>, slider: &str| {
+        let field = slider_field(h, slider);
+        h.get_all_by_role(Role::SpinButton)
+            .find(|n| n.rect() == field)
+            .and_then(|n| n.value())
+            .expect("the slider's value")
+    };
+    assert_eq!(value(&h, "Light width"), "50");
+    assert_eq!(value(&h, "Light depth"), "0.004");
+    // The handle shows the value, inside the rail.
+    use egui_kittest::kittest::NodeT;
+    let width = h
+        .get_by_role_and_label(Role::Slider, "Light width")
+        .accesskit_node();
+    assert_eq!(width.numeric_value(), Some(50.0));
+    assert!(width.max_numeric_value().unwrap() > 0.999 * MAX_COORD);
+    assert!(width.min_numeric_value().unwrap() <= 1e-9);
+
+    set_slider(&mut h, "Light width", 60.0);
+    assert!((length(h.state().desc().light.edge_u) - 60.0).abs() < 1e-9);
+    set_slider(&mut h, "Light width", 1e4);
+    assert!((length(h.state().desc().light.edge_u) - 1e4).abs() < 1e-6);
+    set_slider(&mut h, "Light depth", 1e-3);
+    assert!((length(h.state().desc().light.edge_v) - 1e-3).abs() < 1e-15);
+    settle(&mut h);
+    finished(h.state());
+
+    // Typed: 1e300 stops at the longest edge the format takes (1e9), which
+    // makes the scene so large that the light's 0.001 depth falls below
+    // its size floor: refused, named.
+    let light = h.state().desc().light.clone();
+    type_into(&mut h, |h| slider_field(h, "Light width"), "1e300");
+    assert_eq!(h.state().desc().light, light);
+    let banner = h.state().banner().expect("a banner").to_string();
+    assert!(
+        banner.contains("light.edge_u: edit refused")
+            && banner
+                .contains("light.edge_v: length 1.000e-3 is below the smallest supported size"),
+        "{banner}"
+    );
+    // Its number field shows six digits; entering them again changes
+    // nothing.
+    set_slider(&mut h, "Light width", 1234.56789);
+    let light = h.state().desc().light.clone();
+    assert_eq!(value(&h, "Light width"), "1234.57");
+    type_into(&mut h, |h| slider_field(h, "Light width"), "1234.57");
+    assert_eq!(h.state().desc().light, light);
 }
 
 /// An edit the loader would refuse for a limit across fields (a light

@@ -8,20 +8,20 @@ use egui::{Slider, SliderClamping, Ui};
 
 use super::settings::ViewSettings;
 use crate::render::scene_file::limits::{
-    MAX_COLOUR, MAX_COORD, MAX_DEPTH, MAX_SHADOW_RAYS, MAX_SHININESS,
+    MAX_COLOUR, MAX_COORD, MAX_DEPTH, MAX_SHADOW_RAYS, MAX_SHININESS, MIN_FEATURE, MIN_SCENE_SIZE,
 };
 use crate::render::{AreaLightModel, Sampling, SceneDesc};
 
-/// The light's width and depth: the slider's range, for typed values too
-/// (a light far larger than the room makes its features too small for the
-/// format, and the render fails).
-const LIGHT_SIZE: RangeInclusive<f64> = 0.01..=20.0;
+/// The shortest light width or depth any scene takes: the loader's floor
+/// is [`MIN_FEATURE`] of the scene's size, which is at least
+/// [`MIN_SCENE_SIZE`]. Whether this scene takes a length (its own floor)
+/// is checked with the whole edit, by the viewer.
+const LIGHT_SIZE_MIN: f64 = MIN_FEATURE * MIN_SCENE_SIZE;
 
 /// A slider that never changes a value it only shows: a scene's 4096
 /// shadow rays or strength 20 load, show and save unchanged (egui's default
-/// clamping would rewrite them). Ranges are the format's limits (the
-/// light's size excepted: [`LIGHT_SIZE`]); a value dragged or typed is
-/// clamped to them (see [`slider_within`]).
+/// clamping would rewrite them). Ranges are the format's limits; a value
+/// dragged or typed is clamped to them (see [`slider_within`]).
 fn slider<'a, N: egui::emath::Numeric>(value: &'a mut N, range: RangeInclusive<N>) -> Slider<'a> {
     slider_within(value, range.clone(), range)
 }
@@ -58,6 +58,54 @@ fn slider_within<'a, N: egui::emath::Numeric>(
         slider.integer()
     } else {
         slider
+    }
+}
+
+/// The light's width or depth, `len`, the length of `edge`: a logarithmic
+/// slider over every length the loader takes for it, from
+/// [`LIGHT_SIZE_MIN`] to the one that puts the edge's largest component at
+/// [`MAX_COORD`], so that a loaded light of any size shows where it is and
+/// can be reached by a drag. The rail spans 24 decades, so its number
+/// field drags finely instead: half a percent of the size per point. A
+/// value it only shows is never changed: the field shows six digits, and
+/// entering them again keeps the value.
+fn light_size_slider<'a>(len: &'a mut f64, edge: [f64; 3], text: &str) -> Slider<'a> {
+    let largest = edge.iter().fold(0.0f64, |m, c| m.max(c.abs()));
+    // A hair below, so that rounding cannot lift a component past it.
+    let max = if largest > 0.0 && len.is_finite() {
+        MAX_COORD * (*len / largest) * (1.0 - 1e-12)
+    } else {
+        MAX_COORD
+    };
+    let max = max.max(LIGHT_SIZE_MIN);
+    let fine_step = *len * 0.005;
+    Slider::from_get_set(LIGHT_SIZE_MIN..=max, move |new| {
+        if let Some(x) = new.filter(|x| x.is_finite())
+            && six_digits(x) != six_digits(*len)
+        {
+            *len = x.clamp(LIGHT_SIZE_MIN, max);
+        }
+        *len
+    })
+    .logarithmic(true)
+    .clamping(SliderClamping::Never)
+    .drag_value_speed(fine_step)
+    .custom_parser(parse_finite)
+    .custom_formatter(|x, _| six_digits(x))
+    .text(text)
+}
+
+/// A number to six significant digits, in plain notation from 10⁻³ to
+/// 10⁶ and in scientific notation beyond (`2`, `0.005`, `1e-8`, `2.5e9`).
+fn six_digits(x: f64) -> String {
+    if x == 0.0 || !x.is_finite() {
+        return format!("{x}");
+    }
+    let rounded: f64 = format!("{x:.5e}").parse().unwrap_or(x);
+    if (1e-3..1e6).contains(&rounded.abs()) {
+        format!("{rounded}")
+    } else {
+        format!("{rounded:e}")
     }
 }
 
@@ -308,19 +356,12 @@ fn light_ui(ui: &mut Ui, desc: &mut SceneDesc) -> bool {
         }
     });
     // Sizes are relative to the light's own edges, so any light works.
+    let (edge_u, edge_v) = (l.edge_u, l.edge_v);
     changed |= ui
-        .add(
-            slider(&mut w, LIGHT_SIZE)
-                .logarithmic(true)
-                .text("Light width"),
-        )
+        .add(light_size_slider(&mut w, edge_u, "Light width"))
         .changed();
     changed |= ui
-        .add(
-            slider(&mut d, LIGHT_SIZE)
-                .logarithmic(true)
-                .text("Light depth"),
-        )
+        .add(light_size_slider(&mut d, edge_v, "Light depth"))
         .changed();
     if ui.button("Square").on_hover_text("Depth = width").clicked() {
         d = w;

@@ -1400,6 +1400,30 @@ fn type_into(
     h.step();
 }
 
+/// [`type_into`], one key at a time with a frame after each, as a person
+/// types.
+fn type_keys_into(
+    h: &mut Harness<'static, Viewer>,
+    find: impl Fn(&Harness<'static, Viewer>) -> egui::Rect,
+    text: &str,
+) {
+    settle(h);
+    let field = find(h);
+    h.get_all_by_role(Role::SpinButton)
+        .find(|n| n.rect() == field)
+        .expect("the number field")
+        .focus();
+    h.step();
+    h.step();
+    for key in text.chars() {
+        h.event(egui::Event::Text(key.into()));
+        h.step();
+    }
+    h.key_press(egui::Key::Enter);
+    h.step();
+    h.step();
+}
+
 /// The number field of a slider: the one on the slider's row, right of it.
 fn slider_field(h: &Harness<'static, Viewer>, slider: &str) -> egui::Rect {
     let rail = h.get_by_role_and_label(Role::Slider, slider).rect();
@@ -1558,7 +1582,9 @@ fn an_edit_the_loader_would_refuse_is_undone_and_named_in_the_banner() {
     let image = h.state().shown_image().clone();
     let x = |h: &Harness<'static, Viewer>| h.get_by_role_and_label(Role::SpinButton, "x").rect();
 
-    type_into(&mut h, x, "1e9");
+    // Typed key by key: the value before the typing stays, not the "1"
+    // on the way to "1e9".
+    type_keys_into(&mut h, x, "1e9");
     assert_eq!(h.state().desc().light, light);
     let banner = h.state().banner().expect("a banner").to_string();
     assert!(

@@ -350,7 +350,12 @@ fn light_ui(ui: &mut Ui, desc: &mut SceneDesc) -> bool {
                         .clamp_existing_to_range(false)
                         .custom_parser(parse_finite)
                         .prefix(format!("{name} "))
-                        .max_decimals(3),
+                        .max_decimals(3)
+                        // Taken on Enter or leaving the field, not at each
+                        // key: typing 1e9 would apply 1 first, and a
+                        // refused 1e9 would then fall back to 1, not to
+                        // the value before the typing.
+                        .update_while_editing(false),
                 )
                 .changed();
         }

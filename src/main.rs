@@ -15,7 +15,7 @@ fn main() {
         Command::Generate(args) => cli::generate(&args),
     };
     if let Err(e) = result {
-        eprintln!("penumbra: {}", e.message);
+        cli::print_stderr(format_args!("penumbra: {}", e.message));
         std::process::exit(e.code);
     }
 }

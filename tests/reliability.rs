@@ -1151,3 +1151,28 @@ fn an_interrupted_merge_or_compare_says_so_and_exits_1() {
         ["in.exr", "out.png", "part.exr", "whole.exr"]
     );
 }
+
+/// A stderr that cannot be written (`2>/dev/full`) changes nothing: the
+/// image is written and the exit code is the command's own (0, 2 for bad
+/// input, 1 for I/O), where the failed message used to panic (exit 101).
+#[test]
+fn a_full_stderr_keeps_the_exit_code() {
+    let dir = scratch();
+    let out = dir.path().join("x.png");
+    let exit_with_full_stderr = |args: &[&str]| {
+        let full = std::fs::OpenOptions::new()
+            .write(true)
+            .open("/dev/full")
+            .unwrap();
+        bin().args(args).stderr(full).status().unwrap().code()
+    };
+    let render_to = |output: &str| {
+        exit_with_full_stderr(&["render", "--width", "8", "--height", "8", "-o", output])
+    };
+    assert_eq!(render_to(out.to_str().unwrap()), Some(0));
+    assert!(out.exists());
+    let jpg = dir.path().join("x.jpg");
+    assert_eq!(render_to(jpg.to_str().unwrap()), Some(2));
+    // A folder that is there but cannot be written: an I/O failure.
+    assert_eq!(render_to("/proc/x.png"), Some(1));
+}

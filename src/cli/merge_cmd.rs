@@ -32,6 +32,11 @@ pub fn merge(args: &MergeArgs) -> Result<(), CliError> {
     // The write is stopped as render's is: it fails, the target untouched.
     super::safety::handle_signals(&CancelToken::new());
     write_film(&film, &args.output).map_err(|e| super::safety::write_failure(e, INTERRUPTED))?;
-    eprintln!("{}×{} from {} parts", film.width, film.height, parts.len());
+    super::print_stderr(format_args!(
+        "{}×{} from {} parts",
+        film.width,
+        film.height,
+        parts.len()
+    ));
     Ok(())
 }

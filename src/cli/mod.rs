@@ -442,6 +442,14 @@ impl CliError {
     }
 }
 
+/// Writes a line to stderr, ignoring a failed write (`2>/dev/full`, a
+/// closed pipe): `eprintln!` would panic with exit 101, and a message no
+/// one can read should not change the command's exit code.
+pub fn print_stderr(line: impl std::fmt::Display) {
+    use std::io::Write;
+    let _ = writeln!(std::io::stderr().lock(), "{line}");
+}
+
 /// Prints to stdout; a closed pipe (`penumbra compare … | head -1`) is not
 /// an error worth a panic or a message.
 pub fn print_stdout(text: &str) -> Result<(), CliError> {

@@ -66,10 +66,10 @@ pub fn load_scene(
     if let Ok(l) = &loaded
         && (l.scene.triangles > 0 || l.scene.degenerate_triangles > 0)
     {
-        eprintln!(
+        super::print_stderr(format_args!(
             "triangles: {} ({} degenerate skipped)",
             l.scene.triangles, l.scene.degenerate_triangles
-        );
+        ));
     }
     let loaded = match path {
         Some(p) => loaded.map_err(|e| CliError::input(e.in_file(p))),
@@ -263,8 +263,11 @@ pub fn render(args: &RenderArgs) -> Result<(), CliError> {
     };
     let line = summary(&scene, &report.stats, threads, &times);
     match args.region {
-        Some(r) => eprintln!("region {},{},{},{} of {line}", r.x, r.y, r.w, r.h),
-        None => eprintln!("{line}"),
+        Some(r) => super::print_stderr(format_args!(
+            "region {},{},{},{} of {line}",
+            r.x, r.y, r.w, r.h
+        )),
+        None => super::print_stderr(line),
     }
     if let Some(path) = &args.stats {
         let json = stats_json(args, &scene, &report.stats, threads, &times);

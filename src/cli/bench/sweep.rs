@@ -502,7 +502,7 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
                     );
                 }
             }
-            Progress::Row(r) => eprintln!(
+            Progress::Row(r) => crate::cli::print_stderr(format_args!(
                 "  {} {}{} {}: {:.2} ms, rmse {:.3e}",
                 r.sampling.name(),
                 r.model.name(),
@@ -510,7 +510,7 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
                 r.shadow_rays,
                 r.time_s * 1e3,
                 r.rmse
-            ),
+            )),
         })?;
         print!("{}", table(&rows));
         if let Some(worst) = rows

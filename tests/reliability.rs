@@ -1176,3 +1176,39 @@ fn a_full_stderr_keeps_the_exit_code() {
     // A folder that is there but cannot be written: an I/O failure.
     assert_eq!(render_to("/proc/x.png"), Some(1));
 }
+
+/// A signal while `render` reads its scene (standard input that never
+/// ends) ends it promptly with exit 1 and the one line, as during the
+/// render; it used to end it silently with 143.
+#[test]
+fn sigterm_while_render_reads_its_scene_says_so_and_exits_1() {
+    let dir = scratch();
+    let out = dir.path().join("x.png");
+    let mut child = bin()
+        .args(["render", "-", "-o", out.to_str().unwrap()])
+        .stdin(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stdin = child.stdin.take().unwrap();
+    stdin.write_all(b"{\"camera\": ").unwrap();
+    // Time to start and block in the read.
+    std::thread::sleep(Duration::from_millis(1000));
+    assert!(child.try_wait().unwrap().is_none(), "waits for the scene");
+    let sent = Instant::now();
+    let killed = Command::new("kill")
+        .args(["-TERM", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(killed.success());
+    let o = child.wait_with_output().unwrap();
+    assert!(
+        sent.elapsed() < Duration::from_secs(5),
+        "{:?}",
+        sent.elapsed()
+    );
+    drop(stdin);
+    assert_eq!(o.status.code(), Some(1), "{:?}: {}", o.status, stderr(&o));
+    assert_eq!(stderr(&o).trim(), "penumbra: interrupted: no image written");
+    assert_eq!(files_in(dir.path()), Vec::<String>::new());
+}

@@ -152,9 +152,16 @@ fn at_aspect(given: u32, side: u32, other: u32) -> Option<u32> {
         .then(|| ((given as f64 * side as f64 / other as f64).round() as u32).max(1))
 }
 
+/// What an interrupted render says.
+const INTERRUPTED: &str = "interrupted: no image written";
+
 /// `penumbra render`.
 pub fn render(args: &RenderArgs) -> Result<(), CliError> {
     let start = Instant::now();
+    // Until the render starts, SIGINT, SIGTERM and SIGHUP end the process
+    // at once with the line, even in a blocking read of a FIFO scene; the
+    // render's own handling takes over after loading.
+    super::safety::end_on_signals(INTERRUPTED);
     FileKind::of(&args.output).map_err(CliError::input)?;
     super::safety::refuse_missing_folder(&args.output, "output")?;
     if let Some(scene) = &args.scene {
@@ -180,9 +187,7 @@ pub fn render(args: &RenderArgs) -> Result<(), CliError> {
     check_memory(area.w, area.h, FileKind::of(&args.output).ok())?;
     let loading = start.elapsed();
     // Ctrl+C, SIGTERM and SIGHUP stop the render, or the write; no file is
-    // written and an existing one is untouched. Installed after loading: a
-    // signal while the scene is read (perhaps from a FIFO that blocks)
-    // ends the process at once, with nothing written yet.
+    // written and an existing one is untouched.
     let cancel = CancelToken::new();
     super::safety::handle_signals(&cancel);
 
@@ -230,9 +235,9 @@ pub fn render(args: &RenderArgs) -> Result<(), CliError> {
         if let Some(bar) = &bar {
             bar.finish_and_clear();
         }
-        let report = report.map_err(|_| CliError::other("interrupted: no image written"))?;
+        let report = report.map_err(|_| CliError::other(INTERRUPTED))?;
         if cancel.is_cancelled() {
-            return Err(CliError::other("interrupted: no image written"));
+            return Err(CliError::other(INTERRUPTED));
         }
         let writing = Instant::now();
         let written = match args.region {
@@ -251,7 +256,7 @@ pub fn render(args: &RenderArgs) -> Result<(), CliError> {
                 None => write_film(&report.film, &args.output),
             },
         };
-        written.map_err(|e| super::safety::write_failure(e, "interrupted: no image written"))?;
+        written.map_err(|e| super::safety::write_failure(e, INTERRUPTED))?;
         Ok((report, writing.elapsed(), rayon::current_num_threads()))
     })
     .ok_or_else(|| CliError::other("cannot start the worker threads"))??;

@@ -1020,14 +1020,17 @@ fn an_image_too_large_for_the_memory_limit_is_refused_with_exit_2() {
             "16384",
             "--height",
             "16384",
+            "--threads",
+            "2",
             "-o",
             out.to_str().unwrap(),
         ],
     );
     let err = stderr(&o);
     assert_eq!(o.status.code(), Some(2), "{err}");
+    // The film and the EXR's buffer (6.4 GB), and room for two threads.
     assert!(
-        err.contains("16384×16384 needs about 6.5 GB of memory"),
+        err.contains("16384×16384 needs about 6.8 GB of memory"),
         "{err}"
     );
     assert_eq!(err.trim().lines().count(), 1, "{err}");
@@ -1211,4 +1214,49 @@ fn sigterm_while_render_reads_its_scene_says_so_and_exits_1() {
     assert_eq!(o.status.code(), Some(1), "{:?}: {}", o.status, stderr(&o));
     assert_eq!(stderr(&o).trim(), "penumbra: interrupted: no image written");
     assert_eq!(files_in(dir.path()), Vec::<String>::new());
+}
+
+/// A size that passed the memory check aborted (SIGABRT, exit 134) when
+/// the film's allocation failed: the check left out the worker threads'
+/// address space. Sizes at the check's edge, either side, now render or
+/// are refused with exit 2, never abort.
+#[test]
+fn a_render_that_passes_the_memory_check_does_not_abort() {
+    let dir = scratch();
+    let out = dir.path().join("big.png");
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/stress/box-on-floor.json");
+    let render = |side: &str| {
+        penumbra_within_memory(
+            1_000_000,
+            &[
+                "render",
+                scene.to_str().unwrap(),
+                "--width",
+                side,
+                "--height",
+                side,
+                "--shadow-rays",
+                "1",
+                "--depth",
+                "1",
+                "--threads",
+                "2",
+                "-o",
+                out.to_str().unwrap(),
+            ],
+        )
+    };
+    let o = render("7300");
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("7300×7300 needs about"), "{err}");
+    for side in ["6200", "6000"] {
+        let o = render(side);
+        assert!(
+            matches!(o.status.code(), Some(0 | 2)),
+            "{side}: {:?}: {}",
+            o.status,
+            stderr(&o)
+        );
+    }
 }

@@ -184,7 +184,8 @@ pub fn render(args: &RenderArgs) -> Result<(), CliError> {
             .map_err(|e| CliError::input(format!("--region: {e}")))?;
     }
     let area = args.region.unwrap_or(TileRect::whole(&scene.camera));
-    check_memory(area.w, area.h, FileKind::of(&args.output).ok())?;
+    let threads = args.threads.map(|n| n as usize);
+    check_memory(area, FileKind::of(&args.output).ok(), threads)?;
     let loading = start.elapsed();
     // Ctrl+C, SIGTERM and SIGHUP stop the render, or the write; no file is
     // written and an existing one is untouched.
@@ -192,7 +193,6 @@ pub fn render(args: &RenderArgs) -> Result<(), CliError> {
     super::safety::handle_signals(&cancel);
 
     // One pool of worker threads renders and then encodes the image.
-    let threads = args.threads.map(|n| n as usize);
     let options = RenderOptions {
         threads: None,
         progressive: args.progressive,
@@ -282,15 +282,22 @@ pub fn render(args: &RenderArgs) -> Result<(), CliError> {
 }
 
 /// Refuses (exit 2) an image too large for the memory the process may
-/// take: its film (12 bytes a pixel) and the output's encoding buffer (an
-/// EXR's 12, a PNG's 3).
-fn check_memory(width: u32, height: u32, output: Option<FileKind>) -> Result<(), CliError> {
+/// take: its film (12 bytes a pixel), the output's encoding buffer (an
+/// EXR's 12, a PNG's 3) and the worker threads that render it (`threads`,
+/// or rayon's default).
+fn check_memory(
+    area: TileRect,
+    output: Option<FileKind>,
+    threads: Option<usize>,
+) -> Result<(), CliError> {
     let per_pixel = if output == Some(FileKind::Png) {
         15
     } else {
         24
     };
-    crate::render::memory::check_image_memory(width, height, per_pixel).map_err(CliError::input)
+    let threads = threads.unwrap_or_else(rayon::current_num_threads);
+    crate::render::memory::check_render_memory(area.w, area.h, per_pixel, threads)
+        .map_err(CliError::input)
 }
 
 /// Writes the `--stats` JSON: to standard output for `-`, else as the

@@ -6,13 +6,30 @@
 /// Room kept beyond an image's own buffers (the scene, the threads' stacks).
 const HEADROOM: usize = 64 << 20;
 
+/// Address space each worker thread takes beyond the image: glibc's
+/// malloc maps 128 MiB to carve out a thread's own 64 MiB arena (which
+/// `ulimit -v` counts, touched or not), and its stack takes 2 MiB.
+const PER_THREAD: usize = 130 << 20;
+
 /// Checks that `width`×`height` pixels of `bytes_per_pixel` each (and some
 /// room) can be allocated now; the error says how much it would take.
 pub fn check_image_memory(width: u32, height: u32, bytes_per_pixel: usize) -> Result<(), String> {
+    check_render_memory(width, height, bytes_per_pixel, 0)
+}
+
+/// As [`check_image_memory`], with room for `threads` worker threads that
+/// are not running yet.
+pub fn check_render_memory(
+    width: u32,
+    height: u32,
+    bytes_per_pixel: usize,
+    threads: usize,
+) -> Result<(), String> {
     let pixels = width as usize * height as usize;
     let bytes = pixels
         .saturating_mul(bytes_per_pixel)
-        .saturating_add(HEADROOM);
+        .saturating_add(HEADROOM)
+        .saturating_add(threads.saturating_mul(PER_THREAD));
     let mut probe: Vec<u8> = Vec::new();
     // Reserved, never touched: no page is faulted in.
     probe.try_reserve_exact(bytes).map_err(|_| {

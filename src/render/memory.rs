@@ -25,11 +25,20 @@ pub fn check_render_memory(
     bytes_per_pixel: usize,
     threads: usize,
 ) -> Result<(), String> {
+    // The threads' arenas are reserved, not used: they count only against
+    // a limit on the address space. Without one, a probe of their size
+    // could be refused on a many-core machine with little memory (the
+    // kernel's overcommit heuristic) where the render itself fits.
+    let thread_room = if address_space_limited() {
+        threads.saturating_mul(PER_THREAD)
+    } else {
+        0
+    };
     let pixels = width as usize * height as usize;
     let bytes = pixels
         .saturating_mul(bytes_per_pixel)
         .saturating_add(HEADROOM)
-        .saturating_add(threads.saturating_mul(PER_THREAD));
+        .saturating_add(thread_room);
     let mut probe: Vec<u8> = Vec::new();
     // Reserved, never touched: no page is faulted in.
     probe.try_reserve_exact(bytes).map_err(|_| {
@@ -38,6 +47,17 @@ pub fn check_render_memory(
             bytes as f64 / 1e9
         )
     })
+}
+
+/// Whether the process's address space is limited (`ulimit -v`).
+fn address_space_limited() -> bool {
+    let mut limit = libc::rlimit {
+        rlim_cur: 0,
+        rlim_max: 0,
+    };
+    // SAFETY: getrlimit writes one rlimit through a valid pointer.
+    let read = unsafe { libc::getrlimit(libc::RLIMIT_AS, &mut limit) } == 0;
+    read && limit.rlim_cur != libc::RLIM_INFINITY
 }
 
 #[cfg(test)]

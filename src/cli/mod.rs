@@ -126,12 +126,13 @@ pub struct SceneOverrides {
     #[arg(long)]
     pub cutaway: bool,
     /// Multiply every coordinate and length of the scene (camera included)
-    /// by this factor: the same image to within rounding (RMSE below 1e-7),
-    /// not always bit for bit.
+    /// by this factor: the same image to within rounding (RMSE below 1e-7
+    /// but for small images, and lights lying in a surface's plane: see the
+    /// README's "Guarantees and limits"), not always bit for bit.
     #[arg(long, allow_negative_numbers = true, value_parser = parse_scale)]
     pub scale: Option<f64>,
     /// Move the whole scene (camera included) by x,y,z: the same image to
-    /// within rounding (RMSE below 1e-7), not always bit for bit.
+    /// within rounding, as --scale, not always bit for bit.
     #[arg(long, allow_hyphen_values = true, value_parser = ListValue(parse_vec3))]
     pub translate: Option<[f64; 3]>,
     /// Camera samples per pixel (anti-aliasing; `render.samples_per_pixel`).

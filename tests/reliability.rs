@@ -465,6 +465,72 @@ fn an_output_that_is_an_input_is_refused_through_links() {
     }
 }
 
+/// The seed room with a mesh object reading `mesh` (relative to the
+/// scene's folder), written to `scene`.
+fn write_room_with_mesh(scene: &Path, mesh: &str) {
+    let mut json: serde_json::Value = serde_json::from_str(SEED_ROOM_JSON).unwrap();
+    let material = json["materials"]
+        .as_object()
+        .unwrap()
+        .keys()
+        .next()
+        .unwrap()
+        .clone();
+    json["objects"]
+        .as_array_mut()
+        .unwrap()
+        .push(serde_json::json!({"type": "mesh", "file": mesh, "material": material}));
+    std::fs::write(scene, json.to_string()).unwrap();
+}
+
+#[test]
+fn an_output_that_is_a_mesh_of_the_scene_is_refused() {
+    let dir = scratch();
+    let d = dir.path();
+    let mesh = d.join("gm.obj");
+    let r = penumbra(&[
+        "generate",
+        "--triangles",
+        "18",
+        "-o",
+        mesh.to_str().unwrap(),
+    ]);
+    assert!(r.status.success(), "{}", stderr(&r));
+    let before = std::fs::read(&mesh).unwrap();
+    let scene = d.join("gsc.json");
+    write_room_with_mesh(&scene, "gm.obj");
+    std::os::unix::fs::symlink(&mesh, d.join("mesh-link.png")).unwrap();
+    std::os::unix::fs::symlink(&mesh, d.join("mesh-link.csv")).unwrap();
+    let (scene, out) = (scene.to_str().unwrap(), d.join("o.png"));
+    let (out, link) = (out.to_str().unwrap(), d.join("mesh-link.png"));
+    let link = link.to_str().unwrap();
+    let csv = d.join("mesh-link.csv");
+    let cases: [&[&str]; 3] = [
+        &[
+            "render",
+            scene,
+            "--width",
+            "8",
+            "-o",
+            out,
+            "--stats",
+            mesh.to_str().unwrap(),
+        ],
+        &["render", scene, "--width", "8", "-o", link],
+        &["bench", scene, "--quick", "--csv", csv.to_str().unwrap()],
+    ];
+    for args in cases {
+        let r = penumbra(args);
+        let err = stderr(&r);
+        assert_eq!(r.status.code(), Some(2), "{args:?}: {err}");
+        assert!(
+            err.contains("is the same file as the mesh"),
+            "{args:?}: {err}"
+        );
+        assert_eq!(std::fs::read(&mesh).unwrap(), before, "{args:?}");
+    }
+}
+
 // ---------------------------------------------------------------- item 5
 
 /// Starts a render of a large EXR over `target` (which holds "precious"),

@@ -183,6 +183,13 @@ pub fn render(args: &RenderArgs) -> Result<(), CliError> {
         check_region(region, scene.camera.width, scene.camera.height)
             .map_err(|e| CliError::input(format!("--region: {e}")))?;
     }
+    // The scene's meshes are inputs too, known once it is read.
+    let meshes = desc.mesh_files();
+    let meshes: Vec<(&str, &Path)> = meshes.iter().map(|m| ("mesh", m.as_path())).collect();
+    super::safety::refuse_overwriting_inputs(&args.output, "output", &meshes)?;
+    if let Some(stats) = args.stats.as_deref().filter(|s| s.as_os_str() != "-") {
+        super::safety::refuse_overwriting_inputs(stats, "--stats file", &meshes)?;
+    }
     let area = args.region.unwrap_or(TileRect::whole(&scene.camera));
     let threads = args.threads.map(|n| n as usize);
     check_memory(area, FileKind::of(&args.output).ok(), threads)?;

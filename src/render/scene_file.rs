@@ -874,6 +874,19 @@ impl SceneDesc {
         Ok(desc)
     }
 
+    /// The files of the mesh objects, resolved as the loader resolves them
+    /// (one it cannot resolve is left out: the load refuses it). Commands
+    /// count them as inputs that no output may overwrite.
+    pub fn mesh_files(&self) -> Vec<PathBuf> {
+        self.objects
+            .iter()
+            .filter_map(|o| match o {
+                ObjectDesc::Mesh(m) => super::mesh::resolve(&m.file, self.base_dir.as_deref()).ok(),
+                _ => None,
+            })
+            .collect()
+    }
+
     /// Pretty JSON that [`SceneDesc::from_json`] reads back to an equal scene.
     pub fn to_json(&self) -> String {
         serde_json::to_string_pretty(self).expect("scene descriptions always serialize")

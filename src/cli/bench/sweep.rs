@@ -451,12 +451,17 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
             crate::cli::safety::refuse_missing_folder(path, what)?;
         }
     }
-    if let Some(input) = &args.scene {
-        for scene in &scenes {
-            for (explicit, ext, what) in [(&args.csv, "csv", "CSV"), (&args.plot, "png", "plot")] {
-                let out = output_path(args, explicit, scene, ext);
-                crate::cli::safety::refuse_overwriting_inputs(&out, what, &[("scene", input)])?;
-            }
+    for scene in &scenes {
+        let meshes = scene.desc.mesh_files();
+        let inputs: Vec<(&str, &Path)> = args
+            .scene
+            .iter()
+            .map(|s| ("scene", s.as_path()))
+            .chain(meshes.iter().map(|m| ("mesh", m.as_path())))
+            .collect();
+        for (explicit, ext, what) in [(&args.csv, "csv", "CSV"), (&args.plot, "png", "plot")] {
+            let out = output_path(args, explicit, scene, ext);
+            crate::cli::safety::refuse_overwriting_inputs(&out, what, &inputs)?;
         }
     }
     let plan = SweepPlan::from_args(args);

@@ -531,6 +531,25 @@ fn an_output_that_is_a_mesh_of_the_scene_is_refused() {
     }
 }
 
+#[test]
+fn an_output_that_is_the_scene_read_from_standard_input_is_refused() {
+    let dir = scratch();
+    let d = dir.path();
+    let scene = d.join("s.json");
+    std::fs::write(&scene, SEED_ROOM_JSON).unwrap();
+    std::os::unix::fs::symlink(&scene, d.join("out.png")).unwrap();
+    let r = bin()
+        .args(["render", "-", "--width", "16", "-o"])
+        .arg(d.join("out.png"))
+        .stdin(std::fs::File::open(&scene).unwrap())
+        .output()
+        .unwrap();
+    let err = stderr(&r);
+    assert_eq!(r.status.code(), Some(2), "{err}");
+    assert!(err.contains("is the same file as the scene"), "{err}");
+    assert_eq!(std::fs::read_to_string(&scene).unwrap(), SEED_ROOM_JSON);
+}
+
 // ---------------------------------------------------------------- item 5
 
 /// Starts a render of a large EXR over `target` (which holds "precious"),

@@ -188,7 +188,12 @@ pub fn refuse_overwriting_inputs(
     inputs: &[(&str, &Path)],
 ) -> Result<(), CliError> {
     for (name, input) in inputs {
-        if same_file(output, input) {
+        let same = if input.as_os_str() == "-" {
+            is_standard_input(output)
+        } else {
+            same_file(output, input)
+        };
+        if same {
             return Err(CliError::input(format!(
                 "{}: the {what} is the same file as the {name} {}: refusing to overwrite it",
                 output.display(),
@@ -197,4 +202,20 @@ pub fn refuse_overwriting_inputs(
         }
     }
     Ok(())
+}
+
+/// Whether `path` is the file standard input reads (an input named `-`):
+/// the same device and inode as descriptor 0.
+fn is_standard_input(path: &Path) -> bool {
+    use std::os::fd::AsFd;
+    use std::os::unix::fs::MetadataExt;
+    let stdin = std::io::stdin()
+        .as_fd()
+        .try_clone_to_owned()
+        .map(std::fs::File::from)
+        .and_then(|f| f.metadata());
+    match (stdin, std::fs::metadata(path)) {
+        (Ok(a), Ok(b)) => a.dev() == b.dev() && a.ino() == b.ino(),
+        _ => false,
+    }
 }

@@ -550,6 +550,38 @@ fn an_output_that_is_the_scene_read_from_standard_input_is_refused() {
     assert_eq!(std::fs::read_to_string(&scene).unwrap(), SEED_ROOM_JSON);
 }
 
+#[test]
+fn an_output_link_into_a_missing_folder_or_looping_is_refused_before_rendering() {
+    let dir = scratch();
+    let d = dir.path();
+    std::os::unix::fs::symlink("nodir/x.png", d.join("dl.png")).unwrap();
+    std::os::unix::fs::symlink("loop.png", d.join("loop.png")).unwrap();
+    let (dangling, looping) = (d.join("dl.png"), d.join("loop.png"));
+    let (dangling, looping) = (dangling.to_str().unwrap(), looping.to_str().unwrap());
+    let image = d.join("o.png");
+    let image = image.to_str().unwrap();
+    // Large enough that rendering first would take far longer than refusing.
+    let big = ["--width", "4000", "--height", "4000", "--shadow-rays", "1"];
+    let cases: [(&[&str], &str); 3] = [
+        (&["-o", dangling], "there is no folder"),
+        (&["-o", image, "--stats", dangling], "there is no folder"),
+        (&["-o", looping], "loops"),
+    ];
+    for (outputs, says) in cases {
+        let r = bin()
+            .arg("render")
+            .args(big)
+            .args(outputs)
+            .output()
+            .unwrap();
+        let err = stderr(&r);
+        assert_eq!(r.status.code(), Some(2), "{outputs:?}: {err}");
+        assert!(err.contains(says), "{outputs:?}: {err}");
+        assert!(!Path::new(image).exists(), "{outputs:?}: rendered first");
+    }
+    assert!(std::fs::symlink_metadata(looping).unwrap().is_symlink());
+}
+
 // ---------------------------------------------------------------- item 5
 
 /// Starts a render of a large EXR over `target` (which holds "precious"),

@@ -328,20 +328,10 @@ fn write_stats(path: &Path, json: &serde_json::Value) -> Result<(), CliError> {
 /// written (a folder, or in a folder that is not there), or that is the
 /// image being written or the scene being read.
 fn check_stats_path(stats: &Path, args: &RenderArgs) -> Result<(), CliError> {
-    let refuse = |why: &str| CliError::input(format!("{}: --stats: {why}", stats.display()));
     if stats.as_os_str() == "-" {
         return Ok(());
     }
-    if stats.is_dir() {
-        return Err(refuse("is a folder, not a file"));
-    }
-    let dir = match stats.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    if !dir.is_dir() {
-        return Err(refuse(&format!("there is no folder {}", dir.display())));
-    }
+    super::safety::refuse_missing_folder(stats, "--stats file")?;
     let absolute = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_owned());
     if absolute(stats) == absolute(&args.output) || super::safety::same_file(stats, &args.output) {
         return Err(CliError::input(format!(

@@ -160,13 +160,21 @@ pub fn refuse_missing_folder(output: &Path, what: &str) -> Result<(), CliError> 
     if output.as_os_str() == "-" {
         return Ok(());
     }
+    // A link is written through: the folder that counts is its target's.
+    let Some(target) = crate::render::output::through_links(output) else {
+        return Err(CliError::input(format!(
+            "{}: the {what} is {}",
+            output.display(),
+            crate::render::output::LINK_LOOPS
+        )));
+    };
     if output.is_dir() {
         return Err(CliError::input(format!(
             "{}: the {what} is a folder, not a file",
             output.display()
         )));
     }
-    let dir = match output.parent() {
+    let dir = match target.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
     };

@@ -207,7 +207,7 @@ pub fn write_atomic(
     if std::fs::metadata(user_path).is_ok_and(|m| !m.is_file() && !m.is_dir()) {
         return write_in_place(user_path, write).map_err(fail);
     }
-    let path = &through_links(user_path);
+    let path = &through_links(user_path).ok_or_else(|| fail(LINK_LOOPS.into()))?;
     let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
@@ -285,21 +285,23 @@ pub fn write_atomic(
     Ok(())
 }
 
+/// Why a path whose chain of symbolic links never ends is not written.
+pub const LINK_LOOPS: &str = "a symbolic link that loops (or a chain of more than 40 links)";
+
 /// Where a write to `path` lands: the file a chain of symbolic links
 /// leads to (the last link's target, which may not exist yet), else
-/// `path` itself.
-fn through_links(path: &Path) -> PathBuf {
+/// `path` itself; `None` for a chain longer than the kernel's own limit
+/// (a loop), which a rename would otherwise replace with a file.
+pub fn through_links(path: &Path) -> Option<PathBuf> {
     let mut p = path.to_path_buf();
-    // The kernel's own limit on a chain of links (a loop ends there, and
-    // the write then fails as the kernel says).
-    for _ in 0..40 {
+    for _ in 0..=40 {
         match std::fs::read_link(&p) {
             // Relative to the link's folder (an absolute target replaces it).
             Ok(target) => p = p.parent().unwrap_or(Path::new("")).join(target),
-            Err(_) => break,
+            Err(_) => return Some(p),
         }
     }
-    p
+    None
 }
 
 /// [`write_atomic`] into an existing file that is not a regular one, in

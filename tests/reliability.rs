@@ -582,6 +582,25 @@ fn an_output_link_into_a_missing_folder_or_looping_is_refused_before_rendering()
     assert!(std::fs::symlink_metadata(looping).unwrap().is_symlink());
 }
 
+#[test]
+fn a_mesh_path_from_the_scene_is_escaped_in_messages() {
+    let dir = scratch();
+    let scene = dir.path().join("s.json");
+    write_room_with_mesh(&scene, "x\ny\u{1b}[2J.obj");
+    let out = dir.path().join("o.png");
+    let r = bin()
+        .arg("render")
+        .arg(&scene)
+        .arg("-o")
+        .arg(&out)
+        .output()
+        .unwrap();
+    let err = stderr(&r);
+    assert_eq!(r.status.code(), Some(2), "{err}");
+    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+    assert!(!err.contains('\u{1b}') && err.contains("\\u{1b}"), "{err}");
+}
+
 // ---------------------------------------------------------------- item 5
 
 /// Starts a render of a large EXR over `target` (which holds "precious"),

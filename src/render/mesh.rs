@@ -51,11 +51,18 @@ pub fn resolve(file: &str, base_dir: Option<&Path>) -> Result<PathBuf, String> {
     }
 }
 
+/// A mesh object's file as messages quote it: cut, and escaped as
+/// material names are (`{:?}`), so that a newline or a terminal escape in
+/// the scene cannot split the message or reach the terminal.
+pub fn quoted_file(file: &str) -> String {
+    format!("{:?}", super::error::cut(file))
+}
+
 /// Reads, checks and transforms a mesh object's file. `budget`: the most
 /// triangles it may add to the scene.
 pub fn load(desc: &MeshDesc, base_dir: Option<&Path>, budget: usize) -> Result<MeshPart, String> {
     let path = resolve(&desc.file, base_dir)?;
-    let name = super::error::cut(&desc.file);
+    let name = quoted_file(&desc.file);
     let ext = path
         .extension()
         .and_then(|e| e.to_str())

@@ -160,7 +160,10 @@ impl Scene {
                         .check_range(super::scene_file::limits::MAX_COORD)
                         .and_then(|()| meshes.add(part, material))
                         .map_err(|e| {
-                            SceneError::new(format!("objects[{index}]"), format!("{}: {e}", m.file))
+                            SceneError::new(
+                                format!("objects[{index}]"),
+                                format!("{}: {e}", mesh::quoted_file(&m.file)),
+                            )
                         })?;
                     triangles += meshes.len() - first;
                     degenerate += skipped;

@@ -61,8 +61,18 @@ pub const MAX_QUOTED: usize = 80;
 pub fn cut(s: &str) -> String {
     match s.char_indices().nth(MAX_QUOTED) {
         None => s.to_string(),
+        // Already cut (a message quoting a value cut before): as it is,
+        // not cut again to the length of the cut form.
+        Some((end, _)) if is_cut_tail(&s[end..]) => s.to_string(),
         Some((end, _)) => format!("{}… ({} characters)", &s[..end], s.chars().count()),
     }
+}
+
+/// Whether `tail` is what [`cut`] puts after a value's start.
+fn is_cut_tail(tail: &str) -> bool {
+    tail.strip_prefix("… (")
+        .and_then(|t| t.strip_suffix(" characters)"))
+        .is_some_and(|n| !n.is_empty() && n.bytes().all(|b| b.is_ascii_digit()))
 }
 
 /// A JSON path with every over-long segment (a long material name or key)

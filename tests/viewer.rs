@@ -1969,29 +1969,26 @@ fn the_help_lists_the_walking_keys_and_every_drag() {
 fn escape_closes_a_menu_and_the_colour_picker() {
     let mut h = harness(ViewerOptions::new(small_room()));
     settle(&mut h);
-    h.get_by_label("File").click();
-    h.step();
-    h.step();
-    assert!(egui::Popup::is_any_open(&h.ctx), "the menu opened");
-    h.key_press(egui::Key::Escape);
-    h.step();
-    h.step();
-    assert!(
-        !egui::Popup::is_any_open(&h.ctx),
-        "Escape left the menu open"
-    );
-
-    h.get_all_by_role(Role::ColorWell).next().unwrap().click();
-    h.step();
-    h.step();
-    assert!(egui::Popup::is_any_open(&h.ctx), "the picker opened");
-    h.key_press(egui::Key::Escape);
-    h.step();
-    h.step();
-    assert!(
-        !egui::Popup::is_any_open(&h.ctx),
-        "Escape left the picker open"
-    );
+    type Opener = fn(&Harness<'static, Viewer>);
+    let openers: [(&str, Opener); 2] = [
+        ("menu", |h| h.get_by_label("File").click()),
+        ("picker", |h| {
+            h.get_all_by_role(Role::ColorWell).next().unwrap().click()
+        }),
+    ];
+    for (what, open) in openers {
+        open(&h);
+        h.step();
+        h.step();
+        assert!(egui::Popup::is_any_open(&h.ctx), "the {what} opened");
+        h.key_press(egui::Key::Escape);
+        h.step();
+        h.step();
+        assert!(
+            !egui::Popup::is_any_open(&h.ctx),
+            "Escape left the {what} open"
+        );
+    }
 }
 
 /// Every text on screen with the colour picker open has its glyphs in the

@@ -196,16 +196,15 @@ pub fn refuse_overwriting_inputs(
     inputs: &[(&str, &Path)],
 ) -> Result<(), CliError> {
     for (name, input) in inputs {
-        let same = if input.as_os_str() == "-" {
-            is_standard_input(output)
+        let (same, shown) = if input.as_os_str() == "-" {
+            (is_standard_input(output), "read from standard input".into())
         } else {
-            same_file(output, input)
+            (same_file(output, input), input.display().to_string())
         };
         if same {
             return Err(CliError::input(format!(
-                "{}: the {what} is the same file as the {name} {}: refusing to overwrite it",
+                "{}: the {what} is the same file as the {name} {shown}: refusing to overwrite it",
                 output.display(),
-                input.display()
             )));
         }
     }

@@ -64,6 +64,10 @@ pub trait PathSink {
     /// Whether to compute every light factor (a recorded path must serve
     /// any later colour) instead of only those the colours need.
     const RECORD: bool;
+    /// Whether [`PathSink::nearest`] finds a path's camera hit with `find`
+    /// (false: the sink knows most of them, and a tile does not search
+    /// its rows' camera rays ahead).
+    const FINDS_CAMERA_HITS: bool = true;
     /// The nearest hit of the path's ray at `depth` (1: the camera ray):
     /// what `find` finds, unless the sink knows it without intersecting
     /// (`live/relight.rs`).
@@ -102,6 +106,16 @@ impl PathSink for () {
     fn set_visible(&mut self, _: usize, _: u64) {}
     #[inline(always)]
     fn end(&mut self, _: PathEnd) {}
+}
+
+/// Where a path's camera ray finds its nearest hit.
+#[derive(Debug, Clone, Copy)]
+enum CameraHit<'t> {
+    /// Among the tile's objects, if known, else the scene's.
+    Search(Option<&'t TileTargets>),
+    /// Already found: a row's camera rays searched side by side
+    /// ([`TileTargets::nearest_of_rays`]).
+    Found(Option<(HitTarget, f64)>),
 }
 
 /// Traces pixels of one scene at one shadow-ray count.
@@ -149,8 +163,9 @@ pub struct TraceScratch {
     shadow_inputs: LaneInputs,
     /// What [`Tracer::tile`]'s camera rays test.
     camera_objects: TileTargets,
-    /// One row of a tile's camera rays.
+    /// One row of a tile's camera rays, and their nearest hits.
     camera_rays: Vec<Ray>,
+    camera_hits: Vec<Option<(HitTarget, f64)>>,
 }
 
 impl<'a> Tracer<'a> {
@@ -206,6 +221,7 @@ impl<'a> Tracer<'a> {
             hit_visibility: Vec::new(),
             camera_objects: TileTargets::default(),
             camera_rays: Vec::new(),
+            camera_hits: Vec::new(),
         }
     }
 
@@ -243,7 +259,8 @@ impl<'a> Tracer<'a> {
         let Some(filter) = &self.filter else {
             let mut colour = Sum(Vec3::ZERO);
             let ray = camera.pixel_ray(x, y);
-            self.trace_path(x, y, 0, ray, camera_objects, scratch, sink, &mut colour);
+            let camera_hit = CameraHit::Search(camera_objects);
+            self.trace_path(x, y, 0, ray, camera_hit, scratch, sink, &mut colour);
             return colour.0;
         };
         let mut sum = Vec3::ZERO;
@@ -254,7 +271,7 @@ impl<'a> Tracer<'a> {
                 y,
                 sample,
                 ray,
-                camera_objects,
+                CameraHit::Search(camera_objects),
                 scratch,
                 sink,
                 &mut colour,
@@ -382,7 +399,8 @@ impl<'a> Tracer<'a> {
             }
             self.each_camera_ray(rect, cancel, scratch, |x, y, ray, scratch| {
                 let mut colour = Sum(Vec3::ZERO);
-                self.trace_path(x, y, 0, ray, Some(objects), scratch, sink, &mut colour);
+                let camera_hit = CameraHit::Search(Some(objects));
+                self.trace_path(x, y, 0, ray, camera_hit, scratch, sink, &mut colour);
                 out.push(colour.0);
             })
         })
@@ -439,7 +457,7 @@ impl<'a> Tracer<'a> {
     }
 
     /// One camera sample's path, its linear RGB added to `colour`;
-    /// `camera_objects`: what the camera ray may meet, if known.
+    /// `camera_hit`: where its camera ray finds its nearest hit.
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
     fn trace_path<S: PathSink, C: PathColour>(
@@ -448,7 +466,7 @@ impl<'a> Tracer<'a> {
         y: u32,
         sample: u32,
         mut ray: Ray,
-        camera_objects: Option<&TileTargets>,
+        camera_hit: CameraHit,
         scratch: &mut TraceScratch,
         sink: &mut S,
         colour: &mut C,
@@ -465,9 +483,10 @@ impl<'a> Tracer<'a> {
                 #[inline(always)]
                 || {
                     if depth == 1 {
-                        match camera_objects {
-                            Some(tile) => tile.nearest(scene, &ray, s.cutaway),
-                            None => scene.camera_hit(&ray, s.cutaway),
+                        match camera_hit {
+                            CameraHit::Search(Some(tile)) => tile.nearest(scene, &ray, s.cutaway),
+                            CameraHit::Search(None) => scene.camera_hit(&ray, s.cutaway),
+                            CameraHit::Found(hit) => hit,
                         }
                     } else {
                         scene.closest_hit(&ray)
@@ -601,6 +620,7 @@ fn tile_in_lanes_generic<S: PathSink>(
     // be compiled without this function's CPU features.
     let camera = &tracer.scene.camera;
     let mut rays = std::mem::take(&mut scratch.camera_rays);
+    let mut hits = std::mem::take(&mut scratch.camera_hits);
     let spp = tracer.paths_per_pixel();
     let mut finished = true;
     for y in rect.y..rect.y + rect.h {
@@ -620,25 +640,39 @@ fn tile_in_lanes_generic<S: PathSink>(
                 }
             }
         }
+        // The row's camera rays searched side by side, unless the sink
+        // knows their hits. The tile's objects are those of the filter's
+        // reach around its pixels.
+        let ahead = S::FINDS_CAMERA_HITS;
+        if ahead {
+            objects.nearest_of_rays(tracer.scene, &rays, tracer.settings.cutaway, &mut hits);
+        }
         // Two loops, so that a one-sample path's camera search is known
         // where it is inlined (a choice per path cost 2 % of a frame's
         // instructions), with no division to find its pixel.
         if spp == 1 {
-            for (x, &ray) in (rect.x..).zip(&rays) {
-                tracer.trace_path(x, y, 0, ray, Some(objects), scratch, sink, &mut colour);
+            for (k, (x, &ray)) in (rect.x..).zip(&rays).enumerate() {
+                let hit = match ahead {
+                    true => CameraHit::Found(hits[k]),
+                    false => CameraHit::Search(Some(objects)),
+                };
+                tracer.trace_path(x, y, 0, ray, hit, scratch, sink, &mut colour);
                 colour.end_path();
             }
             continue;
         }
-        // The tile's objects are those of the filter's reach around its
-        // pixels.
         for (k, &ray) in (0..).zip(&rays) {
             let (x, sample) = (rect.x + k / spp, k % spp);
-            tracer.trace_path(x, y, sample, ray, Some(objects), scratch, sink, &mut colour);
+            let hit = match ahead {
+                true => CameraHit::Found(hits[k as usize]),
+                false => CameraHit::Search(Some(objects)),
+            };
+            tracer.trace_path(x, y, sample, ray, hit, scratch, sink, &mut colour);
             colour.end_path();
         }
     }
     scratch.camera_rays = rays;
+    scratch.camera_hits = hits;
     if finished {
         colour.trace_waiting_shadows::<S>(tracer, scratch);
         colour.flush();

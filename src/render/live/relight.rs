@@ -64,6 +64,8 @@ impl<'a> Relighter<'a> {
 
 impl PathSink for Relighter<'_> {
     const RECORD: bool = true;
+    // Its camera hits are the recorded ones, unless a path diverged.
+    const FINDS_CAMERA_HITS: bool = false;
 
     #[inline(always)]
     fn nearest(

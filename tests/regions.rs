@@ -350,7 +350,7 @@ fn merge_refuses_gaps_and_lack_of_memory_early_and_parts_are_the_same_bytes() {
     );
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert!(
-        stderr(&o).contains("not enough memory for the merged 4000×3000 image"),
+        stderr(&o).contains("the merged 4000×3000 image needs about"),
         "{}",
         stderr(&o)
     );

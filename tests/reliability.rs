@@ -1173,6 +1173,67 @@ fn an_image_too_large_for_the_memory_limit_is_refused_with_exit_2() {
     assert_eq!(std::fs::read(&out).unwrap(), b"precious");
 }
 
+/// An image file too large to decode in the memory the process may have
+/// is refused (exit 2, one line naming the file) before its pixels are
+/// allocated: `compare` and `merge` aborted with "memory allocation of N
+/// bytes failed" and a backtrace (exit 134). Each limit sits between the
+/// file's bytes and the bytes and the decoder's buffers, with margin for
+/// the process's own.
+#[test]
+fn an_image_too_large_to_read_in_the_memory_limit_is_refused_with_exit_2() {
+    let dir = scratch();
+    let file = |name: &str| dir.path().join(name).to_str().unwrap().to_owned();
+    let size = ["--width", "2000", "--height", "1500", "--shadow-rays", "1"];
+    for (name, extra) in [
+        ("whole.exr", &[][..]),
+        ("whole.png", &[][..]),
+        ("part.exr", &["--region", "0,0,2000,1500"][..]),
+    ] {
+        let out = file(name);
+        let args: Vec<&str> = ["render", "--depth", "1", "-o", &out]
+            .iter()
+            .chain(&size)
+            .chain(extra)
+            .copied()
+            .collect();
+        let o = penumbra(&args);
+        assert!(o.status.success(), "{}", stderr(&o));
+    }
+    // A 36 MB EXR decodes through 72 MB of buffers; a PNG through 45 MB;
+    // a part's 36 MB into a 36 MB film.
+    let (exr, png, part, merged) = (
+        file("whole.exr"),
+        file("whole.png"),
+        file("part.exr"),
+        file("merged.exr"),
+    );
+    let cases: [(u64, &str, Vec<&str>); 3] = [
+        (90_000, "whole.exr", vec!["compare", &exr, &exr]),
+        (50_000, "whole.png", vec!["compare", &png, &png]),
+        (75_000, "part.exr", vec!["merge", &part, "-o", &merged]),
+    ];
+    for (kib, name, args) in cases {
+        let o = penumbra_within_memory(kib, &args);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains(&format!("{name}: ")), "{err}");
+        assert!(
+            err.contains("needs about") && err.contains("more than this process can have"),
+            "{err}"
+        );
+        assert_eq!(err.trim().lines().count(), 1, "{err}");
+    }
+    assert!(!Path::new(&merged).exists());
+    // Without the limit, the same commands read them.
+    for args in [
+        vec!["compare", &exr, &png],
+        vec!["merge", &part, "-o", &merged],
+    ] {
+        let o = penumbra(&args);
+        assert!(o.status.success(), "{args:?}: {}", stderr(&o));
+    }
+}
+
 /// An EXR larger than the image decoder's default 512 MiB (RGB f32) reads
 /// back: `compare` and the viewer take the images `render` writes, up to
 /// 16384².

@@ -1,8 +1,10 @@
 use super::{CliError, CompareArgs};
 use crate::render::CancelToken;
 use crate::render::Film;
+use crate::render::ImageError;
 use crate::render::TileRect;
 use crate::render::compare::{compare as compare_films, diff_image};
+use crate::render::memory::{amount, check_image_memory};
 use crate::render::output::{FileKind, read_film, write_rgb8};
 use crate::render::region::{Part, read_part};
 
@@ -67,6 +69,10 @@ pub fn compare(args: &CompareArgs) -> Result<(), CliError> {
         );
     }
     if let Some(path) = &args.diff {
+        // The difference image's codes and the PNG encoder's buffer (3
+        // bytes a pixel each), refused before they abort the process.
+        check_image_memory(a.width, a.height, 6)
+            .map_err(|e| CliError::input(format!("{}: {e}", path.display())))?;
         let (rgb, scale) = diff_image(&a, &b, None).map_err(CliError::input)?;
         // The write is stopped as render's is: it fails, the target
         // untouched.
@@ -92,7 +98,13 @@ fn read_pair(
     a_path: &std::path::Path,
     b_path: &std::path::Path,
 ) -> Result<(Film, Film, Option<(TileRect, (u32, u32))>), CliError> {
-    let part = |p: &std::path::Path| read_part(p).ok();
+    // Any file that is not a readable part is read as a whole image, but
+    // a part too large for the memory left is refused as what it is.
+    let part = |p: &std::path::Path| match read_part(p) {
+        Ok(part) => Ok(Some(part)),
+        Err(e @ ImageError::Memory { .. }) => Err(CliError::input(e)),
+        Err(_) => Ok(None),
+    };
     let whole = |p: &std::path::Path| read_film(p).map_err(CliError::input);
     let describe = |p: &Part| {
         let r = p.region;
@@ -101,7 +113,7 @@ fn read_pair(
             r.x, r.y, r.w, r.h, p.full.0, p.full.1
         )
     };
-    match (part(a_path), part(b_path)) {
+    match (part(a_path)?, part(b_path)?) {
         (None, None) => Ok((whole(a_path)?, whole(b_path)?, None)),
         (Some(a), Some(b)) => {
             if (a.region, a.full) != (b.region, b.full) {
@@ -148,7 +160,26 @@ fn crop_of(
         )));
     }
     let r = p.region;
-    let mut crop = Film::new(r.w, r.h);
+    // The crop's buffer may not fit beside the two images: refused, where
+    // its allocation would abort.
+    let mut pixels = Vec::new();
+    pixels
+        .try_reserve_exact(r.w as usize * r.h as usize)
+        .map_err(|_| {
+            CliError::input(format!(
+                "{}: {}×{} needs about {} to compare, more than this process can have",
+                whole_path.display(),
+                r.w,
+                r.h,
+                amount(r.w as usize * r.h as usize * 12)
+            ))
+        })?;
+    pixels.resize(r.w as usize * r.h as usize, glam::Vec3::ZERO);
+    let mut crop = Film {
+        width: r.w,
+        height: r.h,
+        pixels,
+    };
     for y in 0..r.h {
         for x in 0..r.w {
             crop.pixels[(y * r.w + x) as usize] = whole.get(r.x + x, r.y + y);

@@ -146,6 +146,9 @@ pub enum ImageError {
     Read { path: PathBuf, message: String },
     #[error("{path}: {message}")]
     Write { path: PathBuf, message: String },
+    /// An image that the process has too little memory to decode.
+    #[error("{path}: {message}")]
+    Memory { path: PathBuf, message: String },
     #[error("{path}: unsupported image format (expected .png or .exr)")]
     Format { path: PathBuf },
 }

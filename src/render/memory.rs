@@ -39,14 +39,55 @@ pub fn check_render_memory(
         .saturating_mul(bytes_per_pixel)
         .saturating_add(HEADROOM)
         .saturating_add(thread_room);
-    let mut probe: Vec<u8> = Vec::new();
-    // Reserved, never touched: no page is faulted in.
-    probe.try_reserve_exact(bytes).map_err(|_| {
+    fits(bytes).map_err(|()| {
         format!(
-            "{width}×{height} needs about {:.1} GB of memory, more than this process can have",
-            bytes as f64 / 1e9
+            "{width}×{height} needs about {}, more than this process can have",
+            amount(bytes)
         )
     })
+}
+
+/// Checks, before a `width`×`height` image file is decoded, that the
+/// `bytes` its decoder will allocate (beyond the file's bytes, already
+/// read) can be allocated now: a decoder's allocation that fails aborts
+/// the process.
+pub fn check_read_memory(width: u64, height: u64, bytes: u64) -> Result<(), String> {
+    let bytes = usize::try_from(bytes).unwrap_or(usize::MAX);
+    fits(bytes).map_err(|()| {
+        format!(
+            "{width}×{height} needs about {} to read, more than this process can have",
+            amount(bytes)
+        )
+    })
+}
+
+/// Checks that a file of `bytes` can be read into memory now.
+pub fn check_file_memory(bytes: u64) -> Result<(), String> {
+    let bytes = usize::try_from(bytes).unwrap_or(usize::MAX);
+    fits(bytes).map_err(|()| {
+        format!(
+            "reading its {bytes} bytes needs about {}, more than this process can have",
+            amount(bytes)
+        )
+    })
+}
+
+/// Whether `bytes` can be allocated now. Reserved and given back at once,
+/// never touched: no page is faulted in.
+fn fits(bytes: usize) -> Result<(), ()> {
+    let mut probe: Vec<u8> = Vec::new();
+    probe.try_reserve_exact(bytes).map_err(drop)
+}
+
+/// `bytes` of memory in words: GB to a tenth, or MB below 0.1 GB (where a
+/// tenth of a GB would read 0.0).
+pub fn amount(bytes: usize) -> String {
+    let gb = bytes as f64 / 1e9;
+    if gb >= 0.1 {
+        format!("{gb:.1} GB of memory")
+    } else {
+        format!("{:.0} MB of memory", bytes as f64 / 1e6)
+    }
 }
 
 /// Whether the process's address space is limited (`ulimit -v`).

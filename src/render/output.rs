@@ -10,7 +10,7 @@ use std::sync::atomic::{AtomicBool, AtomicPtr, Ordering};
 
 use glam::Vec3;
 use image::codecs::png::PngEncoder;
-use image::{ExtendedColorType, ImageEncoder, ImageFormat, ImageReader};
+use image::{ExtendedColorType, ImageDecoder, ImageEncoder, ImageFormat, ImageReader};
 
 use super::display::DisplayTransform;
 use super::error::ImageError;
@@ -513,12 +513,14 @@ const DECODE_BYTES: u64 = 16384 * 16384 * 16 + (256 << 20);
 /// Reads a PNG (decoded from sRGB to linear) or EXR (linear) image. The
 /// format, and with it the transfer function, is the one the bytes are in,
 /// whatever the file's name says. At most [`MAX_IMAGE_BYTES`] are read.
+/// An image larger than the memory the process may have is refused
+/// ([`ImageError::Memory`]) before it is decoded.
 pub fn read_film(path: &Path) -> Result<Film, ImageError> {
     let fail = |message: String| ImageError::Read {
         path: path.to_owned(),
         message,
     };
-    let bytes = super::scene_file::read_bounded(path, MAX_IMAGE_BYTES).map_err(fail)?;
+    let bytes = read_image_file(path)?;
     let mut reader = ImageReader::new(Cursor::new(bytes))
         .with_guessed_format()
         .map_err(|e| fail(e.to_string()))?;
@@ -529,14 +531,24 @@ pub fn read_film(path: &Path) -> Result<Film, ImageError> {
     limits.max_image_width = Some(side);
     limits.max_image_height = Some(side);
     limits.max_alloc = Some(DECODE_BYTES);
-    reader.limits(limits);
+    reader.limits(limits.clone());
     let linear = match reader.format() {
         Some(ImageFormat::OpenExr) => true,
         Some(ImageFormat::Png) => false,
         _ => return Err(fail("not a PNG or OpenEXR image".into())),
     };
-    let img = reader.decode().map_err(|e| fail(e.to_string()))?;
-    let (width, height) = (img.width(), img.height());
+    // The header only: the size is known before any pixel is allocated.
+    let mut decoder = reader.into_decoder().map_err(|e| fail(e.to_string()))?;
+    let (width, height) = decoder.dimensions();
+    let decoded = decoder.total_bytes();
+    check_memory_to_decode(path, width, height, decoded, linear)?;
+    // As `ImageReader::decode` does: the image's buffer counts against the
+    // decoder's allowance.
+    limits
+        .reserve(decoded)
+        .and_then(|()| decoder.set_limits(limits))
+        .map_err(|e| fail(e.to_string()))?;
+    let img = image::DynamicImage::from_decoder(decoder).map_err(|e| fail(e.to_string()))?;
     let pixels = if linear {
         img.into_rgb32f()
             .pixels()
@@ -558,6 +570,53 @@ pub fn read_film(path: &Path) -> Result<Film, ImageError> {
         width,
         height,
         pixels,
+    })
+}
+
+/// Refuses an image whose decode [`read_film`] could not allocate. What
+/// it allocates beyond the file's bytes (measured): an EXR's pixels twice,
+/// the decoder's copy and the exr crate's (`decoded` bytes each, the whole
+/// display window, f32 RGB or RGBA), and at most that again while they
+/// become the film's 12 bytes a pixel; a PNG's `decoded` bytes, then its
+/// 8-bit RGB copy (3 bytes a pixel) beside them or beside the film's 12.
+/// With room for the decoder's own buffers (a block of rows).
+fn check_memory_to_decode(
+    path: &Path,
+    width: u32,
+    height: u32,
+    decoded: u64,
+    linear: bool,
+) -> Result<(), ImageError> {
+    let pixels = width as u64 * height as u64;
+    let images = if linear {
+        decoded.saturating_mul(2)
+    } else {
+        decoded.saturating_add(3 * pixels).max(15 * pixels)
+    };
+    // 32 rows (the most an EXR block takes) of RGBA f32, compressed and not.
+    let room = (256 << 10) + 2 * 32 * width as u64 * 16;
+    super::memory::check_read_memory(width as u64, height as u64, images.saturating_add(room))
+        .map_err(|message| ImageError::Memory {
+            path: path.to_owned(),
+            message,
+        })
+}
+
+/// The bytes of an image file, at most [`MAX_IMAGE_BYTES`]. A file the
+/// process has too little memory to hold is refused
+/// ([`ImageError::Memory`]).
+pub fn read_image_file(path: &Path) -> Result<Vec<u8>, ImageError> {
+    let size = std::fs::metadata(path)
+        .ok()
+        .filter(|m| m.is_file() && m.len() <= MAX_IMAGE_BYTES)
+        .map_or(0, |m| m.len());
+    super::memory::check_file_memory(size).map_err(|message| ImageError::Memory {
+        path: path.to_owned(),
+        message,
+    })?;
+    super::scene_file::read_bounded(path, MAX_IMAGE_BYTES).map_err(|message| ImageError::Read {
+        path: path.to_owned(),
+        message,
     })
 }
 

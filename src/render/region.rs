@@ -23,7 +23,8 @@ use glam::Vec3;
 
 use super::error::ImageError;
 use super::film::Film;
-use super::output::{MAX_IMAGE_BYTES, write_atomic};
+use super::memory::check_read_memory;
+use super::output::{read_image_file, write_atomic};
 use super::progressive::TileRect;
 use super::scene_file::SceneDesc;
 use super::scene_file::limits::MAX_SIDE;
@@ -164,7 +165,7 @@ pub fn read_part(path: &Path) -> Result<Part, ImageError> {
         path: path.to_owned(),
         message,
     };
-    let bytes = super::scene_file::read_bounded(path, MAX_IMAGE_BYTES).map_err(fail)?;
+    let bytes = read_image_file(path)?;
     if !bytes.starts_with(&[0x76, 0x2f, 0x31, 0x01]) {
         return Err(fail("not an OpenEXR file (a region part is one)".into()));
     }
@@ -219,6 +220,19 @@ pub fn read_part(path: &Path) -> Result<Part, ImageError> {
             display.size.1
         )));
     }
+    // The film (12 bytes a pixel) and a block of the file, compressed and
+    // not (as measured: nothing else of the size of the image).
+    let film_bytes = (data.size.0 as u64 * data.size.1 as u64).saturating_mul(12);
+    let block_bytes = 2 * header.max_block_byte_size() as u64 + (256 << 10);
+    check_read_memory(
+        data.size.0 as u64,
+        data.size.1 as u64,
+        film_bytes.saturating_add(block_bytes),
+    )
+    .map_err(|message| ImageError::Memory {
+        path: path.to_owned(),
+        message,
+    })?;
     let image = exr::prelude::read()
         .no_deep_data()
         .largest_resolution_level()
@@ -307,8 +321,8 @@ pub fn merge(parts: &[(PathBuf, Part)]) -> Result<Film, MergeError> {
     let mut owner: Vec<u16> = Vec::new();
     if film.pixels.try_reserve_exact(pixels).is_err() || owner.try_reserve_exact(pixels).is_err() {
         return err(format!(
-            "not enough memory for the merged {width}×{height} image (about {:.2} GB more than the parts)",
-            pixels as f64 * 14.0 / 1e9
+            "the merged {width}×{height} image needs about {} beyond its parts, more than this process can have",
+            super::memory::amount(pixels.saturating_mul(14))
         ));
     }
     film.pixels.resize(pixels, Vec3::ZERO);

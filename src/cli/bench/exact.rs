@@ -18,7 +18,9 @@ use super::reference::{REFERENCE_RAYS, reference_key};
 use super::{BenchArgs, CliError, build, median, render_once, scenes};
 use crate::render::compare::{compare, diff_image};
 use crate::render::output::{read_film, write_film, write_rgb8};
-use crate::render::{AreaLightModel, Film, REFERENCE_SEED, Sampling, SceneDesc, reference_desc};
+use crate::render::{
+    AreaLightModel, Film, ImageError, REFERENCE_SEED, Sampling, SceneDesc, reference_desc,
+};
 
 /// Renders of 4096 stratified rays averaged into the 65 536-ray reference.
 pub const REFERENCE_RENDERS: u32 = 16;
@@ -34,8 +36,17 @@ pub fn averaged_reference(
     let key = reference_key(desc, AreaLightModel::Sampled, REFERENCE_RAYS);
     let path = cache.join(format!("ref-mean{renders}-sampled-{key}.exr"));
     let (w, h) = (desc.camera.width, desc.camera.height);
-    if !fresh
-        && let Ok(film) = read_film(&path)
+    // A cache entry too large for the memory left is refused: rendering
+    // it again would need more.
+    let cached = if fresh {
+        None
+    } else {
+        match read_film(&path) {
+            Err(e @ ImageError::Memory { .. }) => return Err(CliError::input(e)),
+            read => read.ok(),
+        }
+    };
+    if let Some(film) = cached
         && (film.width, film.height) == (w, h)
     {
         println!("65 536-ray reference: cached {}", path.display());

@@ -11,7 +11,7 @@ use std::time::{Duration, Instant};
 
 use super::{CliError, build, render_once};
 use crate::render::output::{read_film, write_film};
-use crate::render::{AreaLightModel, Film, SceneDesc};
+use crate::render::{AreaLightModel, Film, ImageError, SceneDesc};
 
 pub use crate::render::REFERENCE_RAYS;
 use crate::render::reference_desc;
@@ -60,8 +60,14 @@ pub fn reference(
     let path = cache_dir.join(format!("ref-{}-{key}.exr", model.name()));
     let (w, h) = (desc.camera.width, desc.camera.height);
     if !fresh && path.exists() {
-        // A cache entry of the wrong size (or unreadable) is rendered again.
-        if let Ok(film) = read_film(&path)
+        // A cache entry of the wrong size (or unreadable) is rendered again;
+        // one too large for the memory left is refused (rendering it again
+        // would need more).
+        let cached = match read_film(&path) {
+            Err(e @ ImageError::Memory { .. }) => return Err(CliError::input(e)),
+            read => read,
+        };
+        if let Ok(film) = cached
             && (film.width, film.height) == (w, h)
             && !film.has_non_finite()
         {

@@ -501,11 +501,14 @@ fn an_output_that_is_a_mesh_of_the_scene_is_refused() {
     write_room_with_mesh(&scene, "gm.obj");
     std::os::unix::fs::symlink(&mesh, d.join("mesh-link.png")).unwrap();
     std::os::unix::fs::symlink(&mesh, d.join("mesh-link.csv")).unwrap();
+    // Where `bench --exact` writes its error image for the scene gsc.json.
+    std::os::unix::fs::symlink(&mesh, d.join("exact-error-gsc.png")).unwrap();
     let (scene, out) = (scene.to_str().unwrap(), d.join("o.png"));
     let (out, link) = (out.to_str().unwrap(), d.join("mesh-link.png"));
     let link = link.to_str().unwrap();
     let csv = d.join("mesh-link.csv");
-    let cases: [&[&str]; 3] = [
+    let folder = d.to_str().unwrap();
+    let cases: [&[&str]; 4] = [
         &[
             "render",
             scene,
@@ -518,6 +521,10 @@ fn an_output_that_is_a_mesh_of_the_scene_is_refused() {
         ],
         &["render", scene, "--width", "8", "-o", link],
         &["bench", scene, "--quick", "--csv", csv.to_str().unwrap()],
+        &[
+            "bench", scene, "--exact", "--width", "8", "--runs", "5", "--out", folder, "--cache",
+            folder,
+        ],
     ];
     for args in cases {
         let r = penumbra(args);
@@ -529,6 +536,44 @@ fn an_output_that_is_a_mesh_of_the_scene_is_refused() {
         );
         assert_eq!(std::fs::read(&mesh).unwrap(), before, "{args:?}");
     }
+}
+
+/// An output that is a mesh of the scene is refused once the scene is
+/// read, before any mesh is loaded (a large one takes a while): here a
+/// second mesh that does not parse would otherwise be reported first.
+#[test]
+fn an_output_that_is_a_mesh_is_refused_before_the_meshes_load() {
+    let dir = scratch();
+    let d = dir.path();
+    let mesh = d.join("gm.obj");
+    let r = penumbra(&[
+        "generate",
+        "--triangles",
+        "18",
+        "-o",
+        mesh.to_str().unwrap(),
+    ]);
+    assert!(r.status.success(), "{}", stderr(&r));
+    std::fs::write(d.join("bad.obj"), "v 1 2\n").unwrap();
+    let scene = d.join("two.json");
+    write_room_with_mesh(&scene, "gm.obj");
+    let mut json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&scene).unwrap()).unwrap();
+    let mut bad = json["objects"].as_array().unwrap().last().unwrap().clone();
+    bad["file"] = "bad.obj".into();
+    json["objects"].as_array_mut().unwrap().push(bad);
+    std::fs::write(&scene, json.to_string()).unwrap();
+    std::os::unix::fs::symlink(&mesh, d.join("mesh-link.png")).unwrap();
+    let r = bin()
+        .arg("render")
+        .arg(&scene)
+        .args(["--width", "8", "-o"])
+        .arg(d.join("mesh-link.png"))
+        .output()
+        .unwrap();
+    let err = stderr(&r);
+    assert_eq!(r.status.code(), Some(2), "{err}");
+    assert!(err.contains("is the same file as the mesh"), "{err}");
 }
 
 #[test]

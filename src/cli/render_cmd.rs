@@ -12,13 +12,17 @@ use crate::render::{
 };
 
 /// Loads and builds a scene (the built-in seed room for `None`) with
-/// overrides; also returns the description it was built from.
+/// overrides; also returns the description it was built from. `before_load`
+/// sees the description before its meshes are read, which may take long
+/// (a refusal then comes at once).
 pub fn load_scene(
     path: Option<&Path>,
     overrides: &SceneOverrides,
+    before_load: impl FnOnce(&SceneDesc) -> Result<(), CliError>,
 ) -> Result<(SceneDesc, Loaded), CliError> {
     let filter = overrides.filter()?;
     let desc = load_desc(path, overrides)?;
+    before_load(&desc)?;
     let o = overrides;
     // --scale and --translate go through the same validation as the file;
     // the message says that they made the scene what it is.
@@ -176,19 +180,24 @@ pub fn render(args: &RenderArgs) -> Result<(), CliError> {
             args.output.display()
         )));
     }
-    let (desc, mut loaded) = load_scene(args.scene.as_deref(), &args.overrides)?;
+    // The scene's meshes are inputs too, known once it is read: refused
+    // before they are loaded (a large mesh takes a while).
+    let refuse_mesh_outputs = |desc: &SceneDesc| {
+        let meshes = desc.mesh_files();
+        let meshes: Vec<(&str, &Path)> = meshes.iter().map(|m| ("mesh", m.as_path())).collect();
+        super::safety::refuse_overwriting_inputs(&args.output, "output", &meshes)?;
+        if let Some(stats) = args.stats.as_deref().filter(|s| s.as_os_str() != "-") {
+            super::safety::refuse_overwriting_inputs(stats, "--stats file", &meshes)?;
+        }
+        Ok(())
+    };
+    let (desc, mut loaded) =
+        load_scene(args.scene.as_deref(), &args.overrides, refuse_mesh_outputs)?;
     loaded.settings.skip = !args.no_skip;
     let scene = loaded.scene.clone();
     if let Some(region) = args.region {
         check_region(region, scene.camera.width, scene.camera.height)
             .map_err(|e| CliError::input(format!("--region: {e}")))?;
-    }
-    // The scene's meshes are inputs too, known once it is read.
-    let meshes = desc.mesh_files();
-    let meshes: Vec<(&str, &Path)> = meshes.iter().map(|m| ("mesh", m.as_path())).collect();
-    super::safety::refuse_overwriting_inputs(&args.output, "output", &meshes)?;
-    if let Some(stats) = args.stats.as_deref().filter(|s| s.as_os_str() != "-") {
-        super::safety::refuse_overwriting_inputs(stats, "--stats file", &meshes)?;
     }
     let area = args.region.unwrap_or(TileRect::whole(&scene.camera));
     let threads = args.threads.map(|n| n as usize);

@@ -84,6 +84,10 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
         .next()
         .ok_or_else(|| CliError::input("no scene"))?;
     let d = &scene.desc;
+    // The error image is written after minutes of renders: refused first
+    // if it would overwrite the scene or a mesh.
+    let error_image = args.out.join(format!("exact-error-{}.png", scene.name));
+    super::refuse_overwriting_scene(args, &scene, &error_image, "error image")?;
     println!(
         "exact model on {}: {}×{}, depth {}, {} threads, median of {runs} interleaved runs",
         scene.name,
@@ -145,7 +149,7 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
     );
     std::fs::create_dir_all(&args.out)
         .map_err(|e| CliError::other(format!("{}: {e}", args.out.display())))?;
-    let path = args.out.join(format!("exact-error-{}.png", scene.name));
+    let path = error_image;
     let scale = 5e-4;
     let (rgb, _) =
         diff_image(&exact_report.film, &reference, Some(scale)).map_err(CliError::other)?;

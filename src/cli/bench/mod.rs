@@ -305,6 +305,25 @@ pub fn scenes(args: &BenchArgs) -> Result<Vec<BenchScene>, CliError> {
         .collect()
 }
 
+/// Refuses (exit 2) an output of the bench that is the scene file or one
+/// of the scene's meshes: writing it would destroy an input. Every mode
+/// that writes a file checks it before its work.
+pub fn refuse_overwriting_scene(
+    args: &BenchArgs,
+    scene: &BenchScene,
+    output: &Path,
+    what: &str,
+) -> Result<(), CliError> {
+    let meshes = scene.desc.mesh_files();
+    let inputs: Vec<(&str, &Path)> = args
+        .scene
+        .iter()
+        .map(|s| ("scene", s.as_path()))
+        .chain(meshes.iter().map(|m| ("mesh", m.as_path())))
+        .collect();
+    crate::cli::safety::refuse_overwriting_inputs(output, what, &inputs)
+}
+
 /// Builds the runtime scene of a description.
 pub fn build(desc: &SceneDesc, skip: bool) -> Result<Loaded, CliError> {
     let mut loaded = Loaded::new(desc).map_err(CliError::input)?;

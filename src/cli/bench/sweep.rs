@@ -452,16 +452,9 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
         }
     }
     for scene in &scenes {
-        let meshes = scene.desc.mesh_files();
-        let inputs: Vec<(&str, &Path)> = args
-            .scene
-            .iter()
-            .map(|s| ("scene", s.as_path()))
-            .chain(meshes.iter().map(|m| ("mesh", m.as_path())))
-            .collect();
         for (explicit, ext, what) in [(&args.csv, "csv", "CSV"), (&args.plot, "png", "plot")] {
             let out = output_path(args, explicit, scene, ext);
-            crate::cli::safety::refuse_overwriting_inputs(&out, what, &inputs)?;
+            super::refuse_overwriting_scene(args, scene, &out, what)?;
         }
     }
     let plan = SweepPlan::from_args(args);

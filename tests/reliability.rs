@@ -595,6 +595,78 @@ fn an_output_that_is_the_scene_read_from_standard_input_is_refused() {
     assert_eq!(std::fs::read_to_string(&scene).unwrap(), SEED_ROOM_JSON);
 }
 
+/// A read-only file is not replaced: `generate` replaced it (the write's
+/// rename takes no heed of permissions), and so did `render`. Every
+/// command refuses it before its work (exit 2, naming the file), and a
+/// write that reaches one fails. The mode bits are checked themselves:
+/// root may write any file.
+#[test]
+fn a_read_only_output_is_refused_before_the_work() {
+    use std::os::unix::fs::PermissionsExt;
+    let dir = scratch();
+    let d = dir.path();
+    let file = |name: &str| d.join(name).to_str().unwrap().to_owned();
+    let (part, image) = (file("part.exr"), file("image.png"));
+    let r = penumbra(&["render", "--width", "8", "--region", "0,0,8,4", "-o", &part]);
+    assert!(r.status.success(), "{}", stderr(&r));
+    let r = penumbra(&["render", "--width", "8", "-o", &image]);
+    assert!(r.status.success(), "{}", stderr(&r));
+    let read_only = |name: &str| {
+        let path = d.join(name);
+        std::fs::write(&path, b"precious").unwrap();
+        std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o444)).unwrap();
+        path.to_str().unwrap().to_owned()
+    };
+    let (obj, png, json, exr, diff) = (
+        read_only("ro.obj"),
+        read_only("ro.png"),
+        read_only("ro.json"),
+        read_only("ro.exr"),
+        read_only("diff.png"),
+    );
+    let (out, csv) = (file("o.png"), read_only("ro.csv"));
+    // A render large enough that rendering first would take far longer.
+    let big = ["--width", "4000", "--height", "4000", "--shadow-rays", "1"];
+    let cases: [(Vec<&str>, &str); 6] = [
+        (vec!["generate", "--triangles", "18", "-o", &obj], &obj),
+        ([&["render", "-o", &png][..], &big].concat(), &png),
+        (
+            [&["render", "-o", &out, "--stats", &json][..], &big].concat(),
+            &json,
+        ),
+        (vec!["merge", &part, "-o", &exr], &exr),
+        (vec!["compare", &image, &image, "--diff", &diff], &diff),
+        (vec!["bench", "--quick", "--csv", &csv], &csv),
+    ];
+    for (args, target) in &cases {
+        let r = penumbra(args);
+        let err = stderr(&r);
+        assert_eq!(r.status.code(), Some(2), "{args:?}: {err}");
+        assert!(
+            err.starts_with(&format!("penumbra: {target}: the ")) && err.contains("read-only"),
+            "{args:?}: {err}"
+        );
+        assert_eq!(err.trim().lines().count(), 1, "{err}");
+        assert_eq!(std::fs::read(target).unwrap(), b"precious", "{args:?}");
+    }
+    assert!(!Path::new(&out).exists(), "rendered first");
+    // The write itself refuses one too (made read-only after the checks).
+    let film = Film::new(2, 2);
+    let err = penumbra::render::output::write_film(&film, Path::new(&png)).unwrap_err();
+    assert!(err.to_string().contains("read-only"), "{err}");
+    assert_eq!(std::fs::read(&png).unwrap(), b"precious");
+    // Made writable, it is replaced as any file.
+    std::fs::set_permissions(&obj, std::fs::Permissions::from_mode(0o644)).unwrap();
+    let r = penumbra(&["generate", "--triangles", "18", "-o", &obj]);
+    assert!(r.status.success(), "{}", stderr(&r));
+    assert_ne!(std::fs::read(&obj).unwrap(), b"precious");
+    let leftovers: Vec<String> = files_in(d)
+        .into_iter()
+        .filter(|f| f.ends_with(".part"))
+        .collect();
+    assert!(leftovers.is_empty(), "{leftovers:?}");
+}
+
 #[test]
 fn an_output_link_into_a_missing_folder_or_looping_is_refused_before_rendering() {
     let dir = scratch();

@@ -42,6 +42,7 @@ pub fn compare(args: &CompareArgs) -> Result<(), CliError> {
             )));
         }
         super::safety::refuse_missing_folder(path, "difference image")?;
+        super::safety::refuse_read_only(path, "difference image")?;
         super::safety::refuse_overwriting_inputs(
             path,
             "difference image",

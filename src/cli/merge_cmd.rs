@@ -14,6 +14,7 @@ pub fn merge(args: &MergeArgs) -> Result<(), CliError> {
     super::safety::end_on_signals(INTERRUPTED);
     FileKind::of(&args.output).map_err(CliError::input)?;
     super::safety::refuse_missing_folder(&args.output, "output")?;
+    super::safety::refuse_read_only(&args.output, "output")?;
     let inputs: Vec<(&str, &std::path::Path)> =
         args.parts.iter().map(|p| ("part", p.as_path())).collect();
     super::safety::refuse_overwriting_inputs(&args.output, "output", &inputs)?;

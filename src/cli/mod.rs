@@ -255,6 +255,7 @@ pub fn generate(args: &GenerateArgs) -> Result<(), CliError> {
         )));
     }
     safety::refuse_missing_folder(&args.output, "output")?;
+    safety::refuse_read_only(&args.output, "output")?;
     // SIGINT, SIGTERM and SIGHUP stop the write as they stop render's: no
     // file is written and an existing one is untouched.
     safety::handle_signals(&CancelToken::new());

@@ -168,6 +168,7 @@ pub fn render(args: &RenderArgs) -> Result<(), CliError> {
     super::safety::end_on_signals(INTERRUPTED);
     FileKind::of(&args.output).map_err(CliError::input)?;
     super::safety::refuse_missing_folder(&args.output, "output")?;
+    super::safety::refuse_read_only(&args.output, "output")?;
     if let Some(scene) = &args.scene {
         super::safety::refuse_overwriting_inputs(&args.output, "output", &[("scene", scene)])?;
     }
@@ -341,6 +342,7 @@ fn check_stats_path(stats: &Path, args: &RenderArgs) -> Result<(), CliError> {
         return Ok(());
     }
     super::safety::refuse_missing_folder(stats, "--stats file")?;
+    super::safety::refuse_read_only(stats, "--stats file")?;
     let absolute = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_owned());
     if absolute(stats) == absolute(&args.output) || super::safety::same_file(stats, &args.output) {
         return Err(CliError::input(format!(

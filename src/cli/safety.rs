@@ -152,6 +152,20 @@ pub fn same_file(a: &Path, b: &Path) -> bool {
     }
 }
 
+/// Refuses (exit 2), before any work, an output that is an existing
+/// read-only file: the write at the end would replace it (a rename takes
+/// no heed of the file's permissions), or fail after the work.
+pub fn refuse_read_only(output: &Path, what: &str) -> Result<(), CliError> {
+    if crate::render::output::is_read_only(output) {
+        return Err(CliError::input(format!(
+            "{}: the {what} is {}",
+            output.display(),
+            crate::render::output::READ_ONLY
+        )));
+    }
+    Ok(())
+}
+
 /// Refuses (exit 2), before any work, an output that is a folder or whose
 /// folder is not there: the write at the end would fail after the render.
 /// A folder that is there but cannot be written stays a write error

@@ -208,6 +208,10 @@ pub fn write_atomic(
         return write_in_place(user_path, write).map_err(fail);
     }
     let path = &through_links(user_path).ok_or_else(|| fail(LINK_LOOPS.into()))?;
+    // A rename would replace it, permissions or not.
+    if is_read_only(path) {
+        return Err(fail(READ_ONLY.into()));
+    }
     let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
@@ -283,6 +287,33 @@ pub fn write_atomic(
     put_in_place(tmp, path).map_err(|e| fail(os_message(&e)))?;
     drop(registered);
     Ok(())
+}
+
+/// Why an existing read-only file is not written.
+pub const READ_ONLY: &str = "a read-only file: not replaced (make it writable to allow it)";
+
+/// Whether `path` (through links) is an existing regular file that is
+/// read-only: no write permission bit is set, or the user may not write
+/// it. The bits are checked themselves: root may write any file, and a
+/// rename replaces one whatever its permissions, but a file made
+/// read-only is meant to stay as it is.
+pub fn is_read_only(path: &Path) -> bool {
+    use std::os::unix::ffi::OsStrExt;
+    use std::os::unix::fs::PermissionsExt;
+    let Ok(meta) = std::fs::metadata(path) else {
+        return false;
+    };
+    if !meta.is_file() {
+        return false;
+    }
+    if meta.permissions().mode() & 0o222 == 0 {
+        return true;
+    }
+    let Ok(c) = std::ffi::CString::new(path.as_os_str().as_bytes()) else {
+        return false;
+    };
+    // SAFETY: access(2) on a NUL-terminated path that lives across the call.
+    unsafe { libc::access(c.as_ptr(), libc::W_OK) != 0 }
 }
 
 /// Why a path whose chain of symbolic links never ends is not written.

@@ -449,6 +449,7 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
     for (explicit, what) in [(&args.csv, "CSV"), (&args.plot, "plot")] {
         if let Some(path) = explicit {
             crate::cli::safety::refuse_missing_folder(path, what)?;
+            crate::cli::safety::refuse_read_only(path, what)?;
         }
     }
     for scene in &scenes {

@@ -671,6 +671,51 @@ fn an_option_followed_by_another_option_is_missing_its_value() {
     }
 }
 
+/// A value that looks like an option but was given (with `=`, or inside
+/// a list) is a value, and a bad one: the message says what is wrong with
+/// it, not that it is missing. A region's numbers out of range are named
+/// with their range, as other numbers are.
+#[test]
+fn a_given_value_that_looks_like_an_option_says_what_is_wrong_with_it() {
+    let dir = scratch_dir("given-values");
+    let out = dir.join("x.exr");
+    let out = out.to_str().unwrap();
+    let cases: [(&[&str], &str); 6] = [
+        (
+            &["bench", "--meshes", "18,--quick"],
+            "invalid value '--quick' for '--meshes <MESHES>'",
+        ),
+        (
+            &["bench", "--counts", "1,--quick"],
+            "invalid value '--quick' for '--counts <COUNTS>'",
+        ),
+        (
+            &["render", "--region=--width", "-o", out],
+            "invalid value '--width' for '--region <X,Y,W,H>': \"--width\": expected X,Y,W,H",
+        ),
+        (
+            &["render", "--terms=--adaptive", "-o", out],
+            "invalid value '--adaptive' for '--terms",
+        ),
+        (
+            &["render", "--region", "-1,0,10,10", "-o", out],
+            "X: -1 is not in 0..=16383",
+        ),
+        (
+            &["render", "--region", "0,0,0,5", "-o", out],
+            "W: 0 is not in 1..=16384",
+        ),
+    ];
+    for (args, want) in cases {
+        let o = penumbra(args);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+        assert!(!err.contains("a value is required"), "{args:?}: {err}");
+        assert!(err.contains(want), "{args:?}: {want:?} in {err}");
+    }
+    assert!(files_in(&dir).is_empty());
+}
+
 /// `--filter-width` with `--filter box` is refused: the box has no width,
 /// and the width was dropped without a word.
 #[test]

@@ -320,10 +320,13 @@ impl From<ModelArg> for AreaLightModel {
 
 /// The value parser of a list option that takes values beginning with `-`
 /// (`allow_hyphen_values`, so that `--region -1,0,10,10` reaches the range
-/// check): a value that looks like a long option, `--` and a letter, is
-/// the next option, not this one's value (`--region --width 5`), and is
-/// refused as clap refuses `--width --height 5`: a value is required for
-/// `--region`. Anything else goes to the list's own parser `P`.
+/// check): a value that looks like a long option, `--` and a letter, and
+/// came as the next argument is the next option, not this one's value
+/// (`--region --width 5`), and is refused as clap refuses `--width
+/// --height 5`: a value is required for `--region`. Anything else, given
+/// values that look like options too (`--region=--width`, `--meshes
+/// 18,--quick`), goes to the list's own parser `P`, which says what is
+/// wrong with it.
 #[derive(Clone)]
 pub struct ListValue<P>(pub P);
 
@@ -336,7 +339,8 @@ impl<P: TypedValueParser> TypedValueParser for ListValue<P> {
         arg: Option<&clap::Arg>,
         value: &OsStr,
     ) -> Result<P::Value, clap::Error> {
-        if !is_long_option(value) {
+        let long = arg.and_then(clap::Arg::get_long);
+        if !is_long_option(value) || !long.is_some_and(|l| is_next_argument(l, value)) {
             return self.0.parse_ref(cmd, arg, value);
         }
         // clap's own error for an option without a value: an empty
@@ -351,6 +355,19 @@ impl<P: TypedValueParser> TypedValueParser for ListValue<P> {
         );
         Err(e)
     }
+}
+
+/// Whether `value` came on the command line as the argument after the
+/// option `--long`, on its own (`--region --width`): the next option, not
+/// a value. Given with `=` (`--region=--width`) or inside a list
+/// (`--meshes 18,--quick`) it is a value, and a bad one. clap does not
+/// tell a value parser how the value came; the command line it parses
+/// does.
+fn is_next_argument(long: &str, value: &OsStr) -> bool {
+    let option = format!("--{long}");
+    let args: Vec<std::ffi::OsString> = std::env::args_os().collect();
+    args.windows(2)
+        .any(|w| w[0] == option.as_str() && w[1] == value)
 }
 
 /// Whether `value` looks like a long option's name: `--` and a letter.

@@ -67,7 +67,9 @@ pub fn fingerprint(desc: &SceneDesc, settings: &RenderSettings) -> String {
     format!("{h:016x}")
 }
 
-/// Parses `X,Y,W,H` (pixels, from the top-left corner).
+/// Parses `X,Y,W,H` (pixels, from the top-left corner). A number out of
+/// range is named with its range, as other numbers on the command line
+/// are: `X: -1 is not in 0..=16383`.
 pub fn parse_region(s: &str) -> Result<TileRect, String> {
     let parts: Vec<&str> = s.split(',').map(str::trim).collect();
     if parts.len() != 4 {
@@ -75,18 +77,24 @@ pub fn parse_region(s: &str) -> Result<TileRect, String> {
             "{s:?}: expected X,Y,W,H (four whole numbers of pixels)"
         ));
     }
+    // A corner inside the largest image; a side of at least one pixel.
+    let ranges = [
+        ("X", 0..=MAX_SIDE - 1),
+        ("Y", 0..=MAX_SIDE - 1),
+        ("W", 1..=MAX_SIDE),
+        ("H", 1..=MAX_SIDE),
+    ];
     let mut v = [0u32; 4];
-    for (o, p) in v.iter_mut().zip(&parts) {
-        *o = p
+    for ((o, p), (name, range)) in v.iter_mut().zip(&parts).zip(ranges) {
+        let n: i128 = p
             .parse()
             .map_err(|_| format!("{p:?} is not a whole number of pixels (in X,Y,W,H)"))?;
+        *o = u32::try_from(n)
+            .ok()
+            .filter(|n| range.contains(n))
+            .ok_or_else(|| format!("{name}: {n} is not in {}..={}", range.start(), range.end()))?;
     }
     let [x, y, w, h] = v;
-    if w == 0 || h == 0 {
-        return Err(format!(
-            "{s}: the region's width and height must be at least 1"
-        ));
-    }
     Ok(TileRect { x, y, w, h })
 }
 
@@ -416,8 +424,15 @@ mod tests {
         let r = parse_region("10, 20,30,40").unwrap();
         assert_eq!((r.x, r.y, r.w, r.h), (10, 20, 30, 40));
         assert!(parse_region("1,2,3").unwrap_err().contains("X,Y,W,H"));
-        assert!(parse_region("1,2,0,4").unwrap_err().contains("at least 1"));
-        assert!(parse_region("-1,2,3,4").unwrap_err().contains("\"-1\""));
+        assert_eq!(
+            parse_region("1,2,0,4").unwrap_err(),
+            "W: 0 is not in 1..=16384"
+        );
+        assert_eq!(
+            parse_region("-1,2,3,4").unwrap_err(),
+            "X: -1 is not in 0..=16383"
+        );
+        assert!(parse_region("1,x,3,4").unwrap_err().contains("\"x\""));
         assert!(check_region(r, 40, 60).is_ok());
         assert!(
             check_region(r, 39, 60)

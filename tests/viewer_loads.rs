@@ -399,3 +399,132 @@ fn an_edit_that_rebuilds_the_scene_is_built_under_the_loading_strip_or_refused()
     assert_eq!(h.state().view_settings().hidden, vec![0]);
     assert_eq!(h.state().render_desc(), shown);
 }
+
+/// While a load runs (here an edit's build), the render of the scene
+/// shown pauses, its image kept: its passes and refinement took the cores
+/// the load needs, for an image about to be replaced. Once the load is
+/// cancelled (or fails) the scene shown stays and its refinement goes on.
+#[test]
+fn the_render_pauses_while_a_load_runs_and_goes_on_once_it_is_cancelled() {
+    let mut options = ViewerOptions::new(small_room());
+    // Refines for longer than the test runs.
+    options.refine_spp = 1 << 16;
+    let mut h = harness(options);
+    settle(&mut h);
+    let tiles = h.state().render_tiles_delivered();
+    step_until(&mut h, |v| v.render_tiles_delivered() > tiles);
+
+    h.state().hold_loads_for_tests(true);
+    h.state_mut().edit(|_, v| v.hidden = vec![0]);
+    h.step();
+    assert!(h.state().loading().is_some(), "the edit builds");
+    // Tiles under way when it paused may still arrive.
+    std::thread::sleep(Duration::from_millis(300));
+    h.step();
+    let tiles = h.state().render_tiles_delivered();
+    let image = h.state().shown_image().clone();
+    for _ in 0..10 {
+        std::thread::sleep(Duration::from_millis(50));
+        h.step();
+    }
+    assert_eq!(
+        h.state().render_tiles_delivered(),
+        tiles,
+        "the render went on during the load"
+    );
+    assert_eq!(h.state().shown_image(), &image);
+
+    h.get_by_role_and_label(Role::Button, "Cancel").click();
+    h.step();
+    h.state().hold_loads_for_tests(false);
+    assert!(h.state().view_settings().hidden.is_empty());
+    step_until(&mut h, |v| v.render_tiles_delivered() > tiles);
+}
+
+/// An edit that needs the scene built again and does not build (or whose
+/// build is cancelled) is no undo step: Undo goes back past it to the
+/// edit before, which took effect (it went back to the failed edit).
+#[test]
+fn an_edit_whose_build_fails_or_is_cancelled_is_not_undone() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("a.obj"), common::box_obj([1.0; 3])).unwrap();
+    let path = room_with_mesh(dir.path(), "room.json", "a.obj");
+    let desc = SceneDesc::load(&path).unwrap();
+    let mesh = desc.objects.len() - 1;
+    let set_mesh = move |d: &mut SceneDesc, file: &str| match &mut d.objects[mesh] {
+        penumbra::render::scene_file::ObjectDesc::Mesh(m) => m.file = file.into(),
+        other => panic!("not a mesh: {other:?}"),
+    };
+    let mut options = ViewerOptions::new(desc.clone());
+    options.scene_path = Some(path.clone());
+    let mut h = harness(options);
+    settle(&mut h);
+    h.state_mut().edit(|d, _| d.render.terms.ambient = 0.5);
+    settle(&mut h);
+    let edited = h.state().desc().clone();
+
+    // Fails (frames run while it builds, as when a person edits): the
+    // scene before it stays, and so does the history.
+    h.state().hold_loads_for_tests(true);
+    h.state_mut().edit(|d, _| set_mesh(d, "nope.obj"));
+    h.step();
+    h.step();
+    h.state().hold_loads_for_tests(false);
+    settle(&mut h);
+    assert!(h.state().banner().is_some());
+    assert_eq!(h.state().desc(), &edited);
+    assert!(h.state_mut().undo());
+    assert_eq!(h.state().desc(), &desc);
+    assert!(h.state_mut().redo());
+    assert_eq!(h.state().desc(), &edited);
+    settle(&mut h);
+
+    // Cancelled: the same.
+    h.state().hold_loads_for_tests(true);
+    h.state_mut().edit(|_, v| v.hidden = vec![0]);
+    h.step();
+    h.get_by_role_and_label(Role::Button, "Cancel").click();
+    h.step();
+    h.state().hold_loads_for_tests(false);
+    settle(&mut h);
+    assert!(h.state().view_settings().hidden.is_empty());
+    assert!(h.state_mut().undo());
+    assert_eq!(h.state().desc(), &desc);
+    settle(&mut h);
+
+    // Undone while it builds: dropped, and the redo is still there.
+    h.state().hold_loads_for_tests(true);
+    h.state_mut().edit(|_, v| v.hidden = vec![0]);
+    h.step();
+    assert!(h.state_mut().undo());
+    h.step();
+    h.state().hold_loads_for_tests(false);
+    settle(&mut h);
+    assert!(h.state().view_settings().hidden.is_empty());
+    assert_eq!(h.state().desc(), &desc);
+    assert!(h.state_mut().redo());
+    assert_eq!(h.state().desc(), &edited);
+    settle(&mut h);
+}
+
+/// A render that fails on an object names it by its place in the scene
+/// (and the object list), hidden objects counted: the render's scene
+/// leaves them out, and named it by its place there.
+#[test]
+fn a_failed_render_names_the_object_by_its_place_in_the_scene() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = room_with_mesh(dir.path(), "room.json", "nope.obj");
+    let desc = SceneDesc::load(&path).unwrap();
+    let mesh = desc.objects.len() - 1;
+    let mut viewer = Viewer::new(ViewerOptions::new(desc));
+    // The first render, built by the render worker, without the first
+    // object.
+    viewer.edit(|_, v| v.hidden = vec![0]);
+    let mut h = harness_of(viewer);
+    step_until(&mut h, |v| v.banner().is_some());
+    let banner = h.state().banner().unwrap().to_string();
+    assert!(
+        banner.contains(&format!("objects[{mesh}].file")),
+        "{banner}"
+    );
+}

@@ -7,6 +7,10 @@
 //! Requests go through a one-slot mailbox: a new request cancels the
 //! running render and overwrites any request still waiting, so rapid slider
 //! drags never queue stale renders (at most one running, one pending).
+//!
+//! While a scene loads or an edit builds, the render of the scene shown is
+//! paused (see [`RenderJob::pause`]): its passes and refinement would take
+//! the cores the load needs, for an image about to be replaced.
 
 use std::panic::AssertUnwindSafe;
 use std::sync::Arc;
@@ -14,6 +18,7 @@ use std::time::{Duration, Instant};
 
 use egui::Color32;
 
+use super::settings::numbered_as_edited;
 use super::worker::{Shared, Stop, Worker};
 use crate::render::progressive::{CancelToken, RenderOptions, TileRect};
 use crate::render::{
@@ -82,6 +87,9 @@ pub struct FinishedRender {
 struct Request {
     generation: u64,
     desc: SceneDesc,
+    /// The objects of the scene as edited that `desc` leaves out (hidden),
+    /// sorted: an error names an object by its place among them.
+    hidden: Vec<usize>,
     /// A scene already built (by the loader thread), with the description
     /// it was built for: rendered over instead of building it again.
     built: Option<(SceneDesc, Loaded)>,
@@ -119,6 +127,11 @@ struct State {
     refine_to: u32,
     /// How tiles are converted for the screen.
     display: DisplayTransform,
+    /// While set, the render of this generation (or an older one) and any
+    /// refinement wait at their next tile.
+    paused: Option<u64>,
+    /// Tiles handed to the UI since the worker started.
+    tiles_delivered: u64,
     /// The last finished render a newer request replaced: its image goes
     /// back to the live render to be written over (a fresh one maps and
     /// faults in new pages: milliseconds per edit).
@@ -180,13 +193,19 @@ impl RenderJob {
     /// Cancels whatever runs or waits and asks for a render of `desc`;
     /// returns its generation.
     pub fn restart(&self, desc: SceneDesc) -> u64 {
-        self.restart_built(desc, None)
+        self.restart_built(desc, Vec::new(), None)
     }
 
-    /// As [`restart`](Self::restart), over `built`: a scene built for the
-    /// description it comes with (a request that replaces this one before
-    /// the worker takes it drops it).
-    pub fn restart_built(&self, desc: SceneDesc, built: Option<(SceneDesc, Loaded)>) -> u64 {
+    /// As [`restart`](Self::restart), for a scene whose objects `hidden`
+    /// (sorted indices) `desc` leaves out, over `built`: a scene built for
+    /// the description it comes with (a request that replaces this one
+    /// before the worker takes it drops it).
+    pub fn restart_built(
+        &self,
+        desc: SceneDesc,
+        hidden: Vec<usize>,
+        built: Option<(SceneDesc, Loaded)>,
+    ) -> u64 {
         let mut s = self.inner().lock();
         if let Some(c) = &s.running {
             c.cancel();
@@ -205,6 +224,7 @@ impl RenderJob {
         s.pending = Some(Request {
             generation,
             desc,
+            hidden,
             built,
             cancel: CancelToken::new(),
             at: Instant::now(),
@@ -214,6 +234,26 @@ impl RenderJob {
         s.tiles.clear();
         self.inner().notify();
         generation
+    }
+
+    /// Pauses the render under way and its refinement at their next tile,
+    /// keeping what they did (a load needs the cores; the image shown
+    /// stays). A newer request is rendered, but not refined, until
+    /// [`resume`](Self::resume).
+    pub fn pause(&self) {
+        let mut s = self.inner().lock();
+        s.paused = Some(s.latest);
+    }
+
+    /// Goes on with what [`pause`](Self::pause) stopped.
+    pub fn resume(&self) {
+        self.inner().lock().paused = None;
+        self.inner().notify();
+    }
+
+    /// Tiles the worker has handed to the UI (renders and refinements).
+    pub fn tiles_delivered(&self) -> u64 {
+        self.inner().lock().tiles_delivered
     }
 
     /// Takes the tiles finished since the last call (latest generation only).
@@ -457,6 +497,13 @@ fn at_samples(desc: &SceneDesc, spp: u32) -> SceneDesc {
 /// a newer request replaced `generation`.
 fn deliver(inner: &Inner, req: &Request, t: &TileUpdate, samples: u32, refinement: bool) {
     let generation = req.generation;
+    // Paused: this render thread waits here, its work kept, until resumed,
+    // replaced by a newer request or stopped.
+    inner.wait_while(|s| {
+        !s.shutdown
+            && s.latest == generation
+            && s.paused.is_some_and(|p| refinement || generation <= p)
+    });
     let display = inner.lock().display;
     // Convert on the worker: the UI only copies bytes into the texture.
     let mut pixels = Vec::with_capacity(t.pixels.len());
@@ -473,6 +520,7 @@ fn deliver(inner: &Inner, req: &Request, t: &TileUpdate, samples: u32, refinemen
         {
             film.write_block(t.rect.x, t.rect.y, t.rect.w, t.pixels);
         }
+        s.tiles_delivered += 1;
         if !matches!(s.first_tile, Some((g, _)) if g == generation) {
             s.first_tile = Some((generation, req.at.elapsed()));
         }
@@ -615,7 +663,7 @@ fn run_one(
                     kept.level = 0;
                     Ok(None)
                 }
-                Err(LiveError::Scene(e)) => Err(e.to_string()),
+                Err(LiveError::Scene(e)) => Err(numbered_as_edited(e, &req.hidden).to_string()),
             };
         }
     }
@@ -636,7 +684,7 @@ fn run_one(
     match result {
         Ok(report) => Ok(Some((report, spp, false))),
         Err(LiveError::Cancelled(_)) => Ok(None),
-        Err(LiveError::Scene(e)) => Err(e.to_string()),
+        Err(LiveError::Scene(e)) => Err(numbered_as_edited(e, &req.hidden).to_string()),
     }
 }
 

@@ -24,7 +24,7 @@ use std::sync::{Arc, Condvar, Mutex};
 use std::time::{Duration, Instant};
 
 use super::object_list::mesh_object;
-use super::settings::ViewSettings;
+use super::settings::{ViewSettings, numbered_as_edited};
 use super::viewer::merge_reload;
 use crate::render::scene_file::ObjectDesc;
 use crate::render::{Loaded, SceneDesc};
@@ -317,40 +317,13 @@ fn build(
     }
     let loaded = Loaded::new(&shown).map_err(|e| {
         // A mesh's error names its own file; say which scene it is in.
-        let e = with_scene_indices(e, &view.hidden).to_string();
+        let e = numbered_as_edited(e, &view.hidden).to_string();
         match path.to_str() {
             Some(p) if e.contains(p) => e,
             _ => format!("{}: {e}", path.display()),
         }
     })?;
     Ok((shown, loaded))
-}
-
-/// `error` of the scene shown, with the object it names (`objects[2]`,
-/// counted among the objects shown) named by its place in the scene as
-/// edited, which also holds the `hidden` ones.
-fn with_scene_indices(
-    mut error: crate::render::SceneError,
-    hidden: &[usize],
-) -> crate::render::SceneError {
-    let Some(rest) = error.path.strip_prefix("objects[") else {
-        return error;
-    };
-    let Some((index, tail)) = rest.split_once(']') else {
-        return error;
-    };
-    let Ok(shown) = index.parse::<usize>() else {
-        return error;
-    };
-    // `hidden` is sorted: each hidden index at or before the object moves it on.
-    let mut index = shown;
-    for &h in hidden {
-        if h <= index {
-            index += 1;
-        }
-    }
-    error.path = format!("objects[{index}]{tail}");
-    error
 }
 
 /// The strip shown while a load runs: what, how long, and Cancel; true if

@@ -6,7 +6,7 @@
 //! ([`PREVIEW_MAX_PIXELS`]). [`ViewSettings::apply`] is the only place
 //! they meet the scene.
 
-use crate::render::SceneDesc;
+use crate::render::{SceneDesc, SceneError};
 
 /// The most pixels the viewer renders and shows (a 4K screen's): a larger
 /// scene is previewed at this many, its proportions kept, and written at
@@ -122,9 +122,63 @@ impl ViewSettings {
     }
 }
 
+/// `error` of the scene shown (hidden objects left out), with the objects
+/// it names (`objects[2]`, counted among the objects shown: its path, and
+/// the object a size limit blames) named by their place in the scene as
+/// edited, which also holds the `hidden` ones: the place the object list
+/// and the scene file give them.
+pub fn numbered_as_edited(mut error: SceneError, hidden: &[usize]) -> SceneError {
+    if hidden.is_empty() {
+        return error;
+    }
+    if let Some(path) = renumbered_after(&error.path, "", hidden) {
+        error.path = path;
+    }
+    // Scene-size limits name the object that makes the scene that large.
+    if let Some(message) = renumbered_after(&error.message, "because of ", hidden) {
+        error.message = message;
+    }
+    error
+}
+
+/// `text` with the object index of the first `{before}objects[i]` in it
+/// counted in the scene with the `hidden` objects; `None` if there is
+/// none.
+fn renumbered_after(text: &str, before: &str, hidden: &[usize]) -> Option<String> {
+    let marker = format!("{before}objects[");
+    let at = text.find(&marker)? + marker.len();
+    let (index, tail) = text[at..].split_once(']')?;
+    let shown = index.parse::<usize>().ok()?;
+    // `hidden` is sorted: each hidden index at or before the object moves it on.
+    let mut index = shown;
+    for &h in hidden {
+        if h <= index {
+            index += 1;
+        }
+    }
+    Some(format!("{}{index}]{tail}", &text[..at]))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn an_error_names_objects_by_their_place_among_the_hidden_ones() {
+        let error = SceneError::new(
+            "objects[1].radius",
+            "x is small; the scene is that large because of objects[2], a sphere",
+        );
+        let e = numbered_as_edited(error.clone(), &[0, 2, 5]);
+        assert_eq!(e.path, "objects[3].radius");
+        assert_eq!(
+            e.message,
+            "x is small; the scene is that large because of objects[4], a sphere"
+        );
+        assert_eq!(numbered_as_edited(error.clone(), &[]), error);
+        let whole = SceneError::new("light.edge_u", "too small");
+        assert_eq!(numbered_as_edited(whole.clone(), &[0]), whole);
+    }
 
     #[test]
     fn a_preview_larger_than_a_display_is_shrunk_with_its_proportions() {

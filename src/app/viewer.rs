@@ -32,7 +32,7 @@ use super::reference::{
 };
 use super::render_job::{JobState, RenderJob};
 use super::scene_loader::{Built, LoadKind, LoadResult, SceneLoads, progress_ui};
-use super::settings::{ViewSettings, preview_size};
+use super::settings::{ViewSettings, numbered_as_edited, preview_size};
 use super::shortcuts::{self, Command, help_ui};
 use super::status::{Progress, status_ui};
 use super::timings::Timings;
@@ -190,6 +190,8 @@ pub struct Viewer {
     loads: SceneLoads,
     /// The scene a load built, for the next render to start from.
     built: Option<Built>,
+    /// The render is paused for a load (see [`RenderJob::pause`]).
+    render_paused: bool,
     /// The scene file the launch is opening, until it arrives.
     launch: Option<Launching>,
     /// The build of an edit that needs the scene built again, under way.
@@ -430,6 +432,7 @@ impl Viewer {
         Viewer {
             home_camera: desc.camera.clone(),
             reach: None,
+            render_paused: false,
             replaced: None,
             view: ViewSettings::for_scene(&desc),
             progress: Progress::new(desc.render.sampling, desc.render.area_light_model),
@@ -564,6 +567,11 @@ impl Viewer {
         self.job.as_ref().and_then(RenderJob::running_desc)
     }
 
+    /// Tiles the render worker has delivered (renders and refinements).
+    pub fn render_tiles_delivered(&self) -> u64 {
+        self.job.as_ref().map_or(0, RenderJob::tiles_delivered)
+    }
+
     /// How many renders the worker actually started.
     pub fn renders_started(&self) -> u64 {
         self.job.as_ref().map_or(0, RenderJob::renders_started)
@@ -665,8 +673,20 @@ impl Viewer {
         }
     }
 
-    /// Goes back one step; false if there is none.
+    /// Whether the scene as edited waits for its build: an edit that has
+    /// not taken effect yet, and may not (the build fails or is cancelled),
+    /// so it is no undo step until it does.
+    fn edit_pending(&self) -> bool {
+        self.rebuild.is_some() && !self.history.is_baseline(&self.desc, &self.view)
+    }
+
+    /// Goes back one step; false if there is none. An edit still being
+    /// built is dropped instead (it never took effect).
     pub fn undo(&mut self) -> bool {
+        if self.edit_pending() {
+            let before = self.history.baseline().clone();
+            return self.restore(before, "undo");
+        }
         let current = self.snapshot();
         match self.history.undo(&current) {
             Some(s) => self.restore(s, "undo"),
@@ -674,9 +694,14 @@ impl Viewer {
         }
     }
 
-    /// Goes forward one undone step; false if there is none.
+    /// Goes forward one undone step; false if there is none. An edit still
+    /// being built is dropped first (it never took effect).
     pub fn redo(&mut self) -> bool {
-        let current = self.snapshot();
+        let current = if self.edit_pending() {
+            self.history.baseline().clone()
+        } else {
+            self.snapshot()
+        };
         match self.history.redo(&current) {
             Some(s) => self.restore(s, "redo"),
             None => false,
@@ -942,7 +967,7 @@ impl Viewer {
                 })
             }
         }
-        let generation = job.restart_built(desc, built);
+        let generation = job.restart_built(desc, self.view.hidden.clone(), built);
         self.timings.on_change(generation, size);
         let shown_size = [size.0 as usize, size.1 as usize];
         if self.shown.size != shown_size {
@@ -1055,6 +1080,24 @@ impl Viewer {
         if unbuilt {
             self.restart();
         }
+    }
+
+    /// Pauses the render while a load runs, so that the load has the cores
+    /// (the image shown stays), and lets it go on once the load ended: a
+    /// load that failed or was cancelled leaves the scene shown, whose
+    /// render and refinement go on where they stopped.
+    fn pause_render_while_loading(&mut self) {
+        let loading = self.loads.busy().is_some();
+        if loading == self.render_paused {
+            return;
+        }
+        let Some(job) = &self.job else { return };
+        if loading {
+            job.pause();
+        } else {
+            job.resume();
+        }
+        self.render_paused = loading;
     }
 
     /// Blocks until every load thread ended (tests only); the next frame
@@ -1664,7 +1707,8 @@ impl Viewer {
         let checked = if self.view.hidden.is_empty() {
             self.desc.validate()
         } else {
-            self.view.apply(&self.desc, true).validate()
+            (self.view.apply(&self.desc, true).validate())
+                .map_err(|e| numbered_as_edited(e, &self.view.hidden))
         };
         let (Err(e), Some(accepted)) = (checked, self.accepted.take()) else {
             if std::mem::take(&mut self.banner_from_edit) {
@@ -1950,6 +1994,7 @@ impl Viewer {
         if changed {
             self.commit_edit();
         }
+        self.pause_render_while_loading();
 
         // A drag, a wheel scroll or a walk (W/A/S/D held) is one undo step,
         // closed when it ends.
@@ -1961,7 +2006,9 @@ impl Viewer {
                     .any(|&(k, _, _)| i.key_down(k))
         });
         // (A copy of the scene only when it changed: it may be 10⁶ objects.)
-        if !gesture && !self.history.is_baseline(&self.desc, &self.view) {
+        // An edit being built is a step once built: one that fails or is
+        // cancelled goes back to the last step and leaves none.
+        if !gesture && !self.edit_pending() && !self.history.is_baseline(&self.desc, &self.view) {
             let snapshot = self.snapshot();
             self.history.observe(&snapshot, false);
         }

@@ -40,6 +40,15 @@ impl<S> Shared<S> {
         true
     }
 
+    /// Blocks while `hold` holds, looking again at each notify (the worker
+    /// pausing part-way through its work).
+    pub fn wait_while(&self, hold: impl Fn(&S) -> bool) {
+        let mut s = self.lock();
+        while hold(&s) {
+            s = self.wake.wait(s).unwrap_or_else(|e| e.into_inner());
+        }
+    }
+
     /// The worker's next piece of work: `take` removes it from the state
     /// (and marks it started); waits while there is none. `None` once the
     /// worker is told to stop.

@@ -1570,6 +1570,38 @@ fn the_light_size_controls_cover_every_size_the_loader_takes() {
     assert_eq!(h.state().desc().light, light);
 }
 
+/// A number field whose value costs a re-render (or may be refused) takes
+/// a typed value on Enter, not at each key: typing 64 shadow rays rendered
+/// 6 rays first, and 0.25 as the resolution scale rendered at 0.1 on the
+/// way.
+#[test]
+fn a_typed_number_applies_on_enter_not_at_each_key() {
+    let mut h = harness(ViewerOptions::new(small_room()));
+    settle(&mut h);
+    for (slider, typed) in [
+        ("Shadow rays", "64"),
+        ("Resolution scale", "0.25"),
+        ("Max depth", "12"),
+        ("Light width", "2.5"),
+        ("Material shininess", "250"),
+        ("Reflectivity", "0.25"),
+    ] {
+        let requests = h.state().render_generation();
+        type_keys_into(&mut h, |h| slider_field(h, slider), typed);
+        assert_eq!(
+            h.state().render_generation(),
+            requests + 1,
+            "{slider}: {typed} rendered on the way"
+        );
+    }
+    let d = h.state().desc();
+    assert_eq!((d.render.shadow_rays, d.render.max_depth), (64, 12));
+    assert_eq!(h.state().view_settings().resolution_scale, 0.25);
+    assert!((length(d.light.edge_u) - 2.5).abs() < 1e-12);
+    let material = d.materials.values().find(|m| m.shininess == 250.0);
+    assert_eq!(material.map(|m| m.reflectivity), Some(0.25));
+}
+
 /// An edit the loader would refuse for a limit across fields (a light
 /// centre of 1e9 makes the scene so large that the room's sphere falls
 /// below its size floor) is refused with a banner naming the field and

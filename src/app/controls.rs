@@ -39,6 +39,8 @@ fn shininess_slider<'a>(value: &'a mut f64, text: &str) -> Slider<'a> {
 /// can leave the format's range (a scene saved with one would not load).
 /// The term strengths' rail is 0–10 of the format's 0–10⁶, so that a drag
 /// stays fine while the number field takes any value the format does.
+/// A typed value is taken on Enter or on leaving the field (see
+/// [`typed_on_enter`]); a drag applies as it goes.
 fn slider_within<'a, N: egui::emath::Numeric>(
     value: &'a mut N,
     rail: RangeInclusive<N>,
@@ -54,6 +56,7 @@ fn slider_within<'a, N: egui::emath::Numeric>(
     })
     .clamping(SliderClamping::Never)
     .custom_parser(parse_finite);
+    let slider = typed_on_enter(slider);
     if N::INTEGRAL {
         slider.integer()
     } else {
@@ -79,7 +82,7 @@ fn light_size_slider<'a>(len: &'a mut f64, edge: [f64; 3], text: &str) -> Slider
     };
     let max = max.max(LIGHT_SIZE_MIN);
     let fine_step = *len * 0.005;
-    Slider::from_get_set(LIGHT_SIZE_MIN..=max, move |new| {
+    let slider = Slider::from_get_set(LIGHT_SIZE_MIN..=max, move |new| {
         if let Some(x) = new.filter(|x| x.is_finite())
             && six_digits(x) != six_digits(*len)
         {
@@ -92,7 +95,17 @@ fn light_size_slider<'a>(len: &'a mut f64, edge: [f64; 3], text: &str) -> Slider
     .drag_value_speed(fine_step)
     .custom_parser(parse_finite)
     .custom_formatter(|x, _| six_digits(x))
-    .text(text)
+    .text(text);
+    typed_on_enter(slider)
+}
+
+/// `slider` with its number field taking a typed value on Enter or on
+/// leaving the field, not at each key: typing 4096 shadow rays rendered 4,
+/// 40 and 409 first (each a full re-render), typing 0.25 as the resolution
+/// scale rendered at 0.1 on the way, and a light size typed key by key
+/// could be refused half-way (the value before the typing then lost).
+fn typed_on_enter(slider: Slider<'_>) -> Slider<'_> {
+    slider.update_while_editing(false)
 }
 
 /// A number to six significant digits, in plain notation from 10⁻³ to
@@ -213,7 +226,10 @@ pub fn controls_ui(
                         changed |= ui
                             .add(
                                 slider_within(strength, 0.0..=10.0, 0.0..=MAX_COLOUR)
-                                    .text(format!("{label} strength")),
+                                    .text(format!("{label} strength"))
+                                    // A recombine of the recorded paths:
+                                    // cheap enough to follow the typing.
+                                    .update_while_editing(true),
                             )
                             .changed();
                     });
@@ -300,11 +316,11 @@ pub fn controls_ui(
                     .changed();
             });
             changed |= ui
-                .add(
+                .add(typed_on_enter(
                     Slider::new(&mut view.resolution_scale, ViewSettings::SCALE_RANGE)
                         .custom_parser(parse_finite)
                         .text("Resolution scale"),
-                )
+                ))
                 .on_hover_text(
                     "Preview size relative to the scene's camera; export is always full size",
                 )

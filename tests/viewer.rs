@@ -1530,14 +1530,25 @@ fn the_light_size_controls_cover_every_size_the_loader_takes() {
     };
     assert_eq!(value(&h, "Light width"), "50");
     assert_eq!(value(&h, "Light depth"), "0.004");
-    // The handle shows the value, inside the rail.
+    // The handles show the values, inside rails around the room's size
+    // (a few decades: a drag moves the size finely where lights are),
+    // which reach out to a size beyond them.
     use egui_kittest::kittest::NodeT;
-    let width = h
-        .get_by_role_and_label(Role::Slider, "Light width")
-        .accesskit_node();
-    assert_eq!(width.numeric_value(), Some(50.0));
-    assert!(width.max_numeric_value().unwrap() > 0.999 * MAX_COORD);
-    assert!(width.min_numeric_value().unwrap() <= 1e-9);
+    let rail = |h: &Harness<'static, Viewer>, slider: &str| {
+        let node = h.get_by_role_and_label(Role::Slider, slider);
+        let node = node.accesskit_node();
+        let (lo, hi) = (
+            node.min_numeric_value().unwrap(),
+            node.max_numeric_value().unwrap(),
+        );
+        (lo, node.numeric_value().unwrap(), hi)
+    };
+    let (lo, at, hi) = rail(&h, "Light width");
+    assert_eq!(at, 50.0);
+    assert!(lo <= 1.0 && hi >= 50.0 && hi / lo <= 1e3, "{lo}..{hi}");
+    let (lo, at, hi) = rail(&h, "Light depth");
+    assert_eq!(at, 0.004);
+    assert!(lo == 0.004 && (50.0..=1e3).contains(&hi), "{lo}..{hi}");
 
     set_slider(&mut h, "Light width", 60.0);
     assert!((length(h.state().desc().light.edge_u) - 60.0).abs() < 1e-9);
@@ -1561,6 +1572,15 @@ fn the_light_size_controls_cover_every_size_the_loader_takes() {
                 .contains("light.edge_v: length 1.000e-3 is below the smallest supported size"),
         "{banner}"
     );
+    // Typed: the shortest length any scene takes, 1e-15, below this
+    // one's floor: refused, named (the field takes it).
+    type_into(&mut h, |h| slider_field(h, "Light depth"), "1e-20");
+    assert_eq!(h.state().desc().light, light);
+    let banner = h.state().banner().expect("a banner").to_string();
+    assert!(
+        banner.contains("light.edge_v: length 1.000e-15 is below the smallest supported size"),
+        "{banner}"
+    );
     // Its number field shows six digits; entering them again changes
     // nothing.
     set_slider(&mut h, "Light width", 1234.56789);
@@ -1568,6 +1588,38 @@ fn the_light_size_controls_cover_every_size_the_loader_takes() {
     assert_eq!(value(&h, "Light width"), "1234.57");
     type_into(&mut h, |h| slider_field(h, "Light width"), "1234.57");
     assert_eq!(h.state().desc().light, light);
+}
+
+/// The light width's slider spans a few decades around the room's size,
+/// so that a drag of a few points changes a light of a usual size by a
+/// little (over the 24 decades the loader takes, 10 points multiplied it
+/// by hundreds), and the rail holds still under the drag.
+#[test]
+fn dragging_the_light_width_changes_it_finely() {
+    let mut h = harness(ViewerOptions::new(small_room()));
+    settle(&mut h);
+    let width = |h: &Harness<'static, Viewer>| length(h.state().desc().light.edge_u);
+    let rail = h.get_by_role_and_label(Role::Slider, "Light width").rect();
+    let from = rail.center();
+    h.drag_at(from);
+    h.step();
+    let at = width(&h);
+    for k in 1..=5 {
+        h.hover_at(from + egui::vec2(2.0 * k as f32, 0.0));
+        h.step();
+    }
+    let moved = width(&h);
+    h.drop_at(from + egui::vec2(10.0, 0.0));
+    h.step();
+    assert!(
+        (0.05..5.0).contains(&at) && moved > at && moved / at < 2.0,
+        "{at} -> {moved}"
+    );
+    assert_eq!(
+        width(&h),
+        moved,
+        "the rail moved under the drag {at} {moved}"
+    );
 }
 
 /// A number field whose value costs a re-render (or may be refused) takes

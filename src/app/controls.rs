@@ -64,25 +64,29 @@ fn slider_within<'a, N: egui::emath::Numeric>(
     }
 }
 
+/// The light's width or depth rail spans these fractions of the scene's
+/// size: two decades and a bit, where lights are (a room 10 across: 0.1
+/// to 20), so that a drag of ten points changes a size by about half
+/// (over the loader's 24 decades, by hundreds of times).
+const LIGHT_RAIL_BELOW: f64 = 1e-2;
+const LIGHT_RAIL_ABOVE: f64 = 2.0;
+
 /// The light's width or depth, `len`, the length of `edge`: a logarithmic
-/// slider over every length the loader takes for it, from
-/// [`LIGHT_SIZE_MIN`] to the one that puts the edge's largest component at
-/// [`MAX_COORD`], so that a loaded light of any size shows where it is and
-/// can be reached by a drag. The rail spans 24 decades, so its number
-/// field drags finely instead: half a percent of the size per point. A
-/// value it only shows is never changed: the field shows six digits, and
-/// entering them again keeps the value.
-fn light_size_slider<'a>(len: &'a mut f64, edge: [f64; 3], text: &str) -> Slider<'a> {
-    let largest = edge.iter().fold(0.0f64, |m, c| m.max(c.abs()));
-    // A hair below, so that rounding cannot lift a component past it.
-    let max = if largest > 0.0 && len.is_finite() {
-        MAX_COORD * (*len / largest) * (1.0 - 1e-12)
-    } else {
-        MAX_COORD
-    };
-    let max = max.max(LIGHT_SIZE_MIN);
+/// slider over `rail` (see [`light_rail`]) whose number field takes every
+/// length the loader takes for it, from [`LIGHT_SIZE_MIN`] to the one that
+/// puts the edge's largest component at [`MAX_COORD`]; its drag is fine:
+/// half a percent of the size per point. A value it only shows is never
+/// changed: the field shows six digits, and entering them again keeps the
+/// value.
+fn light_size_slider<'a>(
+    len: &'a mut f64,
+    edge: [f64; 3],
+    rail: (f64, f64),
+    text: &str,
+) -> Slider<'a> {
+    let max = light_size_max(*len, edge);
     let fine_step = *len * 0.005;
-    let slider = Slider::from_get_set(LIGHT_SIZE_MIN..=max, move |new| {
+    let slider = Slider::from_get_set(rail.0..=rail.1, move |new| {
         if let Some(x) = new.filter(|x| x.is_finite())
             && six_digits(x) != six_digits(*len)
         {
@@ -97,6 +101,31 @@ fn light_size_slider<'a>(len: &'a mut f64, edge: [f64; 3], text: &str) -> Slider
     .custom_formatter(|x, _| six_digits(x))
     .text(text);
     typed_on_enter(slider)
+}
+
+/// The longest width or depth the loader takes for a light edge `edge` of
+/// length `len`: the one that puts its largest component at [`MAX_COORD`].
+fn light_size_max(len: f64, edge: [f64; 3]) -> f64 {
+    let largest = edge.iter().fold(0.0f64, |m, c| m.max(c.abs()));
+    // A hair below, so that rounding cannot lift a component past it.
+    let max = if largest > 0.0 && len.is_finite() {
+        MAX_COORD * (len / largest) * (1.0 - 1e-12)
+    } else {
+        MAX_COORD
+    };
+    max.max(LIGHT_SIZE_MIN)
+}
+
+/// The rail of a light size slider: around `scene_size` (see
+/// [`LIGHT_RAIL_BELOW`]), reaching out to `len` if it lies beyond, so
+/// that the handle shows where a loaded or typed size is; within what the
+/// loader takes.
+fn light_rail(scene_size: f64, len: f64, edge: [f64; 3]) -> (f64, f64) {
+    let max = light_size_max(len, edge);
+    let len = len.clamp(LIGHT_SIZE_MIN, max);
+    let lo = (scene_size * LIGHT_RAIL_BELOW).min(len).max(LIGHT_SIZE_MIN);
+    let hi = (scene_size * LIGHT_RAIL_ABOVE).max(len).min(max);
+    (lo, hi.max(lo))
 }
 
 /// `slider` with its number field taking a typed value on Enter or on
@@ -161,6 +190,15 @@ pub struct ControlsOutput {
 pub struct ControlsState {
     /// Material selected in the editor.
     pub material: String,
+    /// The scene's size (the largest side of the box around the light and
+    /// the bounded objects; set by the viewer each frame): the light size
+    /// sliders span around it.
+    pub scene_size: f64,
+    /// The light width's and depth's rails as last drawn: kept while the
+    /// pointer is down and as it is released, since a rail that follows
+    /// the size dragged (the scene's size grows with the light) would move
+    /// under the pointer.
+    light_rails: [Option<(f64, f64)>; 2],
 }
 
 pub fn controls_ui(
@@ -337,7 +375,7 @@ pub fn controls_ui(
 
     egui::CollapsingHeader::new("Light")
         .default_open(true)
-        .show(ui, |ui| changed |= light_ui(ui, desc));
+        .show(ui, |ui| changed |= light_ui(ui, state, desc));
 
     egui::CollapsingHeader::new("Materials")
         .default_open(true)
@@ -348,7 +386,7 @@ pub fn controls_ui(
 }
 
 /// Position (centre) and size of the light rectangle.
-fn light_ui(ui: &mut Ui, desc: &mut SceneDesc) -> bool {
+fn light_ui(ui: &mut Ui, state: &mut ControlsState, desc: &mut SceneDesc) -> bool {
     let l = &mut desc.light;
     let len = |v: [f64; 3]| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
     let mut centre: [f64; 3] =
@@ -378,11 +416,18 @@ fn light_ui(ui: &mut Ui, desc: &mut SceneDesc) -> bool {
     });
     // Sizes are relative to the light's own edges, so any light works.
     let (edge_u, edge_v) = (l.edge_u, l.edge_v);
+    let scene_size = state.scene_size.max(MIN_SCENE_SIZE);
+    let dragging = ui.input(|i| i.pointer.any_down() || i.pointer.any_released());
+    let mut rail = |k: usize, len: f64, edge: [f64; 3]| match state.light_rails[k] {
+        Some(r) if dragging => r,
+        _ => *state.light_rails[k].insert(light_rail(scene_size, len, edge)),
+    };
+    let (rail_u, rail_v) = (rail(0, w, edge_u), rail(1, d, edge_v));
     changed |= ui
-        .add(light_size_slider(&mut w, edge_u, "Light width"))
+        .add(light_size_slider(&mut w, edge_u, rail_u, "Light width"))
         .changed();
     changed |= ui
-        .add(light_size_slider(&mut d, edge_v, "Light depth"))
+        .add(light_size_slider(&mut d, edge_v, rail_v, "Light depth"))
         .changed();
     if ui.button("Square").on_hover_text("Depth = width").clicked() {
         d = w;

@@ -1111,6 +1111,22 @@ impl Viewer {
         self.loads.hold_for_tests(on);
     }
 
+    /// Where the camera may go, from the scene rendered (before the first
+    /// scene is built: about the scene's own view).
+    fn reach(&self) -> Reach {
+        self.reach
+            .unwrap_or_else(|| Reach::of_camera(&self.home_camera))
+    }
+
+    /// Takes the rendered scene's size, for the camera's reach and the
+    /// light size sliders, before the frame draws them.
+    fn update_scene_size(&mut self) {
+        if let Some(scene) = self.job.as_ref().and_then(RenderJob::scene) {
+            self.reach = Some(Reach::of_scene(&scene));
+        }
+        self.controls.scene_size = self.reach().size;
+    }
+
     /// Takes a finished load.
     fn poll_loads(&mut self, ctx: &egui::Context) {
         let Some((id, path, result)) = self.loads.poll() else {
@@ -1830,6 +1846,7 @@ impl Viewer {
         self.poll_error(&ctx);
         self.poll_compare(&ctx);
         self.poll_loads(&ctx);
+        self.update_scene_size();
 
         let mut changed = false;
         let mut action = None;
@@ -2401,13 +2418,7 @@ impl Viewer {
                     });
                 });
         }
-        if let Some(scene) = self.job.as_ref().and_then(RenderJob::scene) {
-            self.reach = Some(Reach::of_scene(&scene));
-        }
-        // Before the first scene is built: about the scene's own view.
-        let reach = self
-            .reach
-            .unwrap_or_else(|| Reach::of_camera(&self.home_camera));
+        let reach = self.reach();
         let moved = !image_drag
             && camera_input(ui, &response, &mut self.desc.camera, rect.height(), &reach);
         if response.double_clicked()

@@ -1574,3 +1574,72 @@ fn a_render_that_passes_the_memory_check_does_not_abort() {
         );
     }
 }
+
+/// A bench whose renders are too large for the memory the process may
+/// have is refused before any render (exit 2, one line), as `render` is:
+/// it aborted (SIGABRT, exit 134) when a film's allocation failed. Every
+/// mode checks its largest size (`--target` its own 1920×1080).
+#[test]
+fn a_bench_too_large_for_the_memory_limit_is_refused_with_exit_2() {
+    let dir = scratch();
+    let (cache, out) = (dir.path().join("cache"), dir.path().join("out"));
+    let (cache, out) = (cache.to_str().unwrap(), out.to_str().unwrap());
+    let big = ["--width", "16384", "--height", "16384", "--threads", "2"];
+    let with = |mode: &[&str], extra: &[&str]| -> Vec<String> {
+        let mut args = vec!["bench"];
+        args.extend_from_slice(mode);
+        args.extend_from_slice(extra);
+        args.iter().map(|s| s.to_string()).collect()
+    };
+    let cases = [
+        with(
+            &[
+                "--counts", "1", "--runs", "1", "--cache", cache, "--out", out,
+            ],
+            &big,
+        ),
+        with(
+            &["--exact", "--runs", "5", "--cache", cache, "--out", out],
+            &big,
+        ),
+        with(&["--spp-split", "--runs", "1", "--cache", cache], &big),
+        with(&["--slopes"], &big),
+        with(&["--edits"], &big),
+        with(&["--meshes", "18", "--runs", "1"], &big),
+        with(&["--spheres", "10", "--scaling", "--runs", "1"], &big),
+        with(
+            &[
+                "--spheres",
+                "10",
+                "--counts",
+                "1",
+                "--runs",
+                "1",
+                "--cache",
+                cache,
+                "--out",
+                out,
+            ],
+            &big,
+        ),
+    ];
+    for args in &cases {
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        let o = penumbra_within_memory(2_000_000, &args);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+        assert!(
+            err.contains("16384×16384 needs about")
+                && err.contains("more than this process can have"),
+            "{args:?}: {err}"
+        );
+        assert_eq!(err.trim().lines().count(), 1, "{args:?}: {err}");
+        assert!(!String::from_utf8_lossy(&o.stdout).contains("reference"));
+    }
+    // `--target` renders 1920×1080 whatever the scene's size.
+    let o = penumbra_within_memory(300_000, &["bench", "--target", "--threads", "2"]);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("1920×1080 needs about"), "{err}");
+    assert_eq!(files_in(dir.path()), Vec::<String>::new());
+}

@@ -22,6 +22,7 @@
 
 pub mod edits;
 pub mod exact;
+pub mod memory;
 pub mod meshes;
 pub mod plot;
 pub mod reference;
@@ -246,7 +247,8 @@ pub struct BenchScene {
 
 /// The scenes the arguments ask for: the scene file or the seed room, or
 /// one generated room per `--spheres` count; size, depth and seed
-/// overridden.
+/// overridden, and each size checked against the memory the process may
+/// take before any render.
 pub fn scenes(args: &BenchArgs) -> Result<Vec<BenchScene>, CliError> {
     let base: Vec<BenchScene> = match &args.spheres {
         Some(counts) => counts
@@ -294,6 +296,7 @@ pub fn scenes(args: &BenchArgs) -> Result<Vec<BenchScene>, CliError> {
                 s.desc.render.samples_per_pixel = spp;
             }
             s.desc.validate().map_err(CliError::input)?;
+            memory::check(args, &s)?;
             if let (Some(dir), Some(_)) = (&args.save_scenes, &args.spheres) {
                 let path = dir.join(format!("{}.json", s.name));
                 std::fs::create_dir_all(dir)

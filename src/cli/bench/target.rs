@@ -57,9 +57,11 @@ pub fn savings(s: &RayStats) -> String {
 pub fn run(args: &BenchArgs) -> Result<(), CliError> {
     let runs = args.runs.unwrap_or(5).max(5);
     let threads = rayon::current_num_threads();
+    // The largest size the targets render, so that the memory check of
+    // `scenes` sees it (each render sets its own size).
     let scene = scenes(&BenchArgs {
-        width: None,
-        height: None,
+        width: Some(1920),
+        height: Some(1080),
         quick: false,
         ..args.clone()
     })?

@@ -409,3 +409,78 @@ fn spheres_stop_at_what_the_room_holds() {
         "{err}"
     );
 }
+
+/// A damaged cache entry (an EXR cut short, a .json of garbage, as an
+/// interrupted bench could leave) is rendered again and the bench
+/// succeeds; the next run finds the entry whole.
+#[test]
+fn a_damaged_reference_cache_entry_is_rendered_again() {
+    let dir = tempfile::tempdir().unwrap();
+    let cache = dir.path().join("cache");
+    let sweep = || {
+        penumbra_ok(&[
+            "bench",
+            "--width",
+            "12",
+            "--height",
+            "8",
+            "--counts",
+            "1",
+            "--runs",
+            "1",
+            "--no-adaptive",
+            "--reference-rays",
+            "16",
+            "--cache",
+            cache.to_str().unwrap(),
+            "--out",
+            dir.path().to_str().unwrap(),
+        ])
+    };
+    sweep();
+    let entries: Vec<std::path::PathBuf> = std::fs::read_dir(&cache)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    let exrs: Vec<_> = entries
+        .iter()
+        .filter(|p| p.extension().is_some_and(|e| e == "exr"))
+        .collect();
+    assert!(!exrs.is_empty(), "{entries:?}");
+    for exr in &exrs {
+        let bytes = std::fs::read(exr).unwrap();
+        std::fs::write(exr, &bytes[..bytes.len() / 2]).unwrap();
+        std::fs::write(exr.with_extension("json"), b"{\"camera\": [garbage").unwrap();
+    }
+    let stdout = sweep();
+    for exr in &exrs {
+        let film = penumbra::render::output::read_film(exr).unwrap();
+        assert_eq!((film.width, film.height), (12, 8));
+        let json = std::fs::read_to_string(exr.with_extension("json")).unwrap();
+        SceneDesc::from_json(&json).unwrap();
+    }
+    assert!(!stdout.contains("cached"), "{stdout}");
+    assert!(sweep().contains("cached"));
+}
+
+/// The .json beside a cached reference is replaced whole, never rewritten
+/// in place (as the EXR is): an interrupted write leaves the old entry or
+/// none, not half of one. A second name for the old file keeps it.
+#[test]
+fn a_reference_cache_json_is_replaced_not_rewritten() {
+    use std::os::unix::fs::MetadataExt;
+    let dir = tempfile::tempdir().unwrap();
+    let desc = tiny_room(12, 8);
+    let model = AreaLightModel::Sampled;
+    let first = reference(&desc, model, 16, dir.path(), false).unwrap();
+    let json = first.path.with_extension("json");
+    let old = dir.path().join("old.json");
+    std::fs::hard_link(&json, &old).unwrap();
+    reference(&desc, model, 16, dir.path(), true).unwrap();
+    let (new, kept) = (
+        std::fs::metadata(&json).unwrap(),
+        std::fs::metadata(&old).unwrap(),
+    );
+    assert_ne!(new.ino(), kept.ino(), "the .json was rewritten in place");
+    assert_eq!(kept.nlink(), 1);
+}

@@ -6,11 +6,12 @@
 //! shares one reference, and any change to geometry, camera, size, depth,
 //! materials or light makes a new one.
 
+use std::io::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use super::{CliError, build, render_once};
-use crate::render::output::{read_film, write_film};
+use crate::render::output::{read_film, write_atomic, write_film};
 use crate::render::{AreaLightModel, Film, ImageError, SceneDesc};
 
 pub use crate::render::REFERENCE_RAYS;
@@ -91,8 +92,13 @@ pub fn reference(
     let film = render_once(&scene).film;
     let elapsed = start.elapsed();
     write_film(&film, &path).map_err(CliError::other)?;
-    // Only informative: a failure to write it does not spoil the cache.
-    let _ = std::fs::write(path.with_extension("json"), rdesc.to_json());
+    // Only informative (never read back): a failure to write it does not
+    // spoil the cache. Written whole or not at all, as the EXR is, so that
+    // an interrupted bench leaves no half-written entry.
+    let json = rdesc.to_json();
+    let _ = write_atomic(&path.with_extension("json"), |w| {
+        w.write_all(json.as_bytes()).map_err(|e| e.to_string())
+    });
     Ok(Reference {
         film,
         path,

@@ -410,6 +410,86 @@ fn spheres_stop_at_what_the_room_holds() {
     );
 }
 
+/// A scene file given with `--spheres` or `--meshes` (which make their own
+/// scenes) is refused in one line, exit 2: it was silently left out. So is
+/// an option the mode does not use.
+#[test]
+fn a_scene_or_option_a_mode_does_not_use_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("room.json");
+    std::fs::write(&scene, SEED_ROOM_JSON).unwrap();
+    let scene = scene.to_str().unwrap();
+    for (args, want) in [
+        (
+            &[
+                "bench",
+                scene,
+                "--spheres",
+                "10",
+                "--scaling",
+                "--runs",
+                "1",
+            ][..],
+            "--spheres generates its own scenes",
+        ),
+        (
+            &[
+                "bench",
+                scene,
+                "--spheres",
+                "10",
+                "--quick",
+                "--counts",
+                "1",
+            ],
+            "--spheres generates its own scenes",
+        ),
+        (
+            &["bench", scene, "--meshes", "18", "--runs", "1"],
+            "--meshes measures its own scenes",
+        ),
+    ] {
+        let o = penumbra(args);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains(want) && err.contains("room.json"), "{err}");
+        assert_eq!(err.trim().lines().count(), 1, "{err}");
+        assert!(String::from_utf8_lossy(&o.stdout).is_empty(), "{args:?}");
+    }
+    for args in [
+        &["bench", "--target", "--width", "16"][..],
+        &["bench", "--target", "--depth", "2"],
+        &["bench", "--target", "--spheres", "10"],
+        &["bench", "--slopes", "--runs", "2"],
+        &["bench", "--slopes", "--depth", "2"],
+        &["bench", "--edits", "--cache", "c"],
+        &["bench", "--exact", "--counts", "1"],
+        &["bench", "--spp-split", "--out", "o"],
+        &["bench", "--spp-split", "--reference-rays", "16"],
+        &["bench", "--meshes", "18", "--spheres", "10"],
+        &["bench", "--meshes", "18", "--no-skip"],
+        &[
+            "bench",
+            "--spheres",
+            "10",
+            "--scaling",
+            "--plot-time",
+            "cpu",
+        ],
+        &["bench", "--sphere-seed", "3"],
+    ] {
+        let o = penumbra(args);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+        assert!(
+            err.contains("cannot be used with")
+                || err.contains("required arguments were not provided"),
+            "{args:?}: {err}"
+        );
+        assert!(String::from_utf8_lossy(&o.stdout).is_empty(), "{args:?}");
+    }
+}
+
 /// A damaged cache entry (an EXR cut short, a .json of garbage, as an
 /// interrupted bench could leave) is rendered again and the bench
 /// succeeds; the next run finds the entry whole.

@@ -43,6 +43,30 @@ use crate::render::{CancelToken, Loaded, RenderOptions, RenderReport, SceneDesc,
 pub use reference::{Reference, reference, reference_key};
 pub use sweep::{Row, SweepPlan, run_sweep, write_csv};
 
+// An option a mode does not use is refused with it rather than silently
+// ignored: these are the modes that leave each group of options unused.
+/// Every mode but the default sweep.
+const NOT_SWEEP: [&str; 7] = [
+    "target",
+    "slopes",
+    "edits",
+    "spp_split",
+    "exact",
+    "meshes",
+    "scaling",
+];
+/// The modes that render no cached reference.
+const NO_REFERENCE: [&str; 5] = ["target", "slopes", "edits", "meshes", "scaling"];
+/// The modes that write no file under --out.
+const NO_OUT: [&str; 6] = [
+    "target",
+    "slopes",
+    "edits",
+    "spp_split",
+    "meshes",
+    "scaling",
+];
+
 #[derive(Debug, Args, Default, Clone)]
 // One mode a run: a second one was silently dropped.
 #[command(group(clap::ArgGroup::new("mode")
@@ -53,41 +77,41 @@ pub struct BenchArgs {
     pub scene: Option<PathBuf>,
     /// A small sweep that finishes in well under a minute: a 160-pixel-wide
     /// image and counts 1 to 256.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "target")]
     pub quick: bool,
     /// Renders per measurement; the median time is reported (default 3;
     /// 5 for --scaling and at least 5 for --target).
-    #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..=1000), conflicts_with_all = ["slopes", "edits"])]
     pub runs: Option<u32>,
     /// Shadow-ray counts to sweep, e.g. 1,4,16 (default 1,4,16,64,256,1024).
-    #[arg(long, allow_hyphen_values = true, value_delimiter = ',', value_parser = ListValue(clap::value_parser!(u32).range(1..=4096)))]
+    #[arg(long, allow_hyphen_values = true, value_delimiter = ',', value_parser = ListValue(clap::value_parser!(u32).range(1..=4096)), conflicts_with_all = NOT_SWEEP)]
     pub counts: Option<Vec<u32>>,
     /// Stratified shadow rays per hit of the reference image.
-    #[arg(long, allow_negative_numbers = true, default_value_t = reference::REFERENCE_RAYS, value_parser = clap::value_parser!(u32).range(1..=4096))]
+    #[arg(long, allow_negative_numbers = true, default_value_t = reference::REFERENCE_RAYS, value_parser = clap::value_parser!(u32).range(1..=4096), conflicts_with_all = NOT_SWEEP)]
     pub reference_rays: u32,
     /// Where references are cached (EXR, keyed by a hash of the scene).
-    #[arg(long, default_value = "target/penumbra-cache")]
+    #[arg(long, default_value = "target/penumbra-cache", conflicts_with_all = NO_REFERENCE)]
     pub cache: PathBuf,
     /// Render the reference again even if it is cached.
-    #[arg(long)]
+    #[arg(long, conflicts_with_all = NO_REFERENCE)]
     pub fresh_reference: bool,
     /// Directory of the CSV and plot (bench-SCENE.csv / .png).
-    #[arg(long, default_value = "target/penumbra-bench")]
+    #[arg(long, default_value = "target/penumbra-bench", conflicts_with_all = NO_OUT)]
     pub out: PathBuf,
     /// Write the CSV here instead (one scene only).
-    #[arg(long)]
+    #[arg(long, conflicts_with_all = NOT_SWEEP)]
     pub csv: Option<PathBuf>,
     /// Write the plot (PNG) here instead (one scene only).
-    #[arg(long)]
+    #[arg(long, conflicts_with_all = NOT_SWEEP)]
     pub plot: Option<PathBuf>,
     /// Image width in pixels (default: the scene's; 160 with --quick).
-    #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..=16384))]
+    #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..=16384), conflicts_with = "target")]
     pub width: Option<u32>,
     /// Image height in pixels (default: the width at the scene's aspect).
-    #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..=16384))]
+    #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..=16384), conflicts_with = "target")]
     pub height: Option<u32>,
     /// Most surface hits along one camera path.
-    #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..=16))]
+    #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..=16), conflicts_with_all = ["target", "slopes"])]
     pub depth: Option<u32>,
     /// Random seed of the renders (the reference uses its own).
     #[arg(long, allow_negative_numbers = true, value_parser = parse_seed)]
@@ -101,7 +125,7 @@ pub struct BenchArgs {
     #[arg(long, allow_hyphen_values = true, value_delimiter = ',', value_parser = ListValue(clap::value_parser!(u32).range(1..=generate::MAX_SPHERES as i64)))]
     pub spheres: Option<Vec<u32>>,
     /// Seed of the sphere generator.
-    #[arg(long, allow_negative_numbers = true, default_value_t = 1, value_parser = parse_seed)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 1, value_parser = parse_seed, requires = "spheres")]
     pub sphere_seed: u64,
     /// With --spheres: anywhere in the room (5 % of its volume; more
     /// spheres make a denser fog) or one layer on the floor (30 % of it).
@@ -118,21 +142,21 @@ pub struct BenchArgs {
     /// Leave adaptive shadow rays out of the sweep (by default every
     /// configuration is also measured with `render.adaptive` on, to show
     /// its error next to its time).
-    #[arg(long)]
+    #[arg(long, conflicts_with_all = NOT_SWEEP)]
     pub no_adaptive: bool,
     /// Also render every configuration with skipping switched off: time,
     /// speed-up and the RMSE between the two images (expected 0).
-    #[arg(long)]
+    #[arg(long, conflicts_with_all = NOT_SWEEP)]
     pub no_skip: bool,
     /// Time axis of the plot: the median wall time, or the median CPU time
     /// divided by the threads (the wall time with the cores to itself:
     /// steadier on a machine shared with other work).
-    #[arg(long, value_enum, default_value_t = PlotTime::Wall)]
+    #[arg(long, value_enum, default_value_t = PlotTime::Wall, conflicts_with_all = NOT_SWEEP)]
     pub plot_time: PlotTime,
     /// Measure the speed targets (960×540 at 1 shadow ray; 960×540 and
     /// 1920×1080 at 64 grid rays; depth 4; shadow rays per core with
     /// skipping off; peak memory), each with its goal and ratio.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "spheres")]
     pub target: bool,
     /// Fit the slope of log RMSE against log shadow rays in penumbra
     /// regions for each pattern (diffuse term, camera-ray hits).
@@ -158,7 +182,7 @@ pub struct BenchArgs {
     pub spp: Option<u32>,
     /// Time the seed room, the bunny room and the room with a generated
     /// torus of each of these triangle counts (load and render).
-    #[arg(long, allow_hyphen_values = true, value_delimiter = ',', value_parser = ListValue(clap::value_parser!(u32).range(18..=20_000_000)))]
+    #[arg(long, allow_hyphen_values = true, value_delimiter = ',', value_parser = ListValue(clap::value_parser!(u32).range(18..=20_000_000)), conflicts_with = "spheres")]
     pub meshes: Option<Vec<u32>>,
 }
 
@@ -182,6 +206,7 @@ pub fn bench(args: &BenchArgs) -> Result<(), CliError> {
             )));
         }
     }
+    refuse_unused_scene(args)?;
     println!("load average at start: {}", load_average());
     let pool = thread_pool(args.threads)?;
     let result = pool.install(|| {
@@ -205,6 +230,25 @@ pub fn bench(args: &BenchArgs) -> Result<(), CliError> {
     });
     println!("load average at end: {}", load_average());
     result
+}
+
+/// Refuses (exit 2) a scene file given to a mode that makes its own
+/// scenes: it was silently left out.
+fn refuse_unused_scene(args: &BenchArgs) -> Result<(), CliError> {
+    let Some(scene) = &args.scene else {
+        return Ok(());
+    };
+    let why = if args.spheres.is_some() {
+        "--spheres generates its own scenes (the seed room with N spheres)"
+    } else if args.meshes.is_some() {
+        "--meshes measures its own scenes (the seed room with each mesh)"
+    } else {
+        return Ok(());
+    };
+    Err(CliError::input(format!(
+        "{}: {why}: leave out the scene file",
+        scene.display()
+    )))
 }
 
 fn thread_pool(threads: Option<u32>) -> Result<rayon::ThreadPool, CliError> {

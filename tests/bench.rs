@@ -564,3 +564,31 @@ fn a_reference_cache_json_is_replaced_not_rewritten() {
     assert_ne!(new.ino(), kept.ino(), "the .json was rewritten in place");
     assert_eq!(kept.nlink(), 1);
 }
+
+/// `--exact` with several generated scenes measures each of them, not
+/// only the first, each with its own error image.
+#[test]
+fn exact_measures_every_scene_of_spheres() {
+    let dir = tempfile::tempdir().unwrap();
+    let stdout = penumbra_ok(&[
+        "bench",
+        "--exact",
+        "--spheres",
+        "3,4",
+        "--width",
+        "16",
+        "--height",
+        "9",
+        "--cache",
+        dir.path().join("cache").to_str().unwrap(),
+        "--out",
+        dir.path().to_str().unwrap(),
+    ]);
+    for name in ["spheres-3", "spheres-4"] {
+        assert!(
+            stdout.contains(&format!("exact model on {name}: 16×9")),
+            "{stdout}"
+        );
+        assert!(dir.path().join(format!("exact-error-{name}.png")).is_file());
+    }
+}

@@ -12,10 +12,10 @@
 //!   interleaved loop (median of `--runs`, at least 5);
 //! - what fell back to the `analytic` estimate (hits counted).
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use super::reference::{REFERENCE_RAYS, reference_key};
-use super::{BenchArgs, CliError, build, median, render_once, scenes};
+use super::{BenchArgs, BenchScene, CliError, build, median, render_once, scenes};
 use crate::render::compare::{compare, diff_image};
 use crate::render::output::{read_film, write_film, write_rgb8};
 use crate::render::{
@@ -78,16 +78,25 @@ pub fn averaged_reference(
 }
 
 pub fn run(args: &BenchArgs) -> Result<(), CliError> {
+    let scenes = scenes(args)?;
+    // The error images are written after minutes of renders: each refused
+    // first if it would overwrite its scene or a mesh.
+    let error_image = |scene: &BenchScene| args.out.join(format!("exact-error-{}.png", scene.name));
+    for scene in &scenes {
+        super::refuse_overwriting_scene(args, scene, &error_image(scene), "error image")?;
+    }
+    // Each scene of `--spheres N,M,…` in turn.
+    for scene in &scenes {
+        run_scene(args, scene, error_image(scene))?;
+    }
+    Ok(())
+}
+
+/// The exact model's time and error on `scene`, its error image written
+/// to `error_image`.
+fn run_scene(args: &BenchArgs, scene: &BenchScene, error_image: PathBuf) -> Result<(), CliError> {
     let runs = args.runs.unwrap_or(5).max(5);
-    let scene = scenes(args)?
-        .into_iter()
-        .next()
-        .ok_or_else(|| CliError::input("no scene"))?;
     let d = &scene.desc;
-    // The error image is written after minutes of renders: refused first
-    // if it would overwrite the scene or a mesh.
-    let error_image = args.out.join(format!("exact-error-{}.png", scene.name));
-    super::refuse_overwriting_scene(args, &scene, &error_image, "error image")?;
     println!(
         "exact model on {}: {}×{}, depth {}, {} threads, median of {runs} interleaved runs",
         scene.name,

@@ -2125,3 +2125,40 @@ fn the_image_strip_does_not_shift_when_the_exposure_label_widens() {
         assert_eq!(reset(&h), before, "at {exposure} EV");
     }
 }
+
+/// Save scene… says, before the file is written, what the file holds
+/// other than the scene as edited: it renders the image shown, so hidden
+/// objects are left out and switched-off terms and reflections are
+/// written as zero strengths and depth 1. With nothing switched off it
+/// says nothing.
+#[test]
+fn the_save_scene_dialog_says_what_the_file_leaves_out() {
+    let mut h = harness(ViewerOptions::new(small_room()));
+    settle(&mut h);
+    let open_save = |h: &mut Harness<'_, Viewer>| {
+        h.key_press_modifiers(
+            egui::Modifiers::COMMAND | egui::Modifiers::SHIFT,
+            egui::Key::S,
+        );
+        h.step();
+        h.step();
+        h.state_mut()
+            .dialog_mut()
+            .expect("the save dialog")
+            .note
+            .clone()
+    };
+    assert_eq!(open_save(&mut h), None);
+    h.key_press(egui::Key::Escape);
+    h.step();
+    h.state_mut().edit(|_, view| {
+        view.hidden = vec![0];
+        view.specular = false;
+        view.reflections = false;
+    });
+    settle(&mut h);
+    let note = "The file renders the image shown: the hidden object left out; \
+                specular strength written as 0; max depth written as 1 (reflections off).";
+    assert_eq!(open_save(&mut h).as_deref(), Some(note));
+    h.get_by_label(note);
+}

@@ -64,6 +64,38 @@ impl ViewSettings {
         }
     }
 
+    /// What "Save scene" writes other than the scene as edited, since the
+    /// file renders the image shown and the format has no toggles or
+    /// hidden objects; `None` if nothing.
+    pub fn save_note(&self) -> Option<String> {
+        let mut differences = Vec::new();
+        match self.hidden.len() {
+            0 => {}
+            1 => differences.push("the hidden object left out".to_string()),
+            n => differences.push(format!("the {n} hidden objects left out")),
+        }
+        let off: Vec<&str> = [
+            (self.ambient, "ambient"),
+            (self.diffuse, "diffuse"),
+            (self.specular, "specular"),
+        ]
+        .into_iter()
+        .filter_map(|(on, term)| (!on).then_some(term))
+        .collect();
+        if !off.is_empty() {
+            differences.push(format!("{} strength written as 0", off.join(", ")));
+        }
+        if !self.reflections {
+            differences.push("max depth written as 1 (reflections off)".into());
+        }
+        (!differences.is_empty()).then(|| {
+            format!(
+                "The file renders the image shown: {}.",
+                differences.join("; ")
+            )
+        })
+    }
+
     /// The scene to render: `desc` with the toggles applied, at the
     /// resolution scale within the preview's limit (`full`: at the scene's
     /// own size, for export and "save scene").

@@ -1822,6 +1822,9 @@ impl Viewer {
                 self.display.describe()
             ));
         }
+        if purpose == Purpose::SaveScene {
+            dialog.note = self.view.save_note();
+        }
         self.dialog = Some(dialog);
     }
 

@@ -219,6 +219,67 @@ fn reference_is_cached_by_scene() {
     );
 }
 
+/// A scene names a mesh by a path beside it, so its JSON does not change
+/// when the mesh does: the key hashes the mesh's content. An edited mesh
+/// (or the same scene text beside another mesh) is rendered again, not
+/// answered by the old mesh's reference; the same content keeps the key.
+#[test]
+fn a_mesh_scene_reference_follows_the_mesh_content() {
+    let dir = tempfile::tempdir().unwrap();
+    let write_scene = |folder: &str, obj: &str| {
+        let folder = dir.path().join(folder);
+        std::fs::create_dir_all(&folder).unwrap();
+        std::fs::write(folder.join("tri.obj"), obj).unwrap();
+        let mut value: serde_json::Value = serde_json::from_str(SEED_ROOM_JSON).unwrap();
+        value["camera"]["width"] = 12.into();
+        value["camera"]["height"] = 8.into();
+        let material = value["objects"][0]["material"].clone();
+        value["objects"]
+            .as_array_mut()
+            .unwrap()
+            .push(serde_json::json!({
+                "type": "mesh", "file": "tri.obj", "material": material
+            }));
+        let path = folder.join("scene.json");
+        std::fs::write(&path, value.to_string()).unwrap();
+        SceneDesc::load(&path).unwrap()
+    };
+    let small = "v -1 0 0\nv 1 0 0\nv 0 2 0\nf 1 2 3\n";
+    let large = "v -3 0 -1\nv 3 0 -1\nv 0 6 -1\nf 1 2 3\n";
+    let model = AreaLightModel::Sampled;
+    let cache = dir.path().join("cache");
+
+    let a = write_scene("a", small);
+    let first = reference(&a, model, 16, &cache, false).unwrap();
+    assert!(!first.cached);
+    assert!(reference(&a, model, 16, &cache, false).unwrap().cached);
+
+    // The same scene text beside another mesh: another key, rendered anew.
+    let b = write_scene("b", large);
+    assert_eq!(a.to_json(), b.to_json());
+    assert_ne!(reference_key(&a, model, 16), reference_key(&b, model, 16));
+    let other = reference(&b, model, 16, &cache, false).unwrap();
+    assert!(!other.cached);
+    assert_ne!(other.film, first.film, "the larger triangle shows");
+
+    // The mesh edited in place: not the first entry, but the one of the
+    // same content (the other folder's).
+    let edited = write_scene("a", large);
+    assert_eq!(
+        reference_key(&edited, model, 16),
+        reference_key(&b, model, 16)
+    );
+    let again = reference(&edited, model, 16, &cache, false).unwrap();
+    assert_eq!(again.path, other.path);
+    assert_eq!(again.film, other.film);
+    // Back to the first content: the first entry's key again.
+    let back = write_scene("a", small);
+    assert_eq!(
+        reference_key(&back, model, 16),
+        reference_key(&a, model, 16)
+    );
+}
+
 /// The spheres of a scene.
 fn spheres_of(desc: &SceneDesc) -> Vec<&penumbra::render::scene_file::SphereDesc> {
     desc.objects

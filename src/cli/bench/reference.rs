@@ -4,7 +4,10 @@
 //! replaced by the reference's own (stratified sampling, `rays` shadow rays,
 //! a fixed seed) and the model set: every sweep of one scene and model
 //! shares one reference, and any change to geometry, camera, size, depth,
-//! materials or light makes a new one.
+//! materials or light makes a new one. The scene's mesh files are hashed
+//! by their content too: the JSON names a mesh only by a path relative to
+//! the scene, so an edited mesh, or the same scene text beside another
+//! mesh, would otherwise find the old mesh's reference.
 
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
@@ -31,20 +34,67 @@ pub struct Reference {
     pub elapsed: Duration,
 }
 
-/// Hex key of a reference: FNV-1a (64 bit) of the normalised scene JSON.
-/// (Stable across Rust versions, unlike std's `DefaultHasher`.)
+/// Hex key of a reference: FNV-1a (64 bit) of the normalised scene JSON
+/// and of the content of each of its mesh files, in the scene's order.
+/// (Stable across Rust versions, unlike std's `DefaultHasher`.) A scene
+/// without meshes keeps the key it had before meshes were hashed.
 pub fn reference_key(desc: &SceneDesc, model: AreaLightModel, rays: u32) -> String {
     let text = format!(
         "{KEY_VERSION}\n{}\n{}",
         env!("CARGO_PKG_VERSION"),
         reference_desc(desc, model, rays).to_json()
     );
-    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
-    for b in text.bytes() {
-        h ^= b as u64;
-        h = h.wrapping_mul(0x0000_0100_0000_01b3);
+    let mut h = Fnv1a::default();
+    h.add(text.as_bytes());
+    for mesh in desc.mesh_files() {
+        h.add(b"\nmesh\n");
+        // A file that cannot be read hashes as its error: the render that
+        // would fill the entry refuses it anyway.
+        if let Err(e) = h.add_file(&mesh) {
+            h.add(e.to_string().as_bytes());
+        }
     }
-    format!("{h:016x}")
+    format!("{:016x}", h.0)
+}
+
+/// FNV-1a, 64 bit.
+struct Fnv1a(u64);
+
+impl Default for Fnv1a {
+    fn default() -> Fnv1a {
+        Fnv1a(0xcbf2_9ce4_8422_2325)
+    }
+}
+
+impl Fnv1a {
+    fn add(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.0 ^= b as u64;
+            self.0 = self.0.wrapping_mul(0x0000_0100_0000_01b3);
+        }
+    }
+
+    /// The file's bytes, read in pieces (a mesh may be large); only a
+    /// regular file, and only the length it had when opened (a device or a
+    /// growing file would never end).
+    fn add_file(&mut self, path: &Path) -> std::io::Result<()> {
+        use std::io::Read as _;
+        let file = std::fs::File::open(path)?;
+        let meta = file.metadata()?;
+        if !meta.is_file() {
+            return Err(std::io::Error::other("not a regular file"));
+        }
+        let mut file = file.take(meta.len());
+        let mut buf = vec![0u8; 1 << 16];
+        loop {
+            match file.read(&mut buf) {
+                Ok(0) => return Ok(()),
+                Ok(n) => self.add(&buf[..n]),
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+                Err(e) => return Err(e),
+            }
+        }
+    }
 }
 
 /// Loads the reference of `desc` under `model` from `cache_dir`, or

@@ -403,6 +403,55 @@ fn bench_outputs_are_refused_before_the_sweep() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
+/// Files where the default `--out` and `--cache` folders would go stop
+/// only the modes that write there: `--scaling` writes neither and runs;
+/// the sweep (both) and `--spp-split` (the cache) are refused, naming the
+/// flag.
+#[test]
+fn a_file_at_a_default_folder_stops_only_the_modes_that_use_it() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::create_dir(dir.path().join("target")).unwrap();
+    for name in ["penumbra-bench", "penumbra-cache"] {
+        std::fs::write(dir.path().join("target").join(name), b"x").unwrap();
+    }
+    let run = |args: &[&str]| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_penumbra"))
+            .current_dir(dir.path())
+            .arg("bench")
+            .args(args)
+            .output()
+            .unwrap()
+    };
+    let scaling = run(&[
+        "--scaling",
+        "--spheres",
+        "1",
+        "--width",
+        "16",
+        "--runs",
+        "1",
+    ]);
+    let stdout = String::from_utf8_lossy(&scaling.stdout);
+    assert!(
+        scaling.status.success(),
+        "{}",
+        String::from_utf8_lossy(&scaling.stderr)
+    );
+    assert!(stdout.contains("load average at end"), "{stdout}");
+    for (args, flag) in [
+        (&["--quick", "--counts", "1", "--runs", "1"][..], "--out"),
+        (&["--spp-split", "--width", "16"], "--cache"),
+    ] {
+        let o = run(args);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+        assert!(
+            err.contains(&format!("{flag} is a file, expected a folder")),
+            "{args:?}: {err}"
+        );
+    }
+}
+
 /// One mode a run, and the spheres' options only with spheres: a second
 /// mode, or `--layout` without `--spheres`, was silently dropped.
 #[test]

@@ -196,9 +196,24 @@ pub enum PlotTime {
 /// `penumbra bench`.
 pub fn bench(args: &BenchArgs) -> Result<(), CliError> {
     crate::cli::safety::end_on_signals("interrupted");
-    // The folders every mode may write into are made as needed: refused
-    // before any work where a file stands in their place.
-    for (dir, flag) in [(&args.out, "--out"), (&args.cache, "--cache")] {
+    // The folders a mode writes into are made as needed: refused before
+    // any work where a file stands in their place (only for the modes that
+    // use them: a file at the default place does not concern the others).
+    let modes = [
+        ("target", args.target),
+        ("slopes", args.slopes),
+        ("edits", args.edits),
+        ("spp_split", args.spp_split),
+        ("exact", args.exact),
+        ("meshes", args.meshes.is_some()),
+        ("scaling", args.scaling),
+    ];
+    let unused_by = |list: &[&str]| modes.iter().any(|(m, on)| *on && list.contains(m));
+    let folders = [
+        (&args.out, "--out", !unused_by(&NO_OUT)),
+        (&args.cache, "--cache", !unused_by(&NO_REFERENCE)),
+    ];
+    for (dir, flag, _) in folders.into_iter().filter(|f| f.2) {
         if dir.exists() && !dir.is_dir() {
             return Err(CliError::input(format!(
                 "{}: {flag} is a file, expected a folder",

@@ -483,11 +483,9 @@ fn write_room_with_mesh(scene: &Path, mesh: &str) {
     std::fs::write(scene, json.to_string()).unwrap();
 }
 
-#[test]
-fn an_output_that_is_a_mesh_of_the_scene_is_refused() {
-    let dir = scratch();
-    let d = dir.path();
-    let mesh = d.join("gm.obj");
+/// A generated 18-triangle mesh at `mesh` and the seed room with it at
+/// `scene` (the mesh named by its file name, beside the scene).
+fn generated_mesh_room(mesh: &Path, scene: &Path) {
     let r = penumbra(&[
         "generate",
         "--triangles",
@@ -496,9 +494,16 @@ fn an_output_that_is_a_mesh_of_the_scene_is_refused() {
         mesh.to_str().unwrap(),
     ]);
     assert!(r.status.success(), "{}", stderr(&r));
+    write_room_with_mesh(scene, mesh.file_name().unwrap().to_str().unwrap());
+}
+
+#[test]
+fn an_output_that_is_a_mesh_of_the_scene_is_refused() {
+    let dir = scratch();
+    let d = dir.path();
+    let (mesh, scene) = (d.join("gm.obj"), d.join("gsc.json"));
+    generated_mesh_room(&mesh, &scene);
     let before = std::fs::read(&mesh).unwrap();
-    let scene = d.join("gsc.json");
-    write_room_with_mesh(&scene, "gm.obj");
     std::os::unix::fs::symlink(&mesh, d.join("mesh-link.png")).unwrap();
     std::os::unix::fs::symlink(&mesh, d.join("mesh-link.csv")).unwrap();
     // Where `bench --exact` writes its error image for the scene gsc.json.
@@ -545,18 +550,9 @@ fn an_output_that_is_a_mesh_of_the_scene_is_refused() {
 fn an_output_that_is_a_mesh_is_refused_before_the_meshes_load() {
     let dir = scratch();
     let d = dir.path();
-    let mesh = d.join("gm.obj");
-    let r = penumbra(&[
-        "generate",
-        "--triangles",
-        "18",
-        "-o",
-        mesh.to_str().unwrap(),
-    ]);
-    assert!(r.status.success(), "{}", stderr(&r));
+    let (mesh, scene) = (d.join("gm.obj"), d.join("two.json"));
+    generated_mesh_room(&mesh, &scene);
     std::fs::write(d.join("bad.obj"), "v 1 2\n").unwrap();
-    let scene = d.join("two.json");
-    write_room_with_mesh(&scene, "gm.obj");
     let mut json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&scene).unwrap()).unwrap();
     let mut bad = json["objects"].as_array().unwrap().last().unwrap().clone();

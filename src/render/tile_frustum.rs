@@ -539,13 +539,9 @@ mod tests {
         assert!(!listed.light);
     }
 
-    /// A tile's camera rays find, bit for bit, the hit of
-    /// [`Scene::camera_hit`] (with and without cut-away): the seed room, a
-    /// camera outside it (cut-away passes walls), and a room of 40
-    /// spheres (found through the BVH); rays through pixel centres, and
-    /// with a reach, rays as far from them as it lets samples lie.
-    #[test]
-    fn a_tile_s_camera_rays_meet_what_each_ray_meets() {
+    /// The seed room, the seed room seen from outside (cut-away passes
+    /// its walls), and a room of 40 spheres (found through the BVH).
+    fn test_rooms() -> [Loaded; 3] {
         let mut outside = Loaded::seed_room();
         let mut camera =
             crate::render::scene_file::SceneDesc::from_json(crate::render::scene::SEED_ROOM_JSON)
@@ -554,8 +550,18 @@ mod tests {
         outside.scene = std::sync::Arc::new(outside.scene.with_view(&camera));
         let spheres = Loaded::new(&crate::render::generate::spheres_in_room(40, 3)).expect("valid");
         assert!(!spheres.scene.bvh.is_empty());
+        [Loaded::seed_room(), outside, spheres]
+    }
+
+    /// A tile's camera rays find, bit for bit, the hit of
+    /// [`Scene::camera_hit`] (with and without cut-away): the seed room, a
+    /// camera outside it (cut-away passes walls), and a room of 40
+    /// spheres (found through the BVH); rays through pixel centres, and
+    /// with a reach, rays as far from them as it lets samples lie.
+    #[test]
+    fn a_tile_s_camera_rays_meet_what_each_ray_meets() {
         let mut listed = TileTargets::default();
-        for loaded in [Loaded::seed_room(), outside, spheres] {
+        for loaded in test_rooms() {
             let scene = &loaded.scene;
             let whole = TileRect::whole(&scene.camera);
             let mut hits = 0;
@@ -602,17 +608,10 @@ mod tests {
     /// through the BVH.
     #[test]
     fn a_row_searched_side_by_side_meets_what_each_ray_meets() {
-        let mut outside = Loaded::seed_room();
-        let mut camera =
-            crate::render::scene_file::SceneDesc::from_json(crate::render::scene::SEED_ROOM_JSON)
-                .unwrap();
-        camera.camera.position = [7.0, 11.0, -20.0];
-        outside.scene = std::sync::Arc::new(outside.scene.with_view(&camera));
-        let spheres = Loaded::new(&crate::render::generate::spheres_in_room(40, 3)).expect("valid");
         let mut listed = TileTargets::default();
         let (mut rays, mut found) = (Vec::new(), Vec::new());
         let bits = |h: Option<(HitTarget, f64)>| h.map(|(o, t)| (o, t.to_bits()));
-        for loaded in [Loaded::seed_room(), outside, spheres] {
+        for loaded in test_rooms() {
             let scene = &loaded.scene;
             let whole = TileRect::whole(&scene.camera);
             let (mut hits, mut lit) = (0, 0);

@@ -434,6 +434,70 @@ fn outputs_go_through_links_and_into_fifos() {
     assert!(std::os::unix::fs::FileTypeExt::is_fifo(&kind));
 }
 
+/// An EXR into a pipe or a FIFO is the EXR a regular file gets, byte for
+/// byte: its encoder goes back to fill in the offset table, which a pipe
+/// cannot do (the reader got a broken file and the render failed with
+/// "Illegal seek").
+#[cfg(unix)]
+#[test]
+fn an_exr_into_a_pipe_or_a_fifo_is_whole() {
+    let dir = scratch_dir("exr-pipe");
+    let whole = dir.join("whole.exr");
+    let o = render_small(&whole, &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let want = std::fs::read(&whole).unwrap();
+
+    // Standard output, a pipe here, through a link with the extension.
+    let link = dir.join("out.exr");
+    std::os::unix::fs::symlink("/dev/stdout", &link).unwrap();
+    let o = render_small(&link, &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        o.stdout == want,
+        "{} bytes against {}",
+        o.stdout.len(),
+        want.len()
+    );
+
+    let fifo = dir.join("part.exr");
+    let made = std::process::Command::new("mkfifo").arg(&fifo).status();
+    if !made.is_ok_and(|s| s.success()) {
+        return; // no mkfifo here: the pipe was the test
+    }
+    let reader = {
+        let fifo = fifo.clone();
+        std::thread::spawn(move || std::fs::read(fifo).unwrap())
+    };
+    let o = render_small(&fifo, &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(reader.join().unwrap() == want);
+    let region = penumbra(&[
+        "render",
+        SEED_ROOM,
+        "--width",
+        "64",
+        "--height",
+        "36",
+        "--shadow-rays",
+        "16",
+        "--region",
+        "0,0,64,36",
+        "-o",
+        link.to_str().unwrap(),
+    ]);
+    assert!(region.status.success(), "{}", stderr(&region));
+    let part = dir.join("part-file.exr");
+    std::fs::write(&part, &region.stdout).unwrap();
+    let merged = penumbra(&[
+        "merge",
+        part.to_str().unwrap(),
+        "-o",
+        link.to_str().unwrap(),
+    ]);
+    assert!(merged.status.success(), "{}", stderr(&merged));
+    assert!(merged.stdout == want, "the merge of the piped part");
+}
+
 /// An output in a folder that is not there is refused before any work
 /// (exit 2, naming the folder), in `render`, `merge` and `compare --diff`
 /// alike; nothing is rendered first and then lost.

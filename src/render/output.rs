@@ -336,18 +336,38 @@ pub fn through_links(path: &Path) -> Option<PathBuf> {
 }
 
 /// [`write_atomic`] into an existing file that is not a regular one, in
-/// place.
+/// place. The bytes are made in an unnamed temporary file first and then
+/// copied: an EXR's encoder goes back to fill in its offset table, which a
+/// pipe cannot do (a reader got a broken file), and a failed encoding
+/// sends nothing.
 fn write_in_place(
     path: &Path,
     write: impl FnOnce(&mut BufWriter<AtomicFile>) -> Result<(), String>,
 ) -> Result<(), String> {
-    let file = open_for_writing(path)?;
+    let spill = tempfile::tempfile()
+        .map_err(|e| format!("cannot make a temporary file: {}", os_message(&e)))?;
     let mut out = BufWriter::new(AtomicFile {
-        file,
+        file: spill,
         first_error: None,
     });
-    write(&mut out)?;
-    out.flush().map_err(|e| os_message(&e))
+    let written = write(&mut out).and_then(|()| out.flush().map_err(|e| os_message(&e)));
+    let (mut spill, first_error) = match out.into_inner() {
+        Ok(f) => (f.file, f.first_error),
+        Err(e) => {
+            let f = e.into_parts().1.into_parts().0;
+            (f.file, f.first_error)
+        }
+    };
+    if let Err(message) = written {
+        return Err(first_error.unwrap_or(message));
+    }
+    spill.seek(SeekFrom::Start(0)).map_err(|e| os_message(&e))?;
+    let mut file = AtomicFile {
+        file: open_for_writing(path)?,
+        first_error: None,
+    };
+    std::io::copy(&mut spill, &mut file).map_err(|e| os_message(&e))?;
+    file.flush().map_err(|e| os_message(&e))
 }
 
 /// Opens an existing file that is not a regular one for writing. A FIFO

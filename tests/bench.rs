@@ -465,6 +465,91 @@ fn assert_refused_by_the_parser(args: &[&str]) {
     assert!(String::from_utf8_lossy(&o.stdout).is_empty(), "{args:?}");
 }
 
+/// `--save-scenes` writes as every output does: a file where its folder
+/// would go and a read-only scene file are refused (exit 2) before any
+/// work, and a write cut short (a file size limit) leaves the old file
+/// whole, not a truncated JSON.
+#[test]
+fn saved_scenes_are_written_whole_or_refused_first() {
+    let dir = tempfile::tempdir().unwrap();
+    let saved = dir.path().join("saved");
+    let bench = |extra: &str| {
+        let o = std::process::Command::new("sh")
+            .arg("-c")
+            .arg(format!(
+                "{extra} exec \"$0\" bench --scaling --spheres 2000 --width 16 --runs 1 --save-scenes \"$1\""
+            ))
+            .arg(env!("CARGO_BIN_EXE_penumbra"))
+            .arg(&saved)
+            .output()
+            .unwrap();
+        (
+            o.status.code(),
+            String::from_utf8_lossy(&o.stderr).into_owned(),
+        )
+    };
+    let file = saved.join("spheres-2000.json");
+
+    std::fs::write(&saved, b"x").unwrap();
+    let (code, err) = bench("");
+    assert_eq!(code, Some(2), "{err}");
+    assert!(
+        err.contains("--save-scenes is a file, expected a folder"),
+        "{err}"
+    );
+    std::fs::remove_file(&saved).unwrap();
+
+    let (code, err) = bench("");
+    assert_eq!(code, Some(0), "{err}");
+    let whole = std::fs::read_to_string(&file).unwrap();
+    assert_eq!(SceneDesc::from_json(&whole).unwrap().objects.len(), 2005);
+
+    // 50 blocks of 512 bytes: less than the scene's JSON.
+    assert!(whole.len() > 50 * 512);
+    let (code, err) = bench("ulimit -f 50;");
+    assert_eq!(code, Some(1), "{err}");
+    assert_eq!(std::fs::read_to_string(&file).unwrap(), whole);
+
+    use std::os::unix::fs::PermissionsExt;
+    std::fs::set_permissions(&file, std::fs::Permissions::from_mode(0o444)).unwrap();
+    let (code, err) = bench("");
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("read-only"), "{err}");
+    assert!(!err.contains("load average"), "{err}");
+}
+
+/// The files the sweep and `--exact` write under `--out` by their default
+/// names are refused before the work when read-only, as the same file
+/// named by `--csv` is: not found read-only minutes later.
+#[test]
+fn read_only_default_outputs_are_refused_before_the_work() {
+    use std::os::unix::fs::PermissionsExt;
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().to_str().unwrap();
+    for (name, mode) in [
+        ("bench-seed-room.csv", "--quick"),
+        ("bench-seed-room.png", "--quick"),
+        ("exact-error-seed-room.png", "--exact"),
+    ] {
+        let path = dir.path().join(name);
+        std::fs::write(&path, b"old").unwrap();
+        std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o444)).unwrap();
+        let mut args = vec!["bench", mode, "--width", "16", "--out", out, "--cache", out];
+        if mode == "--quick" {
+            args.extend(["--counts", "1", "--runs", "1"]);
+        }
+        let o = penumbra(&args);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{name}: {err}");
+        assert!(err.contains("read-only"), "{name}: {err}");
+        assert!(
+            !String::from_utf8_lossy(&o.stdout).contains("reference"),
+            "{name}: the work ran first"
+        );
+        std::fs::remove_file(&path).unwrap();
+    }
+}
+
 /// One mode a run, and the spheres' options only with spheres: a second
 /// mode, or `--layout` without `--spheres`, was silently dropped.
 #[test]

@@ -80,10 +80,11 @@ pub fn averaged_reference(
 pub fn run(args: &BenchArgs) -> Result<(), CliError> {
     let scenes = scenes(args)?;
     // The error images are written after minutes of renders: each refused
-    // first if it would overwrite its scene or a mesh.
+    // first if it would overwrite its scene or a mesh, or is read-only.
     let error_image = |scene: &BenchScene| args.out.join(format!("exact-error-{}.png", scene.name));
     for scene in &scenes {
         super::refuse_overwriting_scene(args, scene, &error_image(scene), "error image")?;
+        crate::cli::safety::refuse_read_only(&error_image(scene), "error image")?;
     }
     // Each scene of `--spheres N,M,…` in turn.
     for scene in &scenes {

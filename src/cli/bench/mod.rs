@@ -356,15 +356,45 @@ pub fn scenes(args: &BenchArgs) -> Result<Vec<BenchScene>, CliError> {
             }
             s.desc.validate().map_err(CliError::input)?;
             memory::check(args, &s)?;
-            if let (Some(dir), Some(_)) = (&args.save_scenes, &args.spheres) {
-                let path = dir.join(format!("{}.json", s.name));
-                std::fs::create_dir_all(dir)
-                    .and_then(|_| std::fs::write(&path, s.desc.to_json()))
-                    .map_err(|e| CliError::other(format!("{}: {e}", path.display())))?;
-            }
             Ok(s)
         })
-        .collect()
+        .collect::<Result<Vec<_>, CliError>>()
+        .and_then(|scenes| {
+            if let (Some(dir), Some(_)) = (&args.save_scenes, &args.spheres) {
+                save_scenes(dir, &scenes)?;
+            }
+            Ok(scenes)
+        })
+}
+
+/// `--save-scenes DIR`: each scene as DIR/NAME.json, written as every
+/// output is (whole or not at all); a file where the folder would go, or
+/// a read-only scene file, refused (exit 2) before any is written.
+fn save_scenes(dir: &Path, scenes: &[BenchScene]) -> Result<(), CliError> {
+    if dir.exists() && !dir.is_dir() {
+        return Err(CliError::input(format!(
+            "{}: --save-scenes is a file, expected a folder",
+            dir.display()
+        )));
+    }
+    let path = |s: &BenchScene| dir.join(format!("{}.json", s.name));
+    for s in scenes {
+        crate::cli::safety::refuse_read_only(&path(s), "saved scene")?;
+    }
+    std::fs::create_dir_all(dir).map_err(|e| {
+        CliError::other(format!(
+            "cannot create the folder {} (--save-scenes): {e}",
+            dir.display()
+        ))
+    })?;
+    for s in scenes {
+        let json = s.desc.to_json();
+        crate::render::output::write_atomic(&path(s), |w| {
+            std::io::Write::write_all(w, json.as_bytes()).map_err(|e| e.to_string())
+        })
+        .map_err(CliError::other)?;
+    }
+    Ok(())
 }
 
 /// Refuses (exit 2) an output of the bench that is the scene file or one

@@ -456,6 +456,8 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
         for (explicit, ext, what) in [(&args.csv, "csv", "CSV"), (&args.plot, "png", "plot")] {
             let out = output_path(args, explicit, scene, ext);
             super::refuse_overwriting_scene(args, scene, &out, what)?;
+            // The default names under --out too, not only those given.
+            crate::cli::safety::refuse_read_only(&out, what)?;
         }
     }
     let plan = SweepPlan::from_args(args);

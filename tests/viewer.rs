@@ -499,6 +499,40 @@ fn a_reference_of_another_size_is_not_compared() {
     h.get_by_label("RMSE 0 · PSNR inf dB");
 }
 
+/// With several camera samples a pixel, the computed reference puts them
+/// where the image does (scrambled by the image's seed): its error is the
+/// light's, not the anti-aliasing's, far below the error against the same
+/// reference with its own places; a new seed moves the image's samples,
+/// so the reference no longer applies.
+#[test]
+fn an_anti_aliased_image_s_reference_samples_the_image_s_places() {
+    let mut room = small_room();
+    room.camera.width = 32;
+    room.camera.height = 18;
+    room.render.samples_per_pixel = 4;
+    let mut h = harness(ViewerOptions::new(room.clone()));
+    settle(&mut h);
+    h.get_by_role_and_label(Role::Button, "Compute reference")
+        .click();
+    h.step();
+    settle_reference(&mut h);
+    let reference = h.state().reference().expect("a reference").film.clone();
+    let mut same_places = Loaded::new(&converged(&room)).unwrap();
+    same_places.settings.camera_seed = room.render.seed;
+    assert_eq!(*reference, same_places.render_image());
+    let film = finished(h.state());
+    let light_only = compare(&film, &reference).unwrap().rmse;
+    let own_places = core_render(&converged(&room));
+    assert!(
+        light_only * 4.0 < compare(&film, &own_places).unwrap().rmse,
+        "{light_only}"
+    );
+
+    h.state_mut().edit(|d, _| d.render.seed += 1);
+    settle(&mut h);
+    assert_eq!(h.state().reference_match(), Some(Match::SettingsDiffer));
+}
+
 #[test]
 fn computing_a_reference_in_the_background_then_reads_the_error() {
     let mut room = small_room();

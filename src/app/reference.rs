@@ -37,7 +37,11 @@ pub fn same_limit(a: &SceneDesc, b: &SceneDesc) -> bool {
         k.shadow_rays = 0;
         k.sampling = Sampling::default();
         k.adaptive = false;
-        k.seed = 0;
+        // The seed places the camera samples too, with several a pixel:
+        // the reference takes the image's places (see `ReferenceTask`).
+        if k.samples_per_pixel == 1 {
+            k.seed = 0;
+        }
         // `analytic` and `exact` converge to `sampled`'s image; only the
         // report's nearest-point heuristic converges elsewhere.
         if matches!(
@@ -98,13 +102,16 @@ impl Reference {
     pub fn describe(&self) -> String {
         let size = format!("{}×{}", self.film.width, self.film.height);
         match &self.origin {
-            Origin::Computed { desc, elapsed } => format!(
-                "computed {size}: {} {} rays, {} model, {:.1} s",
-                desc.render.shadow_rays,
-                desc.render.sampling.name(),
-                desc.render.area_light_model.name(),
-                elapsed.as_secs_f64()
-            ),
+            Origin::Computed { desc, elapsed } => {
+                let made = converged(desc);
+                format!(
+                    "computed {size}: {} {} rays, {} model, {:.1} s",
+                    made.render.shadow_rays,
+                    made.render.sampling.name(),
+                    made.render.area_light_model.name(),
+                    elapsed.as_secs_f64()
+                )
+            }
             Origin::Loaded(path) => format!(
                 "loaded {} ({size})",
                 path.file_name()
@@ -123,7 +130,7 @@ pub enum TaskOutcome {
 }
 
 pub enum TaskKind {
-    /// Rendering this (already converged) description.
+    /// Rendering the converged version of this image's description.
     Compute(Box<SceneDesc>),
     Load(PathBuf),
 }
@@ -142,15 +149,20 @@ pub struct ReferenceTask {
 }
 
 impl ReferenceTask {
-    /// Renders `desc` (see [`converged`]) on a thread of its own, in
-    /// a low-priority pool like the viewer's renders.
+    /// Renders the converged version of the image of `desc` (see
+    /// [`converged`]) on a thread of its own, in a low-priority pool like
+    /// the viewer's renders. With several camera samples a pixel they lie
+    /// where the image's do (scrambled by its seed, not the reference's),
+    /// so that the error shown is the light's, not the anti-aliasing's.
     pub fn compute(ctx: &egui::Context, desc: SceneDesc) -> ReferenceTask {
         let cancel = CancelToken::new();
         let tiles: Arc<[AtomicUsize; 2]> = Arc::default();
-        let (c, t, d) = (cancel.clone(), tiles.clone(), desc.clone());
+        let (c, t, d) = (cancel.clone(), tiles.clone(), converged(&desc));
+        let image_seed = desc.render.seed;
         let rx = spawn(ctx, move |ctx| {
             let start = Instant::now();
-            let loaded = Loaded::new(&d).map_err(|e| e.to_string())?;
+            let mut loaded = Loaded::new(&d).map_err(|e| e.to_string())?;
+            loaded.settings.camera_seed = image_seed;
             let options = RenderOptions {
                 threads: None,
                 progressive: false,

@@ -28,7 +28,7 @@ use super::image_view::{GRID_ZOOM, ImageView, paint_grid, zoom_step};
 use super::pinned::{Compare, CompareMode};
 use super::reference::{
     Match, Origin, RefAction, RefPanel, Reference, ReferenceTask, TaskKind, TaskOutcome, ViewMode,
-    converged, reference_ui, same_limit,
+    reference_ui, same_limit,
 };
 use super::render_job::{JobState, RenderJob};
 use super::scene_loader::{Built, LoadKind, LoadResult, SceneLoads, progress_ui};
@@ -1529,8 +1529,7 @@ impl Viewer {
     /// Starts computing the converged reference of the image on screen
     /// (replacing a task under way).
     pub fn compute_reference(&mut self, ctx: &egui::Context) {
-        let desc = converged(&self.render_desc());
-        self.ref_task = Some(ReferenceTask::compute(ctx, desc));
+        self.ref_task = Some(ReferenceTask::compute(ctx, self.render_desc()));
     }
 
     /// Reads a reference from a PNG or EXR file in the background.

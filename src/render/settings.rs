@@ -15,6 +15,11 @@ pub struct RenderSettings {
     pub sampling: Sampling,
     pub max_depth: u32,
     pub seed: u64,
+    /// The seed that scrambles the camera samples' places in each pixel
+    /// (with several samples): `seed`, but for a reference, which keeps
+    /// the compared image's so that both sample the same places and their
+    /// difference is the light's alone.
+    pub camera_seed: u64,
     pub model: AreaLightModel,
     /// Multipliers of the ambient, diffuse and specular terms.
     pub terms: Vec3,
@@ -43,6 +48,7 @@ impl RenderSettings {
             sampling: r.sampling,
             max_depth: r.max_depth,
             seed: r.seed,
+            camera_seed: r.seed,
             model: r.area_light_model,
             terms: Vec3::new(
                 r.terms.ambient as f32,

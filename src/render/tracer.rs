@@ -289,7 +289,7 @@ impl<'a> Tracer<'a> {
         x: u32,
         y: u32,
     ) -> impl Iterator<Item = Ray> + 's {
-        let pixel_seed = Rng::for_sample(self.settings.seed, x, y, 0, 0).next_u64() as u32;
+        let pixel_seed = Rng::for_sample(self.settings.camera_seed, x, y, 0, 0).next_u64() as u32;
         (0..self.settings.samples_per_pixel).map(move |sample| {
             let (px, py) = filter.position(x, y, sample, pixel_seed);
             self.scene.camera.ray(px, py)

@@ -14,7 +14,7 @@
 
 use std::path::{Path, PathBuf};
 
-use super::reference::{REFERENCE_RAYS, reference_key};
+use super::reference::{REFERENCE_RAYS, build_reference, reference_key};
 use super::{BenchArgs, BenchScene, CliError, build, median, render_once, scenes};
 use crate::render::compare::{compare, diff_image};
 use crate::render::output::{read_film, write_film, write_rgb8};
@@ -56,7 +56,7 @@ pub fn averaged_reference(
     for k in 0..renders {
         let mut d = reference_desc(desc, AreaLightModel::Sampled, REFERENCE_RAYS);
         d.render.seed = REFERENCE_SEED.wrapping_add(k as u64);
-        let report = render_once(&build(&d, true)?);
+        let report = render_once(&build_reference(&d, desc)?);
         for (s, p) in sum.iter_mut().zip(&report.film.pixels) {
             *s += p.as_dvec3();
         }
@@ -147,9 +147,9 @@ fn run_scene(args: &BenchArgs, scene: &BenchScene, error_image: PathBuf) -> Resu
     };
     let e_exact = rmse(&exact_report.film)?;
     let e_grid = rmse(&grid_report.film)?;
-    let one = render_once(&build(
+    let one = render_once(&build_reference(
         &reference_desc(d, AreaLightModel::Sampled, REFERENCE_RAYS),
-        true,
+        d,
     )?);
     let e_one = rmse(&one.film)?;
     println!(

@@ -15,7 +15,7 @@ use std::time::{Duration, Instant};
 
 use super::{CliError, build, render_once};
 use crate::render::output::{read_film, write_atomic, write_film};
-use crate::render::{AreaLightModel, Film, ImageError, SceneDesc};
+use crate::render::{AreaLightModel, Film, ImageError, Loaded, SceneDesc};
 
 pub use crate::render::REFERENCE_RAYS;
 use crate::render::reference_desc;
@@ -46,6 +46,11 @@ pub fn reference_key(desc: &SceneDesc, model: AreaLightModel, rays: u32) -> Stri
     );
     let mut h = Fnv1a::default();
     h.add(text.as_bytes());
+    // With several camera samples the reference takes the image's places
+    // for them (see `reference`): another seed, another reference.
+    if desc.render.samples_per_pixel > 1 {
+        h.add(format!("\ncamera seed {}", desc.render.seed).as_bytes());
+    }
     for mesh in desc.mesh_files() {
         h.add(b"\nmesh\n");
         // A file that cannot be read hashes as its error: the render that
@@ -97,9 +102,20 @@ impl Fnv1a {
     }
 }
 
+/// The runtime scene of `rdesc`, a reference of the image of `image`:
+/// its camera samples scrambled by the image's seed (see [`reference`]).
+pub fn build_reference(rdesc: &SceneDesc, image: &SceneDesc) -> Result<Loaded, CliError> {
+    let mut scene = build(rdesc, true)?;
+    scene.settings.camera_seed = image.render.seed;
+    Ok(scene)
+}
+
 /// Loads the reference of `desc` under `model` from `cache_dir`, or
 /// renders and stores it (with the normalised scene beside it, to see what
-/// a cache entry is). `fresh` renders even if cached.
+/// a cache entry is). `fresh` renders even if cached. Its camera samples
+/// (with several a pixel) lie where `desc`'s own renders put them,
+/// scrambled by `desc`'s seed: the reference converges the light, not the
+/// anti-aliasing, so a render's error is its light's.
 pub fn reference(
     desc: &SceneDesc,
     model: AreaLightModel,
@@ -137,7 +153,7 @@ pub fn reference(
         ))
     })?;
     let rdesc = reference_desc(desc, model, rays);
-    let scene = build(&rdesc, true)?;
+    let scene = build_reference(&rdesc, desc)?;
     let start = Instant::now();
     let film = render_once(&scene).film;
     let elapsed = start.elapsed();

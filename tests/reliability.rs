@@ -277,16 +277,32 @@ fn a_device_of_endless_bytes_is_refused_promptly_with_exit_2() {
         start.elapsed()
     );
     assert!(!out.exists());
-    // The same for an image to compare.
+    // An image to compare or merge is refused from its first bytes (not
+    // after reading 3 GB of zeros).
     let png = dir.path().join("a.png");
     std::fs::write(&png, b"not an image").unwrap();
-    let r = penumbra(&["compare", "/dev/zero", png.to_str().unwrap()]);
-    assert_eq!(r.status.code(), Some(2), "{}", stderr(&r));
-    assert!(
-        stderr(&r).contains("/dev/zero: more than"),
-        "{}",
-        stderr(&r)
-    );
+    let merged = dir.path().join("m.exr");
+    for (args, says) in [
+        (
+            vec!["compare", "/dev/zero", png.to_str().unwrap()],
+            "penumbra: /dev/zero: not a PNG or OpenEXR image\n",
+        ),
+        (
+            vec!["merge", "/dev/zero", "-o", merged.to_str().unwrap()],
+            "penumbra: /dev/zero: not an OpenEXR file (a region part is one)\n",
+        ),
+    ] {
+        let start = Instant::now();
+        let r = penumbra(&args);
+        assert_eq!(r.status.code(), Some(2), "{}", stderr(&r));
+        assert_eq!(stderr(&r), says);
+        assert!(
+            start.elapsed() < Duration::from_secs(2),
+            "{:?}",
+            start.elapsed()
+        );
+    }
+    assert!(!merged.exists());
 }
 
 #[test]

@@ -653,22 +653,83 @@ fn check_memory_to_decode(
         })
 }
 
-/// The bytes of an image file, at most [`MAX_IMAGE_BYTES`]. A file the
-/// process has too little memory to hold is refused
+/// The first bytes of an OpenEXR file.
+pub const EXR_MAGIC: [u8; 4] = [0x76, 0x2f, 0x31, 0x01];
+/// The first bytes of a PNG file.
+pub const PNG_MAGIC: [u8; 8] = [0x89, 0x50, 0x4e, 0x47, 0x0d, 0x0a, 0x1a, 0x0a];
+
+/// The bytes of an image file, at most [`MAX_IMAGE_BYTES`]. A file that
+/// starts as neither a PNG nor an OpenEXR file is refused from its first
+/// bytes; a file the process has too little memory to hold is refused
 /// ([`ImageError::Memory`]).
 pub fn read_image_file(path: &Path) -> Result<Vec<u8>, ImageError> {
-    let size = std::fs::metadata(path)
-        .ok()
-        .filter(|m| m.is_file() && m.len() <= MAX_IMAGE_BYTES)
-        .map_or(0, |m| m.len());
+    read_image_file_if(
+        path,
+        |head| head.starts_with(&EXR_MAGIC) || head.starts_with(&PNG_MAGIC),
+        "not a PNG or OpenEXR image",
+    )
+}
+
+/// [`read_image_file`] for a file whose first 8 bytes `accept` takes;
+/// any other is refused with `refusal` before the rest is read (a
+/// device of endless bytes read 3 GB to be told it is not an image).
+pub fn read_image_file_if(
+    path: &Path,
+    accept: impl Fn(&[u8]) -> bool,
+    refusal: &str,
+) -> Result<Vec<u8>, ImageError> {
+    use std::io::Read;
+    let fail = |message: String| ImageError::Read {
+        path: path.to_owned(),
+        message,
+    };
+    let file = std::fs::File::open(path).map_err(|e| fail(format!("cannot read: {e}")))?;
+    let meta = file
+        .metadata()
+        .map_err(|e| fail(format!("cannot read: {e}")))?;
+    if meta.is_dir() {
+        return Err(fail("cannot read: is a directory".into()));
+    }
+    if meta.is_file() && meta.len() > MAX_IMAGE_BYTES {
+        return Err(fail(format!(
+            "file is {} bytes, at most {MAX_IMAGE_BYTES} are read",
+            meta.len()
+        )));
+    }
+    let mut head = Vec::with_capacity(PNG_MAGIC.len());
+    (&file)
+        .take(PNG_MAGIC.len() as u64)
+        .read_to_end(&mut head)
+        .map_err(|e| fail(format!("cannot read: {e}")))?;
+    if !accept(&head) {
+        return Err(fail(refusal.into()));
+    }
+    let size = if meta.is_file() { meta.len() } else { 0 };
     super::memory::check_file_memory(size).map_err(|message| ImageError::Memory {
         path: path.to_owned(),
         message,
     })?;
-    super::scene_file::read_bounded(path, MAX_IMAGE_BYTES).map_err(|message| ImageError::Read {
-        path: path.to_owned(),
-        message,
-    })
+    let mut bytes = head;
+    // Reserved where it may fail, as the memory check's probe was.
+    bytes
+        .try_reserve_exact((size as usize).saturating_sub(bytes.len()))
+        .map_err(|_| {
+            fail(format!(
+                "reading its {size} bytes needs about {}, more than this process can have",
+                super::memory::amount(size as usize)
+            ))
+        })?;
+    let rest = MAX_IMAGE_BYTES - bytes.len() as u64;
+    (&file)
+        .take(rest + 1)
+        .read_to_end(&mut bytes)
+        .map_err(|e| fail(format!("cannot read: {e}")))?;
+    if bytes.len() as u64 > MAX_IMAGE_BYTES {
+        return Err(fail(format!(
+            "more than {MAX_IMAGE_BYTES} bytes (at most {MAX_IMAGE_BYTES} are read; stopped there)"
+        )));
+    }
+    Ok(bytes)
 }
 
 #[cfg(test)]

@@ -24,7 +24,7 @@ use glam::Vec3;
 use super::error::ImageError;
 use super::film::Film;
 use super::memory::check_read_memory;
-use super::output::{read_image_file, write_atomic};
+use super::output::{EXR_MAGIC, read_image_file_if, write_atomic};
 use super::progressive::TileRect;
 use super::scene_file::SceneDesc;
 use super::scene_file::limits::MAX_SIDE;
@@ -173,10 +173,11 @@ pub fn read_part(path: &Path) -> Result<Part, ImageError> {
         path: path.to_owned(),
         message,
     };
-    let bytes = read_image_file(path)?;
-    if !bytes.starts_with(&[0x76, 0x2f, 0x31, 0x01]) {
-        return Err(fail("not an OpenEXR file (a region part is one)".into()));
-    }
+    let bytes = read_image_file_if(
+        path,
+        |head| head.starts_with(&EXR_MAGIC),
+        "not an OpenEXR file (a region part is one)",
+    )?;
     // The header first: its sizes are checked before any pixel is
     // allocated.
     let meta = MetaData::read_from_buffered(Cursor::new(&bytes), false)

@@ -368,3 +368,44 @@ fn merge_refuses_gaps_and_lack_of_memory_early_and_parts_are_the_same_bytes() {
         "a region's bytes changed from run to run"
     );
 }
+
+/// A small part of a `width`×`height` render of the seed room.
+fn small_part(dir: &Path, name: &str, width: &str, height: &str, region: &str) -> PathBuf {
+    let out = dir.join(name);
+    let o = penumbra(&[
+        "render",
+        SCENE,
+        "-o",
+        out.to_str().unwrap(),
+        "--width",
+        width,
+        "--height",
+        height,
+        "--shadow-rays",
+        "1",
+        "--region",
+        region,
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    out
+}
+
+/// Refusals name the real difference: a part of another size is refused
+/// for its size (not as another scene, though its fingerprint differs
+/// too).
+#[test]
+fn merge_names_the_real_difference_of_parts() {
+    let dir = scratch_dir("named");
+    let top = small_part(&dir, "top.exr", "64", "36", "0,0,64,18");
+    let taller = small_part(&dir, "taller.exr", "64", "40", "0,18,64,22");
+    let out = dir.join("out.exr");
+    let o = merge(&[top.clone(), taller], &out);
+    assert_eq!(o.status.code(), Some(2));
+    let msg = stderr(&o);
+    assert!(
+        msg.contains("taller.exr is a part of a 64×40 image, ") && msg.contains("of a 64×36 one"),
+        "{msg}"
+    );
+
+    assert!(!out.exists());
+}

@@ -292,12 +292,9 @@ pub fn merge(parts: &[(PathBuf, Part)]) -> Result<Film, MergeError> {
     }
     for (path, p) in &parts[1..] {
         let (a, b) = (first_path.display(), path.display());
-        if p.scene != first.scene {
-            return err(format!(
-                "{b} is a part of another scene than {a} (scene fingerprint {} against {})",
-                p.scene, first.scene
-            ));
-        }
+        // The size first: the fingerprint covers it, and a size is the
+        // clearer reason. The version next: another version may write
+        // another fingerprint for the same scene.
         if p.full != first.full {
             return err(format!(
                 "{b} is a part of a {}×{} image, {a} of a {}×{} one",
@@ -308,6 +305,12 @@ pub fn merge(parts: &[(PathBuf, Part)]) -> Result<Film, MergeError> {
             return err(format!(
                 "{b} was rendered by penumbra {}, {a} by {}: their pixels may differ",
                 p.version, first.version
+            ));
+        }
+        if p.scene != first.scene {
+            return err(format!(
+                "{b} is a part of another scene than {a} (scene fingerprint {} against {})",
+                p.scene, first.scene
             ));
         }
     }

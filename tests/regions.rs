@@ -392,7 +392,8 @@ fn small_part(dir: &Path, name: &str, width: &str, height: &str, region: &str) -
 
 /// Refusals name the real difference: a part of another size is refused
 /// for its size (not as another scene, though its fingerprint differs
-/// too).
+/// too), and an attribute from the file is quoted cut to 80 characters on
+/// one line.
 #[test]
 fn merge_names_the_real_difference_of_parts() {
     let dir = scratch_dir("named");
@@ -406,6 +407,20 @@ fn merge_names_the_real_difference_of_parts() {
         msg.contains("taller.exr is a part of a 64×40 image, ") && msg.contains("of a 64×36 one"),
         "{msg}"
     );
+
+    // A crafted fingerprint of 5000 characters, with a line break.
+    let mut crafted = read_part(&top).unwrap();
+    crafted.region.y = 18;
+    crafted.scene = format!("x\n{}", "f".repeat(5000));
+    let crafted_path = dir.join("crafted.exr");
+    write_part(&crafted, &crafted_path).unwrap();
+    let o = merge(&[top.clone(), crafted_path], &out);
+    assert_eq!(o.status.code(), Some(2));
+    let msg = stderr(&o);
+    assert!(msg.contains("is a part of another scene than"), "{msg}");
+    assert!(msg.contains("… (5003 characters)"), "{msg}");
+    assert!(msg.len() < 400, "{} bytes: {msg}", msg.len());
+    assert_eq!(msg.lines().count(), 1, "{msg}");
 
     assert!(!out.exists());
 }

@@ -21,7 +21,7 @@ use exr::prelude::{
 };
 use glam::Vec3;
 
-use super::error::ImageError;
+use super::error::{ImageError, cut};
 use super::film::Film;
 use super::memory::check_read_memory;
 use super::output::{EXR_MAGIC, read_image_file_if, write_atomic};
@@ -304,13 +304,15 @@ pub fn merge(parts: &[(PathBuf, Part)]) -> Result<Film, MergeError> {
         if p.version != first.version {
             return err(format!(
                 "{b} was rendered by penumbra {}, {a} by {}: their pixels may differ",
-                p.version, first.version
+                quoted(&p.version),
+                quoted(&first.version)
             ));
         }
         if p.scene != first.scene {
             return err(format!(
                 "{b} is a part of another scene than {a} (scene fingerprint {} against {})",
-                p.scene, first.scene
+                quoted(&p.scene),
+                quoted(&first.scene)
             ));
         }
     }
@@ -410,6 +412,13 @@ fn gaps_of(parts: &[(PathBuf, Part)], width: u32, height: u32) -> Option<(u64, (
         }
     }
     first.map(|f| (gaps, f))
+}
+
+/// An attribute's text as a message quotes it: on one line, cut to
+/// [`MAX_QUOTED`](super::error::MAX_QUOTED) characters (a crafted file may
+/// hold anything there).
+fn quoted(text: &str) -> String {
+    cut(&text.escape_debug().to_string())
 }
 
 fn same_bits(a: Vec3, b: Vec3) -> bool {

@@ -392,8 +392,8 @@ fn small_part(dir: &Path, name: &str, width: &str, height: &str, region: &str) -
 
 /// Refusals name the real difference: a part of another size is refused
 /// for its size (not as another scene, though its fingerprint differs
-/// too), and an attribute from the file is quoted cut to 80 characters on
-/// one line.
+/// too), an attribute from the file is quoted cut to 80 characters on one
+/// line, and an empty data window is called empty.
 #[test]
 fn merge_names_the_real_difference_of_parts() {
     let dir = scratch_dir("named");
@@ -422,5 +422,19 @@ fn merge_names_the_real_difference_of_parts() {
     assert!(msg.len() < 400, "{} bytes: {msg}", msg.len());
     assert_eq!(msg.lines().count(), 1, "{msg}");
 
+    // A data window whose x ends are reversed (0..-1): empty.
+    let mut bytes = std::fs::read(&top).unwrap();
+    let key = b"dataWindow\0box2i\0";
+    let at = bytes.windows(key.len()).position(|w| w == key).unwrap() + key.len() + 4;
+    bytes[at + 8..at + 12].copy_from_slice(&(-1i32).to_le_bytes());
+    let empty = dir.join("empty.exr");
+    std::fs::write(&empty, bytes).unwrap();
+    let o = merge(&[empty], &out);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        stderr(&o).ends_with("empty.exr: its data window is empty (x 0..-1)\n"),
+        "{}",
+        stderr(&o)
+    );
     assert!(!out.exists());
 }

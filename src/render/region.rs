@@ -203,6 +203,28 @@ pub fn read_part(path: &Path) -> Result<Part, ImageError> {
                 .into(),
         ));
     };
+    // The crate swaps a window's ends when they are reversed (x 0..-1
+    // reads as 2 pixels at -1): an empty window is found in the bytes.
+    for name in ["displayWindow", "dataWindow"] {
+        if let Some([x0, y0, x1, y1]) = raw_box(&bytes, name)
+            && (x1 < x0 || y1 < y0)
+        {
+            let what = if name == "dataWindow" {
+                "data"
+            } else {
+                "display"
+            };
+            let ends: Vec<String> = [("x", x0, x1), ("y", y0, y1)]
+                .iter()
+                .filter(|(_, lo, hi)| hi < lo)
+                .map(|(axis, lo, hi)| format!("{axis} {lo}..{hi}"))
+                .collect();
+            return Err(fail(format!(
+                "its {what} window is empty ({})",
+                ends.join(", ")
+            )));
+        }
+    }
     let display = header.shared_attributes.display_window;
     let data = header.data_window();
     let side = MAX_SIDE as usize;
@@ -269,6 +291,36 @@ pub fn read_part(path: &Path) -> Result<Part, ImageError> {
         version,
         film,
     })
+}
+
+/// The `box2i` attribute `name` of an OpenEXR file's first header as
+/// written (x min, y min, x max, y max, inclusive); `None` if it is not
+/// there or the header ends early.
+fn raw_box(bytes: &[u8], name: &str) -> Option<[i32; 4]> {
+    // After the magic number and the version field: name, type, size,
+    // value, until an empty name.
+    let mut at = 8;
+    let text = |at: &mut usize| {
+        let len = bytes.get(*at..)?.iter().position(|&b| b == 0)?;
+        let t = &bytes[*at..*at + len];
+        *at += len + 1;
+        Some(t)
+    };
+    loop {
+        let key = text(&mut at)?;
+        if key.is_empty() {
+            return None;
+        }
+        let kind = text(&mut at)?;
+        let size = i32::from_le_bytes(bytes.get(at..at + 4)?.try_into().ok()?);
+        at += 4;
+        let value = bytes.get(at..at.checked_add(usize::try_from(size).ok()?)?)?;
+        at += value.len();
+        if key == name.as_bytes() && kind == b"box2i" && value.len() == 16 {
+            let v = |i: usize| i32::from_le_bytes(value[4 * i..4 * i + 4].try_into().unwrap());
+            return Some([v(0), v(1), v(2), v(3)]);
+        }
+    }
 }
 
 /// Why parts do not make one image; every message names the files.

@@ -130,10 +130,14 @@ fn compare_of_different_sizes_exits_2() {
     }
     let o = penumbra(&["compare", a.to_str().unwrap(), b.to_str().unwrap()]);
     assert_eq!(o.status.code(), Some(2));
-    assert!(
-        stderr(&o).contains("sizes differ: 16×9 vs 17×9"),
-        "{}",
-        stderr(&o)
+    // Both files named, each with its size.
+    assert_eq!(
+        stderr(&o),
+        format!(
+            "penumbra: image sizes differ: {} is 16×9, {} is 17×9\n",
+            a.display(),
+            b.display()
+        )
     );
 }
 

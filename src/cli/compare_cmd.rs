@@ -52,6 +52,17 @@ pub fn compare(args: &CompareArgs) -> Result<(), CliError> {
     let (a, b, region) = read_pair(&args.a, &args.b)?;
     finite(&a, &args.a)?;
     finite(&b, &args.b)?;
+    if (a.width, a.height) != (b.width, b.height) {
+        return Err(CliError::input(format!(
+            "image sizes differ: {} is {}×{}, {} is {}×{}",
+            args.a.display(),
+            a.width,
+            a.height,
+            args.b.display(),
+            b.width,
+            b.height
+        )));
+    }
     let c = compare_films(&a, &b).map_err(CliError::input)?;
     // Pixels are named in the whole image's coordinates.
     let (x0, y0) = region.map_or((0, 0), |(r, _)| (r.x, r.y));

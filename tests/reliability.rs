@@ -1054,16 +1054,26 @@ fn compare_decodes_by_content_and_exits_2_for_a_bad_diff_name() {
         disguised.to_str().unwrap(),
     ]);
     assert!(out.starts_with("rmse 0.000000e0"), "{out}");
-    for name in ["x.jpg", "x.exr"] {
+    // The name says what is written: one without .png is refused as such
+    // (not as though the file were some PNG).
+    for name in ["x.jpg", "x.exr", "noext", "/dev/null"] {
+        let target = d.join(name);
         let r = penumbra(&[
             "compare",
             png.to_str().unwrap(),
             png.to_str().unwrap(),
             "--diff",
-            d.join(name).to_str().unwrap(),
+            target.to_str().unwrap(),
         ]);
         assert_eq!(r.status.code(), Some(2), "{name}: {}", stderr(&r));
-        assert!(!d.join(name).exists());
+        assert_eq!(
+            stderr(&r),
+            format!(
+                "penumbra: {}: --diff writes a PNG: the name must end in .png\n",
+                target.display()
+            )
+        );
+        assert!(name.starts_with('/') || !target.exists());
     }
     let r = render_tiny(&d.join("x.jpg"));
     assert_eq!(r.status.code(), Some(2));

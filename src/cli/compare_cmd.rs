@@ -33,11 +33,11 @@ pub fn compare(args: &CompareArgs) -> Result<(), CliError> {
     };
     super::safety::end_on_signals(interrupted);
     if let Some(path) = &args.diff {
-        // The difference image is a PNG; anything else is bad input, as for
-        // `render -o`.
+        // The difference image is a PNG, chosen by the name: anything else
+        // is bad input, as for `render -o`.
         if !matches!(FileKind::of(path), Ok(FileKind::Png)) {
             return Err(CliError::input(format!(
-                "{}: the difference image is a PNG (expected .png)",
+                "{}: --diff writes a PNG: the name must end in .png",
                 path.display()
             )));
         }

@@ -1030,6 +1030,45 @@ fn compare_refuses_non_finite_pixels_with_count_and_position() {
     assert!(!diff.exists());
 }
 
+/// Finite pixels near f32's limit differ by more than f32 holds: the
+/// figures and the difference image's scale are still finite and right.
+#[test]
+fn compare_of_huge_finite_values_gives_finite_figures() {
+    let dir = scratch();
+    let (a, b) = (dir.path().join("a.exr"), dir.path().join("b.exr"));
+    let mut film = Film::new(4, 3);
+    film.pixels.fill(glam::Vec3::splat(3.4e38));
+    penumbra::render::output::write_film(&film, &a).unwrap();
+    film.pixels.fill(glam::Vec3::splat(-3.4e38));
+    film.pixels[5] = glam::Vec3::splat(3.4e38);
+    penumbra::render::output::write_film(&film, &b).unwrap();
+    let diff = dir.path().join("d.png");
+    let out = common::penumbra_ok(&[
+        "compare",
+        a.to_str().unwrap(),
+        b.to_str().unwrap(),
+        "--diff",
+        diff.to_str().unwrap(),
+    ]);
+    let figure = |name: &str| -> f64 {
+        let line = out.lines().find(|l| l.starts_with(name)).unwrap();
+        line.split_whitespace().nth(1).unwrap().parse().unwrap()
+    };
+    // 11 of 12 pixels differ by 6.8e38 in each channel.
+    let rmse = 6.8e38 * (11.0f64 / 12.0).sqrt();
+    assert!((figure("rmse") / rmse - 1.0).abs() < 1e-6, "{out}");
+    assert!((figure("psnr") + 20.0 * rmse.log10()).abs() < 0.01, "{out}");
+    assert!(
+        out.contains("max_diff 6.800000e38 at pixel (0, 0)"),
+        "{out}"
+    );
+    assert!(out.contains("white = 6.800e38)"), "{out}");
+    let rgb = image::open(&diff).unwrap().into_rgb8().into_raw();
+    let white = rgb.chunks(3).filter(|p| *p == [255, 255, 255]).count();
+    let black = rgb.chunks(3).filter(|p| *p == [0, 0, 0]).count();
+    assert_eq!((white, black), (11, 1));
+}
+
 #[test]
 fn compare_decodes_by_content_and_exits_2_for_a_bad_diff_name() {
     let dir = scratch();

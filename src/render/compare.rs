@@ -13,6 +13,10 @@ pub struct Comparison {
     pub psnr: f64,
     /// Largest difference of one channel of one pixel.
     pub max_diff: f32,
+    /// The same in f64: finite for any finite pixels (the difference of
+    /// two f32s near their limit is past f32's range, and `max_diff` is
+    /// infinite then).
+    pub max_diff_wide: f64,
     /// The pixel where it occurs.
     pub max_at: (u32, u32),
 }
@@ -29,18 +33,18 @@ fn check_sizes(a: &Film, b: &Film) -> Result<(), SizeMismatch> {
     Ok(())
 }
 
-/// Per-pixel largest channel difference.
-fn pixel_diff(a: Vec3, b: Vec3) -> f32 {
-    (a - b).abs().max_element()
+/// Per-pixel largest channel difference, in f64: finite for finite pixels.
+fn pixel_diff(a: Vec3, b: Vec3) -> f64 {
+    (a.as_dvec3() - b.as_dvec3()).abs().max_element()
 }
 
 pub fn compare(a: &Film, b: &Film) -> Result<Comparison, SizeMismatch> {
     check_sizes(a, b)?;
     let mut sum = 0.0f64;
-    let mut max_diff = 0.0f32;
+    let mut max_diff = 0.0f64;
     let mut max_index = 0usize;
     for (i, (pa, pb)) in a.pixels.iter().zip(&b.pixels).enumerate() {
-        let d = (*pa - *pb).as_dvec3();
+        let d = pa.as_dvec3() - pb.as_dvec3();
         sum += d.length_squared();
         let m = pixel_diff(*pa, *pb);
         // NaN must count as the largest difference, not be ignored.
@@ -54,7 +58,8 @@ pub fn compare(a: &Film, b: &Film) -> Result<Comparison, SizeMismatch> {
     Ok(Comparison {
         rmse,
         psnr: 20.0 * (1.0 / rmse).log10(),
-        max_diff,
+        max_diff: max_diff as f32,
+        max_diff_wide: max_diff,
         max_at: (
             (max_index % a.width as usize) as u32,
             (max_index / a.width as usize) as u32,
@@ -68,7 +73,7 @@ pub fn rmse_masked(a: &Film, b: &Film, mask: &[bool]) -> Result<f64, SizeMismatc
     let (mut sum, mut n) = (0.0f64, 0usize);
     for ((pa, pb), &m) in a.pixels.iter().zip(&b.pixels).zip(mask) {
         if m {
-            sum += (*pa - *pb).as_dvec3().length_squared();
+            sum += (pa.as_dvec3() - pb.as_dvec3()).length_squared();
             n += 3;
         }
     }
@@ -79,6 +84,16 @@ pub fn rmse_masked(a: &Film, b: &Film, mask: &[bool]) -> Result<f64, SizeMismatc
 /// blue, magenta and orange to white at `scale` (the largest difference if
 /// `None`). Returns the data and the scale used.
 pub fn diff_image(a: &Film, b: &Film, scale: Option<f32>) -> Result<(Vec<u8>, f32), SizeMismatch> {
+    diff_image_wide(a, b, scale.map(f64::from)).map(|(rgb, scale)| (rgb, scale as f32))
+}
+
+/// [`diff_image`] with the differences and the scale in f64, which holds
+/// the difference of any two finite pixels.
+pub fn diff_image_wide(
+    a: &Film,
+    b: &Film,
+    scale: Option<f64>,
+) -> Result<(Vec<u8>, f64), SizeMismatch> {
     check_sizes(a, b)?;
     let scale = scale.unwrap_or_else(|| {
         a.pixels
@@ -86,7 +101,7 @@ pub fn diff_image(a: &Film, b: &Film, scale: Option<f32>) -> Result<(Vec<u8>, f3
             .zip(&b.pixels)
             .map(|(x, y)| pixel_diff(*x, *y))
             .filter(|d| d.is_finite())
-            .fold(0.0, f32::max)
+            .fold(0.0, f64::max)
     });
     let mut out = Vec::with_capacity(a.pixels.len() * 3);
     for (pa, pb) in a.pixels.iter().zip(&b.pixels) {
@@ -94,7 +109,7 @@ pub fn diff_image(a: &Film, b: &Film, scale: Option<f32>) -> Result<(Vec<u8>, f3
         let t = if d.is_nan() {
             1.0
         } else if scale > 0.0 {
-            (d / scale).clamp(0.0, 1.0)
+            (d / scale).clamp(0.0, 1.0) as f32
         } else {
             0.0
         };

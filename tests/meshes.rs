@@ -32,7 +32,7 @@ fn render(desc: &SceneDesc, skip: bool) -> Film {
     l.render_image()
 }
 
-fn rmse(a: &Film, b: &Film) -> (f64, f32) {
+fn rmse(a: &Film, b: &Film) -> (f64, f64) {
     let c = compare(a, b).unwrap();
     (c.rmse, c.max_diff)
 }

@@ -459,7 +459,11 @@ fn a_reference_of_more_shadow_rays_reads_the_cores_rmse_and_error_image() {
         assert_eq!([p.r(), p.g(), p.b()], rgb[3 * i..3 * i + 3], "pixel {i}");
         if film.pixels[i] == reference.pixels[i] {
             assert_eq!(*p, egui::Color32::BLACK, "pixel {i}");
-        } else if (film.pixels[i] - reference.pixels[i]).abs().max_element() > 0.1 * scale {
+        } else if (film.pixels[i].as_dvec3() - reference.pixels[i].as_dvec3())
+            .abs()
+            .max_element()
+            > 0.1 * scale
+        {
             assert_ne!(*p, egui::Color32::BLACK, "pixel {i}");
             coloured += 1;
         }

@@ -43,7 +43,7 @@ pub struct ErrorShown {
     pub reference_id: u64,
     pub comparison: Comparison,
     /// The difference shown as white.
-    pub scale: f32,
+    pub scale: f64,
     /// False colour, black = equal (as uploaded, without a copy).
     pub image: Arc<ColorImage>,
 }
@@ -153,17 +153,18 @@ fn evaluate(req: ErrorRequest) -> Option<ErrorShown> {
     };
     let reference = &req.reference;
     let comparison = compare(&film, reference).ok()?;
+    // Finite for finite pixels (taken in f64); else the largest finite one.
     let largest = if comparison.max_diff.is_finite() {
         comparison.max_diff
     } else {
         film.pixels
             .iter()
             .zip(&reference.pixels)
-            .map(|(a, b)| (*a - *b).abs().max_element())
+            .map(|(a, b)| (a.as_dvec3() - b.as_dvec3()).abs().max_element())
             .filter(|d| d.is_finite())
-            .fold(0.0, f32::max)
+            .fold(0.0, f64::max)
     };
-    let scale = largest / 2f32.powf(req.exposure);
+    let scale = largest / 2f64.powf(req.exposure as f64);
     let (rgb, scale) = diff_image(&film, reference, Some(scale)).ok()?;
     let image = Arc::new(ColorImage::from_rgb(
         [film.width as usize, film.height as usize],
@@ -208,7 +209,7 @@ impl Readout {
 }
 
 /// The false-colour ramp with its end values.
-pub fn legend_ui(ui: &mut Ui, scale: f32) {
+pub fn legend_ui(ui: &mut Ui, scale: f64) {
     ui.horizontal(|ui| {
         ui.label("0");
         let (rect, _) = ui.allocate_exact_size(egui::vec2(128.0, 12.0), egui::Sense::hover());
@@ -229,7 +230,7 @@ pub fn legend_ui(ui: &mut Ui, scale: f32) {
 }
 
 /// "1.2e-2", or "0" for identical images.
-pub fn scale_text(scale: f32) -> String {
+pub fn scale_text(scale: f64) -> String {
     if scale == 0.0 {
         "0".into()
     } else {

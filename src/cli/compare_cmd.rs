@@ -3,7 +3,7 @@ use crate::render::CancelToken;
 use crate::render::Film;
 use crate::render::ImageError;
 use crate::render::TileRect;
-use crate::render::compare::{compare as compare_films, diff_image_wide};
+use crate::render::compare::{compare as compare_films, diff_image};
 use crate::render::memory::{amount, check_image_memory};
 use crate::render::output::{FileKind, read_film, write_rgb8};
 use crate::render::region::{Part, read_part};
@@ -70,7 +70,7 @@ pub fn compare(args: &CompareArgs) -> Result<(), CliError> {
         "rmse {:.6e}\npsnr {:.2} dB\nmax_diff {:.6e} at pixel ({}, {})\n",
         c.rmse,
         c.psnr,
-        c.max_diff_wide,
+        c.max_diff,
         c.max_at.0 + x0,
         c.max_at.1 + y0
     );
@@ -85,7 +85,7 @@ pub fn compare(args: &CompareArgs) -> Result<(), CliError> {
         // bytes a pixel each), refused before they abort the process.
         check_image_memory(a.width, a.height, 6)
             .map_err(|e| CliError::input(format!("{}: {e}", path.display())))?;
-        let (rgb, scale) = diff_image_wide(&a, &b, None).map_err(CliError::input)?;
+        let (rgb, scale) = diff_image(&a, &b, None).map_err(CliError::input)?;
         // The write is stopped as render's is: it fails, the target
         // untouched.
         super::safety::handle_signals(&CancelToken::new());

@@ -11,12 +11,10 @@ pub struct Comparison {
     pub rmse: f64,
     /// 20·log10(1 / rmse), peak 1.0 linear; infinite for equal images.
     pub psnr: f64,
-    /// Largest difference of one channel of one pixel.
-    pub max_diff: f32,
-    /// The same in f64: finite for any finite pixels (the difference of
-    /// two f32s near their limit is past f32's range, and `max_diff` is
-    /// infinite then).
-    pub max_diff_wide: f64,
+    /// Largest difference of one channel of one pixel, in f64: finite for
+    /// any finite pixels (the difference of two f32s near their limit is
+    /// past f32's range).
+    pub max_diff: f64,
     /// The pixel where it occurs.
     pub max_at: (u32, u32),
 }
@@ -58,8 +56,7 @@ pub fn compare(a: &Film, b: &Film) -> Result<Comparison, SizeMismatch> {
     Ok(Comparison {
         rmse,
         psnr: 20.0 * (1.0 / rmse).log10(),
-        max_diff: max_diff as f32,
-        max_diff_wide: max_diff,
+        max_diff,
         max_at: (
             (max_index % a.width as usize) as u32,
             (max_index / a.width as usize) as u32,
@@ -83,17 +80,9 @@ pub fn rmse_masked(a: &Film, b: &Film, mask: &[bool]) -> Result<f64, SizeMismatc
 /// False-colour difference image as 8-bit RGB: black where equal, through
 /// blue, magenta and orange to white at `scale` (the largest difference if
 /// `None`). Returns the data and the scale used.
-pub fn diff_image(a: &Film, b: &Film, scale: Option<f32>) -> Result<(Vec<u8>, f32), SizeMismatch> {
-    diff_image_wide(a, b, scale.map(f64::from)).map(|(rgb, scale)| (rgb, scale as f32))
-}
-
-/// [`diff_image`] with the differences and the scale in f64, which holds
-/// the difference of any two finite pixels.
-pub fn diff_image_wide(
-    a: &Film,
-    b: &Film,
-    scale: Option<f64>,
-) -> Result<(Vec<u8>, f64), SizeMismatch> {
+/// The differences and the scale are f64, which holds the difference of
+/// any two finite pixels.
+pub fn diff_image(a: &Film, b: &Film, scale: Option<f64>) -> Result<(Vec<u8>, f64), SizeMismatch> {
     check_sizes(a, b)?;
     let scale = scale.unwrap_or_else(|| {
         a.pixels

@@ -82,7 +82,7 @@ pub struct NoSkip {
     pub stats: RayStats,
     /// RMSE between the images with skipping on and off.
     pub rmse_vs_skip: f64,
-    pub max_diff_vs_skip: f32,
+    pub max_diff_vs_skip: f64,
 }
 
 /// One measured configuration.

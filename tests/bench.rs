@@ -316,6 +316,21 @@ fn an_anti_aliased_sweep_measures_the_light_not_the_anti_aliasing() {
     );
 }
 
+/// `--edits` on a tiny image, whose one-shot renders take less CPU time
+/// than the clock counts: no ratio of CPU times is printed as "inf×".
+#[test]
+fn edits_on_a_tiny_image_print_finite_ratios() {
+    let stdout = penumbra_ok(&["bench", "--edits", "--width", "1", "--threads", "1"]);
+    assert!(
+        stdout.contains("re-trace full quality / one-shot"),
+        "{stdout}"
+    );
+    assert!(
+        !stdout.contains("inf") && !stdout.contains("NaN"),
+        "{stdout}"
+    );
+}
+
 /// The spheres of a scene.
 fn spheres_of(desc: &SceneDesc) -> Vec<&penumbra::render::scene_file::SphereDesc> {
     desc.objects
@@ -404,7 +419,7 @@ fn bench_outputs_are_refused_before_the_sweep() {
     let cases: [(&[&str], &str); 6] = [
         (
             &["--plot", "p.exr"],
-            "p.exr: --plot writes a PNG (expected .png)",
+            "p.exr: --plot writes a PNG: the name must end in .png",
         ),
         (&["--plot", "p"], "--plot writes a PNG"),
         (

@@ -1555,6 +1555,69 @@ fn a_full_stderr_keeps_the_exit_code() {
     assert_eq!(render_to("/proc/x.png"), Some(1));
 }
 
+/// A full standard output (`>/dev/full`) or a closed pipe (`| head -1`)
+/// under `bench` and `generate`: the bench runs to its end and writes its
+/// files, then says what failed (exit 1); a closed pipe is no error; both
+/// used to panic (exit 101) at the first line.
+#[test]
+fn a_full_or_closed_stdout_is_reported_not_panicked() {
+    let dir = scratch();
+    let full = || {
+        std::fs::OpenOptions::new()
+            .write(true)
+            .open("/dev/full")
+            .unwrap()
+    };
+    let bench = [
+        "bench",
+        "--quick",
+        "--width",
+        "16",
+        "--counts",
+        "1",
+        "--runs",
+        "1",
+        "--out",
+        dir.path().to_str().unwrap(),
+        "--cache",
+        dir.path().to_str().unwrap(),
+    ];
+    let o = bin().args(bench).stdout(full()).output().unwrap();
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert_eq!(
+        stderr(&o).lines().last(),
+        Some("penumbra: standard output: No space left on device (os error 28)")
+    );
+    assert!(dir.path().join("bench-seed-room.csv").exists());
+
+    // The reader gone after the first line.
+    let mut child = bin()
+        .args(bench)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut first = [0u8; 8];
+    std::io::Read::read_exact(child.stdout.as_mut().unwrap(), &mut first).unwrap();
+    drop(child.stdout.take());
+    let o = child.wait_with_output().unwrap();
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(!stderr(&o).contains("panicked"), "{}", stderr(&o));
+
+    let obj = dir.path().join("t.obj");
+    let o = bin()
+        .args(["generate", "--triangles", "18", "-o", obj.to_str().unwrap()])
+        .stdout(full())
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("No space left on device"),
+        "{}",
+        stderr(&o)
+    );
+}
+
 /// A signal while `render` reads its scene (standard input that never
 /// ends) ends it promptly with exit 1 and the one line, as during the
 /// render; it used to end it silently with 143.

@@ -261,8 +261,10 @@ pub fn generate(args: &GenerateArgs) -> Result<(), CliError> {
     safety::handle_signals(&CancelToken::new());
     let n = crate::render::generate_mesh::write_torus_obj(&args.output, args.triangles as usize)
         .map_err(|e| safety::write_failure(e, INTERRUPTED_MESSAGE))?;
-    println!("{}: a torus of {n} triangles", args.output.display());
-    Ok(())
+    print_stdout(&format!(
+        "{}: a torus of {n} triangles\n",
+        args.output.display()
+    ))
 }
 
 #[derive(Debug, Args)]

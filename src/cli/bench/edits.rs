@@ -87,7 +87,7 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
     for scene in scenes(args)? {
         let mut desc = scene.desc;
         let c = &desc.camera;
-        println!(
+        outln!(
             "{}: {}×{}, {} {} shadow rays, depth {}, {} threads",
             scene.name,
             c.width,
@@ -149,15 +149,15 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
                 }
             }
             let (median_ms, p90_ms) = median_p90(&full);
-            print!(
+            out!(
                 "edit {} median_ms {median_ms:.1} p90_ms {p90_ms:.1}",
                 class.name()
             );
             if class == EditClass::Retrace {
                 let (median_ms, p90_ms) = median_p90(&first);
-                print!(" first_pixels_median_ms {median_ms:.1} first_pixels_p90_ms {p90_ms:.1}");
+                out!(" first_pixels_median_ms {median_ms:.1} first_pixels_p90_ms {p90_ms:.1}");
             }
-            println!();
+            outln!();
         }
         drop(job);
         // Each re-trace against the one-shot render right after it: all of
@@ -178,20 +178,29 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
             let (median_ms, p90_ms) = median_p90(&full);
             let (cli, _) = median_p90(&one_shot);
             if of_kind.is_some() {
-                print!("edit retrace{kind} median_ms {median_ms:.1} p90_ms {p90_ms:.1}; ");
+                out!("edit retrace{kind} median_ms {median_ms:.1} p90_ms {p90_ms:.1}; ");
             }
-            print!(
+            out!(
                 "re-trace{kind} full quality / one-shot {:.2}× (one-shot median_ms {cli:.1}; median of the {} pairs {pairs:.2}×",
                 median_ms / cli,
                 runs.len()
             );
-            let cpu: Option<Vec<f64>> = runs.iter().map(|r| r.cpu.map(ratio)).collect();
-            if let Some(cpu) = cpu {
-                print!(", of their CPU times {:.2}×", median(cpu));
+            let cpu: Option<Vec<(Duration, Duration)>> = runs.iter().map(|r| r.cpu).collect();
+            match cpu {
+                // CPU time comes in clock ticks: a tiny image's one-shot
+                // render may take none, and no ratio can be had.
+                Some(cpu) if cpu.iter().any(|(_, one_shot)| one_shot.is_zero()) => {
+                    out!(", their CPU times below the clock's resolution")
+                }
+                Some(cpu) => out!(
+                    ", of their CPU times {:.2}×",
+                    median(cpu.into_iter().map(ratio).collect())
+                ),
+                None => {}
             }
-            println!(")");
+            outln!(")");
         }
-        println!("record peak_bytes {peak} ({:.1} MB)", peak as f64 / 1e6);
+        outln!("record peak_bytes {peak} ({:.1} MB)", peak as f64 / 1e6);
     }
     Ok(())
 }

@@ -49,7 +49,7 @@ pub fn averaged_reference(
     if let Some(film) = cached
         && (film.width, film.height) == (w, h)
     {
-        println!("65 536-ray reference: cached {}", path.display());
+        outln!("65 536-ray reference: cached {}", path.display());
         return Ok(film);
     }
     let mut sum = vec![glam::DVec3::ZERO; (w * h) as usize];
@@ -60,7 +60,7 @@ pub fn averaged_reference(
         for (s, p) in sum.iter_mut().zip(&report.film.pixels) {
             *s += p.as_dvec3();
         }
-        println!(
+        outln!(
             "  reference render {}/{renders}: {:.1} s",
             k + 1,
             report.elapsed.as_secs_f64()
@@ -73,7 +73,7 @@ pub fn averaged_reference(
     std::fs::create_dir_all(cache)
         .map_err(|e| CliError::other(format!("{}: {e}", cache.display())))?;
     write_film(&film, &path).map_err(CliError::other)?;
-    println!("65 536-ray reference: stored {}", path.display());
+    outln!("65 536-ray reference: stored {}", path.display());
     Ok(film)
 }
 
@@ -98,7 +98,7 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
 fn run_scene(args: &BenchArgs, scene: &BenchScene, error_image: PathBuf) -> Result<(), CliError> {
     let runs = args.runs.unwrap_or(5).max(5);
     let d = &scene.desc;
-    println!(
+    outln!(
         "exact model on {}: {}×{}, depth {}, {} threads, median of {runs} interleaved runs",
         scene.name,
         d.camera.width,
@@ -128,15 +128,16 @@ fn run_scene(args: &BenchArgs, scene: &BenchScene, error_image: PathBuf) -> Resu
     let (exact_report, grid_report) = (exact_report.expect("runs"), grid_report.expect("runs"));
     let (me, mg) = (median(&te).as_secs_f64(), median(&tg).as_secs_f64());
     let s = &exact_report.final_stats;
-    println!(
+    outln!(
         "time: exact {:.1} ms, sampled 64 grid {:.1} ms (exact / grid {:.2}×; goal ≤ 1×)",
         me * 1e3,
         mg * 1e3,
         me / mg
     );
-    println!(
+    outln!(
         "exact hit points: {} exact, {} fell back to the analytic estimate",
-        s.exact_hits, s.exact_fallbacks
+        s.exact_hits,
+        s.exact_fallbacks
     );
 
     let reference = averaged_reference(d, REFERENCE_RENDERS, &args.cache, args.fresh_reference)?;
@@ -152,7 +153,7 @@ fn run_scene(args: &BenchArgs, scene: &BenchScene, error_image: PathBuf) -> Resu
         d,
     )?);
     let e_one = rmse(&one.film)?;
-    println!(
+    outln!(
         "RMSE against the 65 536-ray stratified reference: exact {e_exact:.3e} (goal ≤ 1e-4), \
          sampled 64 grid {e_grid:.3e}, one 4096-ray stratified render {e_one:.3e} \
          (the reference's own noise is about a quarter of that)"
@@ -164,6 +165,6 @@ fn run_scene(args: &BenchArgs, scene: &BenchScene, error_image: PathBuf) -> Resu
     let (rgb, _) =
         diff_image(&exact_report.film, &reference, Some(scale)).map_err(CliError::other)?;
     write_rgb8(&path, d.camera.width, d.camera.height, &rgb).map_err(CliError::other)?;
-    println!("error image (white = {scale:e}): {}", path.display());
+    outln!("error image (white = {scale:e}): {}", path.display());
     Ok(())
 }

@@ -57,7 +57,7 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
         let m = mesh_desc(&bunny, 0.4, [0.0, 0.0013, 0.5], 180.0);
         rooms.push(("bunny room".into(), room_with(&base, m), 3_674));
     } else {
-        println!("(no scenes/models/bunny.obj here: the bunny room is left out)");
+        outln!("(no scenes/models/bunny.obj here: the bunny room is left out)");
     }
     for &n in counts {
         let file = dir.path().join(format!("torus-{n}.obj"));
@@ -67,7 +67,7 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
         rooms.push((format!("torus {exact}"), room_with(&base, m), exact));
     }
     let r = &base.render;
-    println!(
+    outln!(
         "{}×{}, {} {} shadow rays, depth {}; medians of {runs} rounds, each rendering every room in turn; ratios are the median of the rounds' own (load: reading the files and building the scene)",
         base.camera.width,
         base.camera.height,
@@ -75,9 +75,13 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
         r.sampling.name(),
         r.max_depth
     );
-    println!(
+    outln!(
         "{:<16} {:>10} {:>10} {:>11} {:>12}",
-        "scene", "triangles", "load ms", "render ms", "vs seed room"
+        "scene",
+        "triangles",
+        "load ms",
+        "render ms",
+        "vs seed room"
     );
     // Every room is built before any is timed, and the timed renders go
     // round the rooms in turn: a change in the machine's speed (other work
@@ -119,7 +123,7 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
         if name.starts_with("torus") {
             torus_rooms.push((room, *triangles));
         }
-        println!(
+        outln!(
             "{:<16} {:>10} {:>10.1} {:>11.1} {:>11.2}×",
             name,
             triangles,
@@ -131,7 +135,7 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
     if let (Some(&(first, fewest)), Some(&(last, most))) = (torus_rooms.first(), torus_rooms.last())
         && torus_rooms.len() > 1
     {
-        println!(
+        outln!(
             "render time from {fewest} to {most} triangles: {:.2}×",
             median_over_rounds(&|r| r[last] / r[first])
         );

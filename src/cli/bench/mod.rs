@@ -20,6 +20,26 @@
 //! Numeric options take values that begin with `-`, as `render`'s do (see
 //! [`crate::cli`]): a negative number gets the option's range message.
 
+/// `print!` for the bench's report: a failed write to standard output
+/// (`> /dev/full`) is kept for the end, a closed pipe (`| head`) ignored,
+/// instead of `print!`'s panic (exit 101) mid-run; the result files are
+/// written either way.
+macro_rules! out {
+    ($($arg:tt)*) => {
+        $crate::cli::bench::write_out(format_args!($($arg)*))
+    };
+}
+
+/// `println!` as [`out!`].
+macro_rules! outln {
+    () => {
+        $crate::cli::bench::write_out(format_args!("\n"))
+    };
+    ($($arg:tt)*) => {
+        $crate::cli::bench::write_out(format_args!("{}\n", format_args!($($arg)*)))
+    };
+}
+
 pub mod edits;
 pub mod exact;
 pub mod memory;
@@ -193,6 +213,21 @@ pub enum PlotTime {
     Cpu,
 }
 
+/// The first failed write to standard output of [`out!`], other than to
+/// a closed pipe.
+static STDOUT_ERROR: std::sync::Mutex<Option<String>> = std::sync::Mutex::new(None);
+
+/// What [`out!`] and [`outln!`] call.
+pub fn write_out(text: std::fmt::Arguments) {
+    use std::io::Write;
+    if let Err(e) = std::io::stdout().lock().write_fmt(text)
+        && e.kind() != std::io::ErrorKind::BrokenPipe
+    {
+        let mut first = STDOUT_ERROR.lock().unwrap_or_else(|p| p.into_inner());
+        first.get_or_insert_with(|| e.to_string());
+    }
+}
+
 /// `penumbra bench`.
 pub fn bench(args: &BenchArgs) -> Result<(), CliError> {
     crate::cli::safety::end_on_signals("interrupted");
@@ -222,7 +257,7 @@ pub fn bench(args: &BenchArgs) -> Result<(), CliError> {
         }
     }
     refuse_unused_scene(args)?;
-    println!("load average at start: {}", load_average());
+    outln!("load average at start: {}", load_average());
     let pool = thread_pool(args.threads)?;
     let result = pool.install(|| {
         if args.exact {
@@ -243,8 +278,15 @@ pub fn bench(args: &BenchArgs) -> Result<(), CliError> {
             sweep::run(args)
         }
     });
-    println!("load average at end: {}", load_average());
-    result
+    outln!("load average at end: {}", load_average());
+    let failed = STDOUT_ERROR
+        .lock()
+        .unwrap_or_else(|p| p.into_inner())
+        .take();
+    match (result, failed) {
+        (Ok(()), Some(e)) => Err(CliError::other(format!("standard output: {e}"))),
+        (result, _) => result,
+    }
 }
 
 /// Refuses (exit 2) a scene file given to a mode that makes its own

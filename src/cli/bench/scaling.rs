@@ -37,7 +37,7 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
     let layout = Layout::from(args.layout);
     if let Some(s) = scenes.first() {
         let r = &s.desc.render;
-        println!(
+        outln!(
             "generated rooms ({:?} layout, sphere seed {}): {}×{}, {} {} shadow rays, depth {}, {}; median of {runs} runs",
             layout,
             args.sphere_seed,
@@ -49,7 +49,7 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
             r.area_light_model.name()
         );
     }
-    println!(
+    outln!(
         "{:>8} {:>8} {:>9} {:>9} {:>10} {:>9} {:>9} {:>7} {:>10} {:>9} {:>9} {:>12}",
         "spheres",
         "radius",
@@ -83,7 +83,7 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
             no_shadow_s: no_shadow.median().as_secs_f64(),
         };
         let first = rows.first().copied().unwrap_or(row);
-        println!(
+        outln!(
             "{:>8} {:>8.4} {:>9} {:>9.2} {:>10.2} {:>9.2} {:>9} {:>7.1} {:>10.1} {:>8.2}× {:>8.2}× {:>12.2}",
             row.spheres,
             row.radius,
@@ -105,19 +105,19 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
     if let (Some(lo), Some(hi)) = (lo, hi)
         && lo.spheres != hi.spheres
     {
-        println!(
+        outln!(
             "time ratio N={} / N={}: {:.2} wall, {:.2} CPU (target ≤ 4 for 10000 / 10)",
             hi.spheres,
             lo.spheres,
             hi.time_s / lo.time_s,
             hi.cpu_s / lo.cpu_s
         );
-        println!(
+        outln!(
             "without shadow rays (camera and mirror rays: the BVH's closest hits): {:.2} wall",
             hi.no_shadow_s / lo.no_shadow_s
         );
         if layout == Layout::Volume {
-            println!(
+            outln!(
                 "(the spheres fill {:.0} % of the room at every N, so a ray's free path shrinks as N^(-1/3): \
                  a shadow ray that reaches the light passes ever more spheres on the way; \
                  --layout floor keeps what a shadow ray crosses constant)",

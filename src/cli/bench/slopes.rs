@@ -70,28 +70,30 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
             )));
         }
         let reference = with(Sampling::Stratified, REFERENCE_RAYS)?.render_image();
-        println!(
+        outln!(
             "{}: {}×{}, {in_mask} penumbra pixels; RMSE of the diffuse term in penumbrae against {REFERENCE_RAYS} stratified rays",
-            bench_scene.name, desc.camera.width, desc.camera.height
+            bench_scene.name,
+            desc.camera.width,
+            desc.camera.height
         );
-        print!("{:>14}", "rays");
+        out!("{:>14}", "rays");
         for c in COUNTS {
-            print!("{c:>11}");
+            out!("{c:>11}");
         }
-        println!("{:>9}", "slope");
+        outln!("{:>9}", "slope");
         for pattern in PATTERNS {
             let mut errors = Vec::new();
             for rays in COUNTS {
                 let film: Film = with(pattern, rays)?.render_image();
                 errors.push(rmse_masked(&film, &reference, &mask).map_err(CliError::other)?);
             }
-            print!("{:>14}", pattern.name());
+            out!("{:>14}", pattern.name());
             for e in &errors {
-                print!("{e:>11.3e}");
+                out!("{e:>11.3e}");
             }
             match fitted_slope(&COUNTS.map(f64::from), &errors) {
-                Some(slope) => println!("{slope:>9.2}"),
-                None => println!("{:>9}", "-"),
+                Some(slope) => outln!("{slope:>9.2}"),
+                None => outln!("{:>9}", "-"),
             }
         }
     }

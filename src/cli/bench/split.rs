@@ -33,7 +33,7 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
             &args.cache,
             args.fresh_reference,
         )?;
-        println!(
+        outln!(
             "{}: {}×{}, {} sampling, {} model, depth {}; reference {REFERENCE_SPP} spp × {REFERENCE_RAYS} stratified rays ({})",
             scene.name,
             desc.camera.width,
@@ -47,7 +47,7 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
                 "rendered"
             },
         );
-        println!(
+        outln!(
             "{:>12} {:>7} {:>12} {:>10} {:>10} {:>11} {:>9} {:>12}",
             "sampling",
             "budget",
@@ -82,7 +82,7 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
                     let cpu = t.median_cpu().map_or(t.median(), |c| c).as_secs_f64();
                     let cost = c.rmse * c.rmse * cpu;
                     let split = format!("{spp} × {rays}");
-                    println!(
+                    outln!(
                         "{:>12} {budget:>7} {split:>12} {:>10.1} {:>10.1} {:>11.3e} {:>9.2} {cost:>12.3e}",
                         sampling.name(),
                         t.median().as_secs_f64() * 1e3,
@@ -99,7 +99,7 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
                     spp *= 4;
                 }
                 if let (Some((e, b)), Some((_, f))) = (best, efficient) {
-                    println!(
+                    outln!(
                         "{:>12} {budget:>7} lowest error: {b} (rmse {e:.3e}); lowest error for the time: {f}",
                         sampling.name()
                     );

@@ -434,7 +434,7 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
         && !matches!(FileKind::of(plot), Ok(FileKind::Png))
     {
         return Err(CliError::input(format!(
-            "{}: --plot writes a PNG (expected .png)",
+            "{}: --plot writes a PNG: the name must end in .png",
             plot.display()
         )));
     }
@@ -463,7 +463,7 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
     let plan = SweepPlan::from_args(args);
     for scene in &scenes {
         let d = &scene.desc;
-        println!(
+        outln!(
             "{}: {}×{}, depth {}, {} objects; {} runs per configuration, reference: the exact model where the scene allows it, else {} stratified rays",
             scene.name,
             d.camera.width,
@@ -481,9 +481,9 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
                 secs,
             } => {
                 if cached {
-                    println!("reference ({}): cached {}", model.name(), path.display());
+                    outln!("reference ({}): cached {}", model.name(), path.display());
                 } else {
-                    println!(
+                    outln!(
                         "reference ({}): rendered in {secs:.2} s, stored {}",
                         model.name(),
                         path.display()
@@ -492,11 +492,11 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
             }
             Progress::ExactReference { fallbacks, secs } => {
                 if fallbacks == 0 {
-                    println!(
+                    outln!(
                         "reference (sampled, analytic): the exact model's image, rendered in {secs:.2} s"
                     );
                 } else {
-                    println!(
+                    outln!(
                         "reference (sampled, analytic): not the exact model ({fallbacks} hit points fell back to an estimate), \
                          {} stratified rays",
                         plan.reference_rays
@@ -513,13 +513,13 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
                 r.rmse
             )),
         })?;
-        print!("{}", table(&rows));
+        out!("{}", table(&rows));
         if let Some(worst) = rows
             .iter()
             .filter_map(|r| r.no_skip.map(|n| n.rmse_vs_skip))
             .max_by(f64::total_cmp)
         {
-            println!("largest RMSE between skipping on and off: {worst:e}");
+            outln!("largest RMSE between skipping on and off: {worst:e}");
         }
         let csv_path = output_path(args, &args.csv, scene, "csv");
         let plot_path = output_path(args, &args.plot, scene, "png");
@@ -548,7 +548,7 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
             args.plot_time,
             rayon::current_num_threads(),
         )?;
-        println!("wrote {} and {}", csv_path.display(), plot_path.display());
+        outln!("wrote {} and {}", csv_path.display(), plot_path.display());
     }
     Ok(())
 }

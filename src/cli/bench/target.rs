@@ -68,9 +68,10 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
     .into_iter()
     .next()
     .ok_or_else(|| CliError::input("no scene"))?;
-    println!(
+    outln!(
         "targets on {} ({} threads, median of {runs} runs)",
-        scene.name, threads
+        scene.name,
+        threads
     );
 
     let base = timed(&build(&at_size(&scene.desc, 960, 540, 1), true)?, runs);
@@ -83,7 +84,7 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
     let full_off = timed(&build(&full_desc, false)?, runs);
     report_line("1920×1080, 64 grid, skipping off", &full_off, threads);
     let diff = compare(&full.report.film, &full_off.report.film).map_err(CliError::other)?;
-    println!(
+    outln!(
         "rays saved by skipping at 1920×1080:\n{}",
         savings(&full.report.final_stats)
     );
@@ -101,10 +102,14 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
     let shadow_per_cpu_s = full_off
         .median_cpu()
         .map_or(f64::NAN, |c| off.shadow as f64 / c.as_secs_f64() / 1e6);
-    println!();
-    println!(
+    outln!();
+    outln!(
         "{:<52} {:>12} {:>10} {:>8} {:>4}",
-        "target", "measured", "goal", "ratio", "met"
+        "target",
+        "measured",
+        "goal",
+        "ratio",
+        "met"
     );
     let row = |label: &str, measured: f64, goal: f64, unit: &str, at_most: bool| {
         let met = if at_most {
@@ -112,7 +117,7 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
         } else {
             measured >= goal
         };
-        println!(
+        outln!(
             "{label:<52} {:>10.3}{unit:>2} {:>8}{unit:>2} {:>7.2}× {:>4}",
             measured,
             goal,
@@ -170,11 +175,11 @@ pub fn run(args: &BenchArgs) -> Result<(), CliError> {
             "",
             true,
         ),
-        None => println!(
+        None => outln!(
             "peak memory: not measured (needs /usr/bin/time); run /usr/bin/time -v penumbra render --width 1920 --height 1080 -o out.png"
         ),
     }
-    println!(
+    outln!(
         "960×540, 64 grid, depth 4: {:.3} s; skipping saves {:.2}× at 1920×1080; skip on vs off: RMSE {:.1e}, largest difference {:.1e} (expected 0)",
         secs(&half),
         secs(&full_off) / secs(&full),
@@ -193,7 +198,7 @@ fn report_line(label: &str, t: &Timed, threads: usize) {
         .map(|d| format!("{:.3}", d.as_secs_f64()))
         .collect();
     let cpu = t.median_cpu().map_or(f64::NAN, |c| c.as_secs_f64());
-    println!(
+    outln!(
         "{label}: median {secs:.3} s (runs {} s), CPU {cpu:.3} s, {} rays traced, {:.1} Mray/s ({:.1} per core)",
         times.join(" "),
         si(s.traced()),

@@ -725,6 +725,7 @@ fn a_scene_or_option_a_mode_does_not_use_is_refused() {
             "cpu",
         ],
         &["bench", "--sphere-seed", "3"],
+        &["bench", "--spp-split", "--spp", "4"],
     ] {
         assert_refused_by_the_parser(args);
     }

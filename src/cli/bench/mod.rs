@@ -197,8 +197,9 @@ pub struct BenchArgs {
     /// error image, and its time against 64 grid rays of `sampled`.
     #[arg(long)]
     pub exact: bool,
-    /// Camera samples per pixel of the renders (anti-aliasing).
-    #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..=1024))]
+    /// Camera samples per pixel of the renders (anti-aliasing; not with
+    /// --spp-split, whose splits choose their own).
+    #[arg(long, allow_negative_numbers = true, value_parser = clap::value_parser!(u32).range(1..=1024), conflicts_with = "spp_split")]
     pub spp: Option<u32>,
     /// Time the seed room, the bunny room and the room with a generated
     /// torus of each of these triangle counts (load and render).

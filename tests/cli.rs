@@ -785,7 +785,8 @@ fn a_given_value_that_looks_like_an_option_says_what_is_wrong_with_it() {
 }
 
 /// `--filter-width` with `--filter box` is refused: the box has no width,
-/// and the width was dropped without a word.
+/// and the width was dropped without a word; so is a filter at one sample
+/// a pixel.
 #[test]
 fn a_filter_width_with_the_box_filter_is_refused() {
     let dir = scratch_dir("box-width");
@@ -800,6 +801,15 @@ fn a_filter_width_with_the_box_filter_is_refused() {
         err.contains("--filter-width 3") && err.contains("--filter box"),
         "{err}"
     );
+    assert!(!out.exists());
+    // At one sample a pixel (a ray through its centre) a filter would be
+    // dropped without a word: refused, naming what to give.
+    for extra in [&["--filter", "box"][..], &["--filter-width", "2"]] {
+        let o = render_small(&out, extra);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{extra:?}: {err}");
+        assert!(err.contains("give --spp N"), "{extra:?}: {err}");
+    }
     assert!(!out.exists());
     // Each alone, and the width with Blackman–Harris, render.
     for extra in [

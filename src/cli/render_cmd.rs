@@ -22,6 +22,19 @@ pub fn load_scene(
 ) -> Result<(SceneDesc, Loaded), CliError> {
     let filter = overrides.filter()?;
     let desc = load_desc(path, overrides)?;
+    // One sample a pixel is a ray through its centre: a filter would be
+    // dropped without a word.
+    if filter.is_some() && desc.render.samples_per_pixel == 1 {
+        let given = match (overrides.filter, overrides.filter_width) {
+            (Some(_), Some(_)) => "--filter and --filter-width weigh",
+            (Some(_), None) => "--filter weighs",
+            _ => "--filter-width sets the reach of",
+        };
+        return Err(CliError::input(format!(
+            "{given} several camera samples a pixel, and this image has one: \
+             give --spp N (or render.samples_per_pixel in the scene)"
+        )));
+    }
     before_load(&desc)?;
     let o = overrides;
     // --scale and --translate go through the same validation as the file;

@@ -331,6 +331,32 @@ fn edits_on_a_tiny_image_print_finite_ratios() {
     );
 }
 
+/// A size the bench's options make out of range is named as `render`
+/// names it: the scene file, the field, and the option whose side followed
+/// at the scene's aspect ratio (the bench said only the field).
+#[test]
+fn a_bench_size_out_of_range_names_the_file_and_the_option() {
+    let dir = tempfile::tempdir().unwrap();
+    let tall = dir.path().join("tall.json");
+    let mut desc = tiny_room(1, 16384);
+    desc.render.shadow_rays = 1;
+    std::fs::write(&tall, desc.to_json()).unwrap();
+    let o = penumbra(&[
+        "bench",
+        tall.to_str().unwrap(),
+        "--quick",
+        "--width",
+        "16384",
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains(&format!("{}: camera.height: ", tall.display()))
+            && err.contains("the height that --width 16384 gives"),
+        "{err}"
+    );
+}
+
 /// The spheres of a scene.
 fn spheres_of(desc: &SceneDesc) -> Vec<&penumbra::render::scene_file::SphereDesc> {
     desc.objects

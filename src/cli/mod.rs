@@ -463,6 +463,28 @@ impl CliError {
     }
 }
 
+/// A side that followed the other's option (`--width` or `--height`
+/// alone) at the scene's aspect ratio is named as such where it is out of
+/// range: the file never said it.
+pub fn name_followed_side(
+    e: &mut crate::render::SceneError,
+    width: Option<u32>,
+    height: Option<u32>,
+) {
+    let followed = match (width, height) {
+        (Some(w), None) => Some(("height", "--width", w, "--height")),
+        (None, Some(h)) => Some(("width", "--height", h, "--width")),
+        _ => None,
+    };
+    if let Some((side, option, value, other)) = followed
+        && e.path == format!("camera.{side}")
+    {
+        e.message += &format!(
+            " (the {side} that {option} {value} gives at the scene's aspect ratio; give {other} too)"
+        );
+    }
+}
+
 /// Writes a line to stderr, ignoring a failed write (`2>/dev/full`, a
 /// closed pipe): `eprintln!` would panic with exit 101, and a message no
 /// one can read should not change the command's exit code.

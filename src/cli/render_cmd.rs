@@ -56,21 +56,8 @@ pub fn load_scene(
     } else {
         format!(" (after{moved})")
     };
-    // A side that followed the other's option at the scene's aspect ratio
-    // is named as such where it is out of range.
-    let followed = match (o.width, o.height) {
-        (Some(w), None) => Some(("height", "--width", w, "--height")),
-        (None, Some(h)) => Some(("width", "--height", h, "--width")),
-        _ => None,
-    };
     let loaded = Loaded::new(&desc).map_err(|mut e| {
-        if let Some((side, option, value, other)) = followed
-            && e.path == format!("camera.{side}")
-        {
-            e.message += &format!(
-                " (the {side} that {option} {value} gives at the scene's aspect ratio; give {other} too)"
-            );
-        }
+        super::name_followed_side(&mut e, o.width, o.height);
         e.message += &moved;
         e
     });

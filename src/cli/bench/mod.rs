@@ -397,7 +397,15 @@ pub fn scenes(args: &BenchArgs) -> Result<Vec<BenchScene>, CliError> {
             if let Some(spp) = args.spp {
                 s.desc.render.samples_per_pixel = spp;
             }
-            s.desc.validate().map_err(CliError::input)?;
+            // Named as render names it: the file, and the option that
+            // made the size what it is.
+            s.desc.validate().map_err(|mut e| {
+                super::name_followed_side(&mut e, args.width.or(quick_width), args.height);
+                match (&args.scene, &args.spheres) {
+                    (Some(file), None) => CliError::input(e.in_file(file)),
+                    _ => CliError::input(e),
+                }
+            })?;
             memory::check(args, &s)?;
             Ok(s)
         })

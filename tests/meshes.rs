@@ -1027,6 +1027,11 @@ fn obj_byte_order_marks_cr_line_ends_and_trailing_comments_read_as_meant() {
             "\u{feff}{}",
             plain.replace("v 3 3 0", "v 3 3 0 1 0 0 # red")
         ),
+        // Line continuations, in a face, in a vertex (with CR LF ends and
+        // a comment after), and a comment line that ends in a backslash.
+        plain.replace("f 1 2 3", "f 1 2 \\\n3"),
+        format!("# C:\\models\\\n{}", plain.replace('\n', "\r\n"))
+            .replace("v 1 -1 0", "v 1 \\\r\n-1 0 # right"),
     ];
     for text in variants {
         let got = read_obj(text.as_bytes()).unwrap_or_else(|e| panic!("{text:?}: {e}"));
@@ -1079,6 +1084,9 @@ fn obj_faces_of_fewer_than_three_corners_and_bad_lines_name_the_line() {
         let e = read_obj(text.as_bytes()).unwrap_err();
         assert!(e.contains(want), "{text:?}: {want:?} in {e}");
     }
+    // Lines after a continuation keep their numbers.
+    let e = read_obj(format!("v -1 \\\n-1 0\n{}f 1 2\n", &v[10..]).as_bytes()).unwrap_err();
+    assert!(e.contains("line 5: malformed face \"f 1 2\""), "{e}");
     // A line that is not UTF-8 where `tobj` would read it (the fast
     // reader leaves files with a backslash, a line continuation, to it;
     // it reads bytes and passes over a name that is not UTF-8).

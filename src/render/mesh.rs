@@ -237,9 +237,12 @@ pub fn read_obj(bytes: &[u8]) -> Result<RawMesh, String> {
 }
 
 /// The OBJ text without a UTF-8 byte-order mark, with CR line ends as LF
-/// where the file has no LF at all, and without comments that follow a
-/// statement on its line (`v 1 2 3 # top`); borrowed where none of these
-/// is there.
+/// where the file has no LF at all, without comments that follow a
+/// statement on its line (`v 1 2 3 # top`), and with line continuations (a
+/// backslash ending a line) joined into one line, the line ends they took
+/// put after it so that later lines keep their numbers (neither reader
+/// joins them: `tobj` read the backslash as an index); borrowed where none
+/// of these is there.
 fn clean_obj(bytes: &[u8]) -> std::borrow::Cow<'_, [u8]> {
     let bytes = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes);
     let cr_only = bytes.contains(&b'\r') && !bytes.contains(&b'\n');
@@ -248,18 +251,35 @@ fn clean_obj(bytes: &[u8]) -> std::borrow::Cow<'_, [u8]> {
             .position(|&b| b == b'#')
             .is_some_and(|at| !line[..at].trim_ascii().is_empty())
     };
+    // A comment line is not continued (`# C:\models\`).
+    let continued = |line: &[u8]| {
+        line.trim_ascii_end().ends_with(b"\\") && !line.trim_ascii_start().starts_with(b"#")
+    };
     let break_byte = if cr_only { b'\r' } else { b'\n' };
-    if !cr_only && !bytes.split(|&b| b == b'\n').any(trailing_comment) {
+    if !cr_only
+        && !bytes
+            .split(|&b| b == b'\n')
+            .any(|line| trailing_comment(line) || continued(line))
+    {
         return std::borrow::Cow::Borrowed(bytes);
     }
     let mut out = Vec::with_capacity(bytes.len());
+    let mut joined = 0;
     for line in bytes.split(|&b| b == break_byte) {
         let kept = match line.iter().position(|&b| b == b'#') {
             Some(at) if trailing_comment(line) => &line[..at],
             _ => line,
         };
+        if continued(kept) {
+            let body = kept.trim_ascii_end();
+            out.extend_from_slice(&body[..body.len() - 1]);
+            out.push(b' ');
+            joined += 1;
+            continue;
+        }
         out.extend_from_slice(kept);
-        out.push(b'\n');
+        out.extend(std::iter::repeat_n(b'\n', 1 + joined));
+        joined = 0;
     }
     std::borrow::Cow::Owned(out)
 }

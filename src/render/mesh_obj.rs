@@ -7,7 +7,7 @@
 //! before the mesh comes out (about 0.9 s and 200 MB for a million
 //! triangles); this reader needs a tenth of that. It gives up (`None`) on
 //! anything outside that subset or wrong (a malformed number, an index
-//! out of range, a line continuation, ...): `read_obj` then names the line
+//! out of range, ...; line continuations are joined before it): `read_obj` then names the line
 //! that is wrong, or reads the file through `tobj`. The triangles are the same either way (a test compares them;
 //! only the numbering of vertices differs: `tobj` numbers them in order of
 //! first use).

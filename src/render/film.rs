@@ -5,7 +5,7 @@ use std::sync::OnceLock;
 
 use glam::Vec3;
 
-use super::math::{map_in_large_pages, srgb_to_linear};
+use super::math::{map_in_large_pages, map_in_large_pages_on_pool, srgb_to_linear};
 
 /// A linear RGB image, row-major from the top-left pixel.
 #[derive(Debug, Clone, PartialEq)]
@@ -17,12 +17,39 @@ pub struct Film {
 
 impl Film {
     pub fn new(width: u32, height: u32) -> Film {
+        let mut film = Film::zeroed(width, height);
+        map_in_large_pages(&mut film.pixels);
+        film
+    }
+
+    /// [`Film::new`] mapped in by the threads of rayon's current pool (a
+    /// render's film, made where that pool is about to render it).
+    pub fn new_on_pool(width: u32, height: u32) -> Film {
+        let mut film = Film::zeroed(width, height);
+        map_in_large_pages_on_pool(&mut film.pixels);
+        film
+    }
+
+    /// A black film from zeroed memory: a fresh block of the system's is
+    /// zero already (its pages are mapped in zeroed), so no pass writes
+    /// the zeros (25 MB at 1920×1080).
+    fn zeroed(width: u32, height: u32) -> Film {
         let n = width as usize * height as usize;
-        let mut pixels = Vec::with_capacity(n);
-        // Advised before the zeros are written: their writes are the
-        // pages' first touch.
-        map_in_large_pages(pixels.spare_capacity_mut());
-        pixels.resize(n, Vec3::ZERO);
+        let pixels = if n == 0 {
+            Vec::new()
+        } else {
+            let layout = std::alloc::Layout::array::<Vec3>(n).expect("a film's size fits");
+            // SAFETY: the layout is of n > 0 `Vec3`s; the block is checked
+            // for null, and all-zero bytes are the `Vec3` 0.0, 0.0, 0.0.
+            // The `Vec` frees it with the same global allocator and layout.
+            unsafe {
+                let block = std::alloc::alloc_zeroed(layout) as *mut Vec3;
+                if block.is_null() {
+                    std::alloc::handle_alloc_error(layout);
+                }
+                Vec::from_raw_parts(block, n, n)
+            }
+        };
         Film {
             width,
             height,
@@ -263,16 +290,37 @@ mod tests {
 
     /// A film large enough to be mapped in large pages starts black, every
     /// pixel of it, and keeps what a block writes: the advice changes how
-    /// its memory is mapped, not what it holds.
+    /// its memory is mapped, not what it holds. So does one mapped in by a
+    /// pool's threads (1 to 3 of them), one made where a freed film of
+    /// colour was (memory the allocator hands out again, not fresh), and
+    /// the small and empty ones.
     #[test]
     fn a_full_hd_film_starts_black_and_keeps_its_blocks() {
+        let black = |film: &Film, size: (u32, u32)| {
+            assert_eq!((film.width, film.height), size);
+            assert_eq!(film.pixels.len(), (size.0 * size.1) as usize);
+            assert!(film.pixels.iter().all(|&p| p == Vec3::ZERO));
+        };
         let mut film = Film::new(1920, 1080);
-        assert_eq!(film.pixels.len(), 1920 * 1080);
-        assert!(film.pixels.iter().all(|&p| p == Vec3::ZERO));
+        black(&film, (1920, 1080));
         let block = vec![Vec3::new(0.25, 0.5, 1.0); 32 * 32];
         film.write_block(1888, 1048, 32, &block);
         assert_eq!(film.get(1919, 1079), Vec3::new(0.25, 0.5, 1.0));
         assert_eq!(film.get(1887, 1079), Vec3::ZERO);
+        for threads in 1..=3 {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            for size in [(1920, 1080), (1000, 700), (31, 7), (0, 5)] {
+                // A film of colour freed first, whose memory may come back.
+                let mut lit = Film::new(size.0, size.1);
+                lit.pixels.fill(Vec3::ONE);
+                drop(lit);
+                black(&pool.install(|| Film::new_on_pool(size.0, size.1)), size);
+                black(&Film::new(size.0, size.1), size);
+            }
+        }
     }
 
     /// The code by a binary search over the thresholds (the definition).

@@ -297,7 +297,7 @@ pub(crate) fn render_passes(
 ) -> Result<(RenderReport, Vec<TileRecord>), Cancelled> {
     let start = Instant::now();
     let tiles = tiles_of(area, tile_side(options));
-    let film = Mutex::new(Film::new(area.w, area.h));
+    let film = Mutex::new(Film::new_on_pool(area.w, area.h));
     let records: Mutex<Vec<Option<TileRecord>>> = Mutex::new(vec![None; tiles.len()]);
     let mut total = RayStats::default();
     let mut last = RayStats::default();

@@ -429,7 +429,7 @@ fn merge_names_the_real_difference_of_parts() {
     bytes[at + 8..at + 12].copy_from_slice(&(-1i32).to_le_bytes());
     let empty = dir.join("empty.exr");
     std::fs::write(&empty, bytes).unwrap();
-    let o = merge(&[empty], &out);
+    let o = merge(std::slice::from_ref(&empty), &out);
     assert_eq!(o.status.code(), Some(2));
     assert!(
         stderr(&o).ends_with("empty.exr: its data window is empty (x 0..-1)\n"),
@@ -437,4 +437,13 @@ fn merge_names_the_real_difference_of_parts() {
         stderr(&o)
     );
     assert!(!out.exists());
+    // `compare` says the same of it: a part, broken, not an image whose
+    // decoder fails in its own words.
+    let o = penumbra(&["compare", empty.to_str().unwrap(), top.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        stderr(&o).ends_with("empty.exr: its data window is empty (x 0..-1)\n"),
+        "{}",
+        stderr(&o)
+    );
 }

@@ -1,12 +1,11 @@
 use super::{CliError, CompareArgs};
 use crate::render::CancelToken;
 use crate::render::Film;
-use crate::render::ImageError;
 use crate::render::TileRect;
 use crate::render::compare::{compare as compare_films, diff_image};
 use crate::render::memory::{amount, check_image_memory};
 use crate::render::output::{FileKind, read_film, write_rgb8};
-use crate::render::region::{Part, read_part};
+use crate::render::region::{Part, read_if_part};
 
 /// What `compare --diff` says when interrupted, as an interrupted render
 /// does.
@@ -110,13 +109,10 @@ fn read_pair(
     a_path: &std::path::Path,
     b_path: &std::path::Path,
 ) -> Result<(Film, Film, Option<(TileRect, (u32, u32))>), CliError> {
-    // Any file that is not a readable part is read as a whole image, but
-    // a part too large for the memory left is refused as what it is.
-    let part = |p: &std::path::Path| match read_part(p) {
-        Ok(part) => Ok(Some(part)),
-        Err(e @ ImageError::Memory { .. }) => Err(CliError::input(e)),
-        Err(_) => Ok(None),
-    };
+    // Any file that is no part is read as a whole image; one that says it
+    // is a part but is broken, or too large for the memory left, is
+    // refused as what it is.
+    let part = |p: &std::path::Path| read_if_part(p).map_err(CliError::input);
     let whole = |p: &std::path::Path| read_film(p).map_err(CliError::input);
     let describe = |p: &Part| {
         let r = p.region;

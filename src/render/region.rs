@@ -169,21 +169,59 @@ pub fn write_part(part: &Part, path: &Path) -> Result<(), ImageError> {
 /// Reads a part written by [`write_part`]; any other image is refused with
 /// what it lacks.
 pub fn read_part(path: &Path) -> Result<Part, ImageError> {
-    let fail = |message: String| ImageError::Read {
-        path: path.to_owned(),
-        message,
+    read_part_or_other(path).map_err(|e| e.error)
+}
+
+/// [`read_part`] for a reader that takes other images too (`compare`):
+/// `None` for an image that is no part (it lacks the fingerprint, or is
+/// no single-layer OpenEXR file), an error for a file that says it is a
+/// part but is broken (an empty window, say) or too large to read.
+pub fn read_if_part(path: &Path) -> Result<Option<Part>, ImageError> {
+    match read_part_or_other(path) {
+        Ok(part) => Ok(Some(part)),
+        Err(e) if e.a_part || matches!(e.error, ImageError::Memory { .. }) => Err(e.error),
+        Err(_) => Ok(None),
+    }
+}
+
+/// Why a file was not read as a part, and whether it says it is one.
+struct NotRead {
+    error: ImageError,
+    a_part: bool,
+}
+
+fn read_part_or_other(path: &Path) -> Result<Part, NotRead> {
+    let not_a_part = |error: ImageError| NotRead {
+        error,
+        a_part: false,
+    };
+    // Past the fingerprint the file says it is a part: what fails is a
+    // broken part.
+    let fail = |message: String| NotRead {
+        error: ImageError::Read {
+            path: path.to_owned(),
+            message,
+        },
+        a_part: true,
     };
     let bytes = read_image_file_if(
         path,
         |head| head.starts_with(&EXR_MAGIC),
         "not an OpenEXR file (a region part is one)",
-    )?;
+    )
+    .map_err(not_a_part)?;
+    let other = |message: String| {
+        not_a_part(ImageError::Read {
+            path: path.to_owned(),
+            message,
+        })
+    };
     // The header first: its sizes are checked before any pixel is
     // allocated.
     let meta = MetaData::read_from_buffered(Cursor::new(&bytes), false)
-        .map_err(|e| fail(format!("not a readable OpenEXR file: {e}")))?;
+        .map_err(|e| other(format!("not a readable OpenEXR file: {e}")))?;
     let [header] = meta.headers.as_slice() else {
-        return Err(fail(format!(
+        return Err(other(format!(
             "{} layers; a region part has one",
             meta.headers.len()
         )));
@@ -198,7 +236,7 @@ pub fn read_part(path: &Path) -> Result<Part, ImageError> {
         }
     };
     let (Some(scene), Some(version)) = (text(SCENE_ATTRIBUTE), text(VERSION_ATTRIBUTE)) else {
-        return Err(fail(
+        return Err(other(
             "not a region part: it lacks the scene fingerprint that `penumbra render --region` records"
                 .into(),
         ));
@@ -260,9 +298,12 @@ pub fn read_part(path: &Path) -> Result<Part, ImageError> {
         data.size.1 as u64,
         film_bytes.saturating_add(block_bytes),
     )
-    .map_err(|message| ImageError::Memory {
-        path: path.to_owned(),
-        message,
+    .map_err(|message| NotRead {
+        error: ImageError::Memory {
+            path: path.to_owned(),
+            message,
+        },
+        a_part: true,
     })?;
     let image = exr::prelude::read()
         .no_deep_data()

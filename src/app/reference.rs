@@ -21,7 +21,7 @@ use super::render_job::render_pool;
 use crate::render::output::read_film;
 use crate::render::progressive::{CancelToken, RenderOptions};
 use crate::render::scene_file::RenderDesc;
-use crate::render::{AreaLightModel, Film, Loaded, REFERENCE_RAYS, Sampling, SceneDesc};
+use crate::render::{AreaLightModel, Film, REFERENCE_RAYS, Sampling, SceneDesc};
 
 /// The converged version of `desc` (the image as displayed): the core's
 /// reference of it under its own area-light model.
@@ -157,12 +157,12 @@ impl ReferenceTask {
     pub fn compute(ctx: &egui::Context, desc: SceneDesc) -> ReferenceTask {
         let cancel = CancelToken::new();
         let tiles: Arc<[AtomicUsize; 2]> = Arc::default();
-        let (c, t, d) = (cancel.clone(), tiles.clone(), converged(&desc));
-        let image_seed = desc.render.seed;
+        let (c, t) = (cancel.clone(), tiles.clone());
+        let image = desc.clone();
         let rx = spawn(ctx, move |ctx| {
             let start = Instant::now();
-            let mut loaded = Loaded::new(&d).map_err(|e| e.to_string())?;
-            loaded.settings.camera_seed = image_seed;
+            let loaded = crate::render::reference_scene(&converged(&image), &image)
+                .map_err(|e| e.to_string())?;
             let options = RenderOptions {
                 threads: None,
                 progressive: false,

@@ -68,7 +68,9 @@ pub use progressive::{
     CancelToken, Cancelled, Pass, RenderOptions, RenderReport, TileRect, TileUpdate, on_threads,
     pass_plan, render, render_image, render_region,
 };
-pub use reference::{REFERENCE_RAYS, REFERENCE_SAMPLING, REFERENCE_SEED, reference_desc};
+pub use reference::{
+    REFERENCE_RAYS, REFERENCE_SAMPLING, REFERENCE_SEED, reference_desc, reference_scene,
+};
 pub use scene::{HitTarget, Loaded, PACKET_THRESHOLD, SEED_ROOM_JSON, Scene};
 pub use scene_file::{AreaLightModel, Sampling, SceneDesc};
 pub use settings::RenderSettings;

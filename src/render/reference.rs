@@ -1,6 +1,8 @@
 //! The converged reference of a scene: what the benchmark's errors and the
 //! viewer's error readout are measured against. One definition for both.
 
+use super::error::SceneError;
+use super::scene::Loaded;
 use super::scene_file::{AreaLightModel, Sampling, SceneDesc};
 
 /// Shadow rays per hit point of a reference unless told otherwise (the
@@ -26,4 +28,15 @@ pub fn reference_desc(desc: &SceneDesc, model: AreaLightModel, rays: u32) -> Sce
     d.render.area_light_model = model;
     d.render.adaptive = false;
     d
+}
+
+/// The runtime scene of `reference` (a [`reference_desc`], its seed
+/// perhaps changed) as the reference of the image of `image`: with several
+/// camera samples a pixel they lie where the image's do, scrambled by the
+/// image's seed, so that the two differ by the light alone, not by the
+/// anti-aliasing.
+pub fn reference_scene(reference: &SceneDesc, image: &SceneDesc) -> Result<Loaded, SceneError> {
+    let mut scene = Loaded::new(reference)?;
+    scene.settings.camera_seed = image.render.seed;
+    Ok(scene)
 }

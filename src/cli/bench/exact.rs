@@ -14,12 +14,12 @@
 
 use std::path::{Path, PathBuf};
 
-use super::reference::{REFERENCE_RAYS, build_reference, reference_key};
+use super::reference::{REFERENCE_RAYS, cached_film, reference_key};
 use super::{BenchArgs, BenchScene, CliError, build, median, render_once, scenes};
 use crate::render::compare::{compare, diff_image};
-use crate::render::output::{read_film, write_film, write_rgb8};
+use crate::render::output::{write_film, write_rgb8};
 use crate::render::{
-    AreaLightModel, Film, ImageError, REFERENCE_SEED, Sampling, SceneDesc, reference_desc,
+    AreaLightModel, Film, REFERENCE_SEED, Sampling, SceneDesc, reference_desc, reference_scene,
 };
 
 /// Renders of 4096 stratified rays averaged into the 65 536-ray reference.
@@ -36,19 +36,7 @@ pub fn averaged_reference(
     let key = reference_key(desc, AreaLightModel::Sampled, REFERENCE_RAYS);
     let path = cache.join(format!("ref-mean{renders}-sampled-{key}.exr"));
     let (w, h) = (desc.camera.width, desc.camera.height);
-    // A cache entry too large for the memory left is refused: rendering
-    // it again would need more.
-    let cached = if fresh {
-        None
-    } else {
-        match read_film(&path) {
-            Err(e @ ImageError::Memory { .. }) => return Err(CliError::input(e)),
-            read => read.ok(),
-        }
-    };
-    if let Some(film) = cached
-        && (film.width, film.height) == (w, h)
-    {
+    if !fresh && let Some(film) = cached_film(&path, (w, h))? {
         outln!("65 536-ray reference: cached {}", path.display());
         return Ok(film);
     }
@@ -56,7 +44,7 @@ pub fn averaged_reference(
     for k in 0..renders {
         let mut d = reference_desc(desc, AreaLightModel::Sampled, REFERENCE_RAYS);
         d.render.seed = REFERENCE_SEED.wrapping_add(k as u64);
-        let report = render_once(&build_reference(&d, desc)?);
+        let report = render_once(&reference_scene(&d, desc).map_err(CliError::input)?);
         for (s, p) in sum.iter_mut().zip(&report.film.pixels) {
             *s += p.as_dvec3();
         }
@@ -148,10 +136,8 @@ fn run_scene(args: &BenchArgs, scene: &BenchScene, error_image: PathBuf) -> Resu
     };
     let e_exact = rmse(&exact_report.film)?;
     let e_grid = rmse(&grid_report.film)?;
-    let one = render_once(&build_reference(
-        &reference_desc(d, AreaLightModel::Sampled, REFERENCE_RAYS),
-        d,
-    )?);
+    let one_desc = reference_desc(d, AreaLightModel::Sampled, REFERENCE_RAYS);
+    let one = render_once(&reference_scene(&one_desc, d).map_err(CliError::input)?);
     let e_one = rmse(&one.film)?;
     outln!(
         "RMSE against the 65 536-ray stratified reference: exact {e_exact:.3e} (goal ≤ 1e-4), \

@@ -13,12 +13,12 @@ use std::io::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
-use super::{CliError, build, render_once};
+use super::{CliError, render_once};
 use crate::render::output::{read_film, write_atomic, write_film};
-use crate::render::{AreaLightModel, Film, ImageError, Loaded, SceneDesc};
+use crate::render::{AreaLightModel, Film, ImageError, SceneDesc};
 
 pub use crate::render::REFERENCE_RAYS;
-use crate::render::reference_desc;
+use crate::render::{reference_desc, reference_scene};
 
 /// Bump when the renderer changes what a reference looks like, so that old
 /// cache entries are not reused.
@@ -102,12 +102,19 @@ impl Fnv1a {
     }
 }
 
-/// The runtime scene of `rdesc`, a reference of the image of `image`:
-/// its camera samples scrambled by the image's seed (see [`reference`]).
-pub fn build_reference(rdesc: &SceneDesc, image: &SceneDesc) -> Result<Loaded, CliError> {
-    let mut scene = build(rdesc, true)?;
-    scene.settings.camera_seed = image.render.seed;
-    Ok(scene)
+/// The cache entry at `path` if it is whole: a `size` image of finite
+/// pixels. One missing, unreadable (a damaged file) or of another size is
+/// `None`, to be rendered again; one too large for the memory left is
+/// refused (rendering it again would need more).
+pub fn cached_film(path: &Path, size: (u32, u32)) -> Result<Option<Film>, CliError> {
+    if !path.exists() {
+        return Ok(None);
+    }
+    match read_film(path) {
+        Err(e @ ImageError::Memory { .. }) => Err(CliError::input(e)),
+        Ok(film) if (film.width, film.height) == size && !film.has_non_finite() => Ok(Some(film)),
+        _ => Ok(None),
+    }
 }
 
 /// Loads the reference of `desc` under `model` from `cache_dir`, or
@@ -126,25 +133,13 @@ pub fn reference(
     let key = reference_key(desc, model, rays);
     let path = cache_dir.join(format!("ref-{}-{key}.exr", model.name()));
     let (w, h) = (desc.camera.width, desc.camera.height);
-    if !fresh && path.exists() {
-        // A cache entry of the wrong size (or unreadable) is rendered again;
-        // one too large for the memory left is refused (rendering it again
-        // would need more).
-        let cached = match read_film(&path) {
-            Err(e @ ImageError::Memory { .. }) => return Err(CliError::input(e)),
-            read => read,
-        };
-        if let Ok(film) = cached
-            && (film.width, film.height) == (w, h)
-            && !film.has_non_finite()
-        {
-            return Ok(Reference {
-                film,
-                path,
-                cached: true,
-                elapsed: Duration::ZERO,
-            });
-        }
+    if !fresh && let Some(film) = cached_film(&path, (w, h))? {
+        return Ok(Reference {
+            film,
+            path,
+            cached: true,
+            elapsed: Duration::ZERO,
+        });
     }
     std::fs::create_dir_all(cache_dir).map_err(|e| {
         CliError::other(format!(
@@ -153,7 +148,7 @@ pub fn reference(
         ))
     })?;
     let rdesc = reference_desc(desc, model, rays);
-    let scene = build_reference(&rdesc, desc)?;
+    let scene = reference_scene(&rdesc, desc).map_err(CliError::input)?;
     let start = Instant::now();
     let film = render_once(&scene).film;
     let elapsed = start.elapsed();

@@ -1722,7 +1722,9 @@ impl Viewer {
         let checked = if self.view.hidden.is_empty() {
             self.desc.validate()
         } else {
-            (self.view.apply(&self.desc, true).validate())
+            self.view
+                .apply(&self.desc, true)
+                .validate()
                 .map_err(|e| numbered_as_edited(e, &self.view.hidden))
         };
         let (Err(e), Some(accepted)) = (checked, self.accepted.take()) else {

@@ -2,7 +2,7 @@ use super::{CliError, CompareArgs};
 use crate::render::CancelToken;
 use crate::render::Film;
 use crate::render::TileRect;
-use crate::render::compare::{compare as compare_films, diff_image};
+use crate::render::compare::{SizeMismatch, compare as compare_films, diff_image};
 use crate::render::memory::{amount, check_image_memory};
 use crate::render::output::{FileKind, read_film, write_rgb8};
 use crate::render::region::{Part, read_if_part};
@@ -51,18 +51,13 @@ pub fn compare(args: &CompareArgs) -> Result<(), CliError> {
     let (a, b, region) = read_pair(&args.a, &args.b)?;
     finite(&a, &args.a)?;
     finite(&b, &args.b)?;
-    if (a.width, a.height) != (b.width, b.height) {
-        return Err(CliError::input(format!(
-            "image sizes differ: {} is {}×{}, {} is {}×{}",
+    let c = compare_films(&a, &b).map_err(|SizeMismatch(aw, ah, bw, bh)| {
+        CliError::input(format!(
+            "image sizes differ: {} is {aw}×{ah}, {} is {bw}×{bh}",
             args.a.display(),
-            a.width,
-            a.height,
             args.b.display(),
-            b.width,
-            b.height
-        )));
-    }
-    let c = compare_films(&a, &b).map_err(CliError::input)?;
+        ))
+    })?;
     // Pixels are named in the whole image's coordinates.
     let (x0, y0) = region.map_or((0, 0), |(r, _)| (r.x, r.y));
     let mut report = format!(

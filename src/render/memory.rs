@@ -61,15 +61,19 @@ pub fn check_read_memory(width: u64, height: u64, bytes: u64) -> Result<(), Stri
     })
 }
 
-/// Checks that a file of `bytes` can be read into memory now.
-pub fn check_file_memory(bytes: u64) -> Result<(), String> {
-    let bytes = usize::try_from(bytes).unwrap_or(usize::MAX);
-    fits(bytes).map_err(|()| {
-        format!(
-            "reading its {bytes} bytes needs about {}, more than this process can have",
-            amount(bytes)
-        )
-    })
+/// Reserves room in `bytes` for a file of `size` bytes (beyond what it
+/// holds), or says why not: where `Vec::with_capacity` would abort, a file
+/// larger than the memory the process may have is refused.
+pub fn reserve_for_file(bytes: &mut Vec<u8>, size: u64) -> Result<(), String> {
+    let size = usize::try_from(size).unwrap_or(usize::MAX);
+    bytes
+        .try_reserve_exact(size.saturating_sub(bytes.len()))
+        .map_err(|_| {
+            format!(
+                "reading its {size} bytes needs about {}, more than this process can have",
+                amount(size)
+            )
+        })
 }
 
 /// Whether `bytes` can be allocated now. Reserved and given back at once,

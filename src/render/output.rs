@@ -262,31 +262,36 @@ pub fn write_atomic(
             ))
         })?;
     let file = tmp.reopen().map_err(|e| fail(os_message(&e)))?;
-    let mut out = BufWriter::new(AtomicFile {
-        file,
-        first_error: None,
-    });
-    let written = write(&mut out).and_then(|()| out.flush().map_err(|e| os_message(&e)));
-    let first_error = match out.into_inner() {
-        Ok(f) => f.first_error,
-        Err(e) => e.into_parts().1.into_parts().0.first_error,
-    };
-    if let Err(message) = written {
-        // The file's own error (a full disk) says more than the encoder's
-        // account of it; an interruption says it all.
-        let message = if writes_interrupted() {
-            INTERRUPTED_MESSAGE.to_string()
-        } else {
-            first_error.unwrap_or(message)
-        };
-        return Err(fail(message));
-    }
+    write_into(file, write).map_err(fail)?;
     if writes_interrupted() {
         return Err(fail(INTERRUPTED_MESSAGE.into()));
     }
     put_in_place(tmp, path).map_err(|e| fail(os_message(&e)))?;
     drop(registered);
     Ok(())
+}
+
+/// Runs `write` into `file` through a buffer, flushed; returns the file.
+/// On failure, the file's own error (a full disk) says more than the
+/// encoder's account of it, and an interruption says it all.
+fn write_into(
+    file: std::fs::File,
+    write: impl FnOnce(&mut BufWriter<AtomicFile>) -> Result<(), String>,
+) -> Result<std::fs::File, String> {
+    let mut out = BufWriter::new(AtomicFile {
+        file,
+        first_error: None,
+    });
+    let written = write(&mut out).and_then(|()| out.flush().map_err(|e| os_message(&e)));
+    let inner = match out.into_inner() {
+        Ok(f) => f,
+        Err(e) => e.into_parts().1.into_parts().0,
+    };
+    match written {
+        Ok(()) => Ok(inner.file),
+        Err(_) if writes_interrupted() => Err(INTERRUPTED_MESSAGE.into()),
+        Err(message) => Err(inner.first_error.unwrap_or(message)),
+    }
 }
 
 /// Why an existing read-only file is not written.
@@ -346,21 +351,7 @@ fn write_in_place(
 ) -> Result<(), String> {
     let spill = tempfile::tempfile()
         .map_err(|e| format!("cannot make a temporary file: {}", os_message(&e)))?;
-    let mut out = BufWriter::new(AtomicFile {
-        file: spill,
-        first_error: None,
-    });
-    let written = write(&mut out).and_then(|()| out.flush().map_err(|e| os_message(&e)));
-    let (mut spill, first_error) = match out.into_inner() {
-        Ok(f) => (f.file, f.first_error),
-        Err(e) => {
-            let f = e.into_parts().1.into_parts().0;
-            (f.file, f.first_error)
-        }
-    };
-    if let Err(message) = written {
-        return Err(first_error.unwrap_or(message));
-    }
+    let mut spill = write_into(spill, write)?;
     spill.seek(SeekFrom::Start(0)).map_err(|e| os_message(&e))?;
     let mut file = AtomicFile {
         file: open_for_writing(path)?,
@@ -705,20 +696,11 @@ pub fn read_image_file_if(
         return Err(fail(refusal.into()));
     }
     let size = if meta.is_file() { meta.len() } else { 0 };
-    super::memory::check_file_memory(size).map_err(|message| ImageError::Memory {
+    let mut bytes = head;
+    super::memory::reserve_for_file(&mut bytes, size).map_err(|message| ImageError::Memory {
         path: path.to_owned(),
         message,
     })?;
-    let mut bytes = head;
-    // Reserved where it may fail, as the memory check's probe was.
-    bytes
-        .try_reserve_exact((size as usize).saturating_sub(bytes.len()))
-        .map_err(|_| {
-            fail(format!(
-                "reading its {size} bytes needs about {}, more than this process can have",
-                super::memory::amount(size as usize)
-            ))
-        })?;
     let rest = MAX_IMAGE_BYTES - bytes.len() as u64;
     (&file)
         .take(rest + 1)

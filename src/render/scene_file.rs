@@ -147,15 +147,7 @@ fn file_type_name(t: &std::fs::FileType) -> &'static str {
 fn read_all_bounded(reader: impl std::io::Read, limit: u64, hint: u64) -> Result<Vec<u8>, String> {
     use std::io::Read;
     let mut bytes = Vec::new();
-    // Reserved where it may fail: a file larger than the memory the
-    // process may have is refused, where `with_capacity` would abort.
-    let len = hint.min(limit) as usize;
-    bytes.try_reserve_exact(len).map_err(|_| {
-        format!(
-            "reading its {len} bytes needs about {}, more than this process can have",
-            super::memory::amount(len)
-        )
-    })?;
+    super::memory::reserve_for_file(&mut bytes, hint.min(limit))?;
     reader
         .take(limit + 1)
         .read_to_end(&mut bytes)

@@ -652,9 +652,10 @@ fn tile_in_lanes_generic<S: PathSink>(
         // instructions), with no division to find its pixel.
         if spp == 1 {
             for (k, (x, &ray)) in (rect.x..).zip(&rays).enumerate() {
-                let hit = match ahead {
-                    true => CameraHit::Found(hits[k]),
-                    false => CameraHit::Search(Some(objects)),
+                let hit = if ahead {
+                    CameraHit::Found(hits[k])
+                } else {
+                    CameraHit::Search(Some(objects))
                 };
                 tracer.trace_path(x, y, 0, ray, hit, scratch, sink, &mut colour);
                 colour.end_path();
@@ -663,9 +664,10 @@ fn tile_in_lanes_generic<S: PathSink>(
         }
         for (k, &ray) in (0..).zip(&rays) {
             let (x, sample) = (rect.x + k / spp, k % spp);
-            let hit = match ahead {
-                true => CameraHit::Found(hits[k as usize]),
-                false => CameraHit::Search(Some(objects)),
+            let hit = if ahead {
+                CameraHit::Found(hits[k as usize])
+            } else {
+                CameraHit::Search(Some(objects))
             };
             tracer.trace_path(x, y, sample, ray, hit, scratch, sink, &mut colour);
             colour.end_path();

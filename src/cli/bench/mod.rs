@@ -245,17 +245,11 @@ pub fn bench(args: &BenchArgs) -> Result<(), CliError> {
         ("scaling", args.scaling),
     ];
     let unused_by = |list: &[&str]| modes.iter().any(|(m, on)| *on && list.contains(m));
-    let folders = [
-        (&args.out, "--out", !unused_by(&NO_OUT)),
-        (&args.cache, "--cache", !unused_by(&NO_REFERENCE)),
-    ];
-    for (dir, flag, _) in folders.into_iter().filter(|f| f.2) {
-        if dir.exists() && !dir.is_dir() {
-            return Err(CliError::input(format!(
-                "{}: {flag} is a file, expected a folder",
-                dir.display()
-            )));
-        }
+    if !unused_by(&NO_OUT) {
+        refuse_file_for_folder(&args.out, "--out")?;
+    }
+    if !unused_by(&NO_REFERENCE) {
+        refuse_file_for_folder(&args.cache, "--cache")?;
     }
     refuse_unused_scene(args)?;
     outln!("load average at start: {}", load_average());
@@ -288,6 +282,18 @@ pub fn bench(args: &BenchArgs) -> Result<(), CliError> {
         (Ok(()), Some(e)) => Err(CliError::other(format!("standard output: {e}"))),
         (result, _) => result,
     }
+}
+
+/// Refuses (exit 2), before any work, a file where the folder `flag`
+/// names (made as needed) would go.
+fn refuse_file_for_folder(dir: &Path, flag: &str) -> Result<(), CliError> {
+    if dir.exists() && !dir.is_dir() {
+        return Err(CliError::input(format!(
+            "{}: {flag} is a file, expected a folder",
+            dir.display()
+        )));
+    }
+    Ok(())
 }
 
 /// Refuses (exit 2) a scene file given to a mode that makes its own
@@ -422,12 +428,7 @@ pub fn scenes(args: &BenchArgs) -> Result<Vec<BenchScene>, CliError> {
 /// output is (whole or not at all); a file where the folder would go, or
 /// a read-only scene file, refused (exit 2) before any is written.
 fn save_scenes(dir: &Path, scenes: &[BenchScene]) -> Result<(), CliError> {
-    if dir.exists() && !dir.is_dir() {
-        return Err(CliError::input(format!(
-            "{}: --save-scenes is a file, expected a folder",
-            dir.display()
-        )));
-    }
+    refuse_file_for_folder(dir, "--save-scenes")?;
     let path = |s: &BenchScene| dir.join(format!("{}.json", s.name));
     for s in scenes {
         crate::cli::safety::refuse_read_only(&path(s), "saved scene")?;

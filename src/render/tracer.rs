@@ -260,7 +260,7 @@ impl<'a> Tracer<'a> {
             let mut colour = Sum(Vec3::ZERO);
             let ray = camera.pixel_ray(x, y);
             let camera_hit = CameraHit::Search(camera_objects);
-            self.trace_path(x, y, 0, ray, camera_hit, scratch, sink, &mut colour);
+            self.trace_path(x, y, 0, &ray, camera_hit, scratch, sink, &mut colour);
             return colour.0;
         };
         let mut sum = Vec3::ZERO;
@@ -270,7 +270,7 @@ impl<'a> Tracer<'a> {
                 x,
                 y,
                 sample,
-                ray,
+                &ray,
                 CameraHit::Search(camera_objects),
                 scratch,
                 sink,
@@ -400,7 +400,7 @@ impl<'a> Tracer<'a> {
             self.each_camera_ray(rect, cancel, scratch, |x, y, ray, scratch| {
                 let mut colour = Sum(Vec3::ZERO);
                 let camera_hit = CameraHit::Search(Some(objects));
-                self.trace_path(x, y, 0, ray, camera_hit, scratch, sink, &mut colour);
+                self.trace_path(x, y, 0, &ray, camera_hit, scratch, sink, &mut colour);
                 out.push(colour.0);
             })
         })
@@ -465,7 +465,7 @@ impl<'a> Tracer<'a> {
         x: u32,
         y: u32,
         sample: u32,
-        mut ray: Ray,
+        camera_ray: &Ray,
         camera_hit: CameraHit,
         scratch: &mut TraceScratch,
         sink: &mut S,
@@ -474,22 +474,28 @@ impl<'a> Tracer<'a> {
         let (scene, s, shading) = (self.scene, self.settings, self.shading);
         scratch.stats.camera += 1;
         let mut weight = 1.0f32;
+        // The camera ray read where the row's rays are, not copied: a copy
+        // to the stack was two overlapping 32-byte stores, and reading its
+        // direction back across them stalled every path (the load waits
+        // for both stores to reach the cache).
+        let mut ray = camera_ray;
+        let mut reflected: Ray;
         for depth in 1..=s.max_depth {
             // Only the camera ray (depth 1) may cut away planes.
             // Inlined, so that it is compiled for the caller's CPU features.
             let hit = sink.nearest(
                 depth,
-                &ray,
+                ray,
                 #[inline(always)]
                 || {
                     if depth == 1 {
                         match camera_hit {
-                            CameraHit::Search(Some(tile)) => tile.nearest(scene, &ray, s.cutaway),
-                            CameraHit::Search(None) => scene.camera_hit(&ray, s.cutaway),
+                            CameraHit::Search(Some(tile)) => tile.nearest(scene, ray, s.cutaway),
+                            CameraHit::Search(None) => scene.camera_hit(ray, s.cutaway),
                             CameraHit::Found(hit) => hit,
                         }
                     } else {
-                        scene.closest_hit(&ray)
+                        scene.closest_hit(ray)
                     }
                 },
             );
@@ -506,7 +512,7 @@ impl<'a> Tracer<'a> {
                 }
                 HitTarget::Object(i) => i,
             };
-            let surface = scene.surface(object, &ray, t);
+            let surface = scene.surface(object, ray, t);
             let material_index = scene.material_of(object);
             let inside = surface.normal.dot(ray.dir) > 0.0;
             let (normal, shading_normal) = if inside {
@@ -561,7 +567,8 @@ impl<'a> Tracer<'a> {
             if mirrored.dot(normal) <= 0.0 {
                 mirrored = reflect(ray.dir, normal);
             }
-            ray = Ray::new(spawn_origin(surface.point, normal, scene.scale), mirrored);
+            reflected = Ray::new(spawn_origin(surface.point, normal, scene.scale), mirrored);
+            ray = &reflected;
             scratch.stats.reflected += 1;
         }
     }
@@ -651,7 +658,7 @@ fn tile_in_lanes_generic<S: PathSink>(
         // where it is inlined (a choice per path cost 2 % of a frame's
         // instructions), with no division to find its pixel.
         if spp == 1 {
-            for (k, (x, &ray)) in (rect.x..).zip(&rays).enumerate() {
+            for (k, (x, ray)) in (rect.x..).zip(&rays).enumerate() {
                 let hit = if ahead {
                     CameraHit::Found(hits[k])
                 } else {
@@ -662,7 +669,7 @@ fn tile_in_lanes_generic<S: PathSink>(
             }
             continue;
         }
-        for (k, &ray) in (0..).zip(&rays) {
+        for (k, ray) in (0..).zip(&rays) {
             let (x, sample) = (rect.x + k / spp, k % spp);
             let hit = if ahead {
                 CameraHit::Found(hits[k as usize])

@@ -434,6 +434,7 @@ impl Scene {
     /// light) lies between the two, in which case the point itself, so
     /// that a ray never starts beyond a surface it should meet. `normal`:
     /// the geometric normal facing the ray.
+    #[inline(always)]
     pub fn lifted_shadow_point(&self, surface: &SurfacePoint, normal: DVec3) -> DVec3 {
         let lifted = surface.point + surface.shadow_offset;
         let origin = spawn_origin(surface.point, normal, self.scale);

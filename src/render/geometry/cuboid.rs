@@ -107,6 +107,7 @@ impl Cuboid {
         super::first_in_range(near, far, t_max)
     }
 
+    #[inline(always)]
     pub fn surface(&self, ray: &Ray, t: f64) -> SurfacePoint {
         let mut local = self.to_local(ray.at(t) - self.centre);
         // The face is the axis where the point is relatively closest to the

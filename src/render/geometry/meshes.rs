@@ -192,6 +192,7 @@ impl Meshes {
     }
 
     /// See [`Triangle::surface`].
+    #[inline(always)]
     pub fn surface(&self, f: u32, ray: &Ray, t: f64) -> SurfacePoint {
         let v = self.vertices(f);
         let normal = Triangle::face_normal(&v).expect("degenerate faces are left out");

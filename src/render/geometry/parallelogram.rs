@@ -93,6 +93,7 @@ impl Parallelogram {
         (uv.x >= 0.0 && uv.x <= 1.0 && uv.y >= 0.0 && uv.y <= 1.0).then_some(t)
     }
 
+    #[inline(always)]
     pub fn surface(&self, ray: &Ray, t: f64) -> SurfacePoint {
         let p = ray.at(t);
         SurfacePoint::flat(p - self.normal * self.signed_distance(p), self.normal)

@@ -44,6 +44,7 @@ impl Plane {
         (t > 0.0 && t < t_max).then_some(t)
     }
 
+    #[inline(always)]
     pub fn surface(&self, ray: &Ray, t: f64) -> SurfacePoint {
         let p = ray.at(t);
         SurfacePoint::flat(p - self.normal * self.signed_distance(p), self.normal)

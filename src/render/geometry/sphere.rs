@@ -34,6 +34,7 @@ impl Sphere {
         super::first_in_range(near, far, t_max)
     }
 
+    #[inline(always)]
     pub fn surface(&self, ray: &Ray, t: f64) -> SurfacePoint {
         let normal = (ray.at(t) - self.centre).normalize();
         SurfacePoint::flat(self.centre + normal * self.radius, normal)

@@ -85,6 +85,7 @@ impl Triangle {
         intersect(&self.vertices(), ray, t_max)
     }
 
+    #[inline(always)]
     pub fn surface(&self, ray: &Ray, t: f64) -> SurfacePoint {
         surface(
             &self.vertices(),
@@ -150,6 +151,7 @@ fn barycentric(v: &[DVec3; 3], p: DVec3) -> [f64; 3] {
 
 /// The surface point of a hit at `t` on the triangle `v` with unit normal
 /// `normal` and, when smooth, unit vertex normals on the normal's side.
+#[inline(always)]
 pub fn surface(
     v: &[DVec3; 3],
     normal: DVec3,

@@ -69,6 +69,30 @@ fn with_the_exact_model_the_status_bar_names_it_instead_of_samples() {
     assert!(h.query_by_label("Shadow rays").is_none());
 }
 
+/// A grid takes the largest square at or below the slider's count: the
+/// panel says what it uses, so that the slider and the status bar's
+/// samples per hit do not seem to disagree; a square count needs no note.
+#[test]
+fn the_panel_says_how_many_points_a_grid_makes_of_the_shadow_rays() {
+    let mut desc = small_room();
+    desc.render.shadow_rays = 2;
+    let mut h = harness(ViewerOptions::new(desc.clone()));
+    settle(&mut h);
+    h.get_by_label("grid: 1 point per hit (a 1×1 grid)");
+    h.get_by_label("1 samples/hit");
+    desc.render.shadow_rays = 20;
+    desc.render.sampling = penumbra::render::Sampling::Mixed;
+    let mut h = harness(ViewerOptions::new(desc.clone()));
+    settle(&mut h);
+    h.get_by_label("mixed: 32 points per hit (a 4×4 grid and as many random)");
+    h.get_by_label("32 samples/hit");
+    desc.render.shadow_rays = 16;
+    desc.render.sampling = penumbra::render::Sampling::Grid;
+    let mut h = harness(ViewerOptions::new(desc));
+    settle(&mut h);
+    assert!(h.query_by_label_contains("per hit (a").is_none());
+}
+
 #[test]
 fn slider_move_restarts_the_render_with_the_new_value() {
     let mut h = harness(ViewerOptions::new(small_room()));

@@ -7,6 +7,7 @@ use std::ops::RangeInclusive;
 use egui::{Slider, SliderClamping, Ui};
 
 use super::settings::ViewSettings;
+use crate::render::sampling::{grid_side, points_per_hit};
 use crate::render::scene_file::limits::{
     MAX_COLOUR, MAX_COORD, MAX_DEPTH, MAX_SHADOW_RAYS, MAX_SHININESS, MIN_FEATURE, MIN_SCENE_SIZE,
 };
@@ -318,6 +319,9 @@ pub fn controls_ui(
                 )
                 .on_hover_text(hover)
                 .changed();
+            if let Some(note) = points_note(r.sampling, r.shadow_rays) {
+                ui.weak(note);
+            }
             egui::ComboBox::from_label("Sampling")
                 .selected_text(r.sampling.name())
                 .show_ui(ui, |ui| {
@@ -503,4 +507,23 @@ fn colour_edit(ui: &mut Ui, c: &mut [f64; 3]) -> bool {
         }
     }
     changed
+}
+
+/// What a pattern makes of a shadow-ray count it does not take as it is
+/// (the grids use the largest square at or below it; `mixed` adds as many
+/// random points), so that the slider's number and the status bar's
+/// samples per hit do not seem to disagree; `None` where it takes it.
+pub(crate) fn points_note(sampling: Sampling, shadow_rays: u32) -> Option<String> {
+    let points = points_per_hit(sampling, shadow_rays);
+    if points == shadow_rays as usize {
+        return None;
+    }
+    let side = grid_side(shadow_rays);
+    let name = sampling.name();
+    let noun = if points == 1 { "point" } else { "points" };
+    let grid = format!("{name}: {points} {noun} per hit (a {side}×{side} grid");
+    Some(match sampling {
+        Sampling::Mixed => format!("{grid} and as many random)"),
+        _ => format!("{grid})"),
+    })
 }

@@ -37,10 +37,12 @@ impl Drop for Film {
     }
 }
 
-/// The spare pixels if there are `n` of them.
+/// The spare pixels if there are `n` of them. Spare pixels of another
+/// size are freed first: the memory a render checks it may take (`ulimit
+/// -v`) counts one film, not a spare beside it.
 fn take_spare(n: usize) -> Option<Vec<Vec3>> {
-    let mut spare = SPARE_PIXELS.lock().unwrap_or_else(|e| e.into_inner());
-    (n > 0 && spare.len() == n).then(|| std::mem::take(&mut *spare))
+    let spare = std::mem::take(&mut *SPARE_PIXELS.lock().unwrap_or_else(|e| e.into_inner()));
+    (n > 0 && spare.len() == n).then_some(spare)
 }
 
 /// Sets every pixel to black, the threads of rayon's current pool a
@@ -396,12 +398,16 @@ mod tests {
             reused += usize::from(film.pixels.as_ptr() == memory);
         }
         assert!(reused > 0, "no film took the memory of the one before");
-        // A film of another size leaves the spare alone, and one too large
-        // to keep is not kept.
+        // One too large to keep is not kept.
         let big = Film::new(2048, 2049);
         let memory = big.pixels.as_ptr();
         drop(big);
         assert!(take_spare(2048 * 2049).is_none_or(|p| p.as_ptr() != memory));
+        // A film of another size frees the spare before it is made.
+        drop(Film::new(size.0, size.1));
+        let other = pool.install(|| Film::new_on_pool(size.0 + 1, size.1));
+        assert!(take_spare(size.0 as usize * size.1 as usize).is_none());
+        drop(other);
     }
 
     /// The code by a binary search over the thresholds (the definition).

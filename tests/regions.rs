@@ -18,6 +18,12 @@ fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
+/// The standard error of a command refused as bad input (exit 2).
+fn refused(o: &Output) -> String {
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(o));
+    stderr(o)
+}
+
 const SCENE: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/seed-room.json");
 
 /// The same settings for the whole image and every part: an odd size,
@@ -133,20 +139,16 @@ fn gaps_foreign_parts_and_disagreeing_overlaps_are_refused() {
 
     // A gap: the bottom rows are missing.
     let o = merge(std::slice::from_ref(&top), &out);
-    assert_eq!(o.status.code(), Some(2));
+    let msg = refused(&o);
     assert!(
-        stderr(&o).contains(
-            "a gap: 7567 pixels of the 161×97 image are in no part, the first at (0, 50)"
-        ),
-        "{}",
-        stderr(&o)
+        msg.contains("a gap: 7567 pixels of the 161×97 image are in no part, the first at (0, 50)"),
+        "{msg}"
     );
 
     // Another scene (another seed) is refused by name.
     let foreign = render_part(&dir, "foreign.exr", "0,50,161,47", &["--seed", "7"]);
     let o = merge(&[top.clone(), foreign.clone()], &out);
-    assert_eq!(o.status.code(), Some(2));
-    let msg = stderr(&o);
+    let msg = refused(&o);
     assert!(
         msg.contains("foreign.exr is a part of another scene than") && msg.contains("top.exr"),
         "{msg}"
@@ -164,8 +166,7 @@ fn gaps_foreign_parts_and_disagreeing_overlaps_are_refused() {
     let tampered_path = dir.join("tampered.exr");
     write_part(&tampered, &tampered_path).unwrap();
     let o = merge(&[top.clone(), tampered_path], &out);
-    assert_eq!(o.status.code(), Some(2));
-    let msg = stderr(&o);
+    let msg = refused(&o);
     assert!(
         msg.contains("overlap and disagree at pixel (0, 49)"),
         "{msg}"
@@ -179,8 +180,8 @@ fn gaps_foreign_parts_and_disagreeing_overlaps_are_refused() {
             .success()
     );
     let o = merge(&[top.clone(), plain], &out);
-    assert_eq!(o.status.code(), Some(2));
-    assert!(stderr(&o).contains("not a region part"), "{}", stderr(&o));
+    let msg = refused(&o);
+    assert!(msg.contains("not a region part"), "{msg}");
     assert!(!out.exists(), "nothing written after refusals");
 
     // A PNG cannot be a part; a region past the image is refused.
@@ -189,17 +190,16 @@ fn gaps_foreign_parts_and_disagreeing_overlaps_are_refused() {
         png.to_str().unwrap(),
         &["--region", "0,0,8,8"],
     ));
-    assert_eq!(o.status.code(), Some(2));
-    assert!(stderr(&o).contains("OpenEXR"), "{}", stderr(&o));
+    let msg = refused(&o);
+    assert!(msg.contains("OpenEXR"), "{msg}");
     let o = penumbra(&render_args(
         dir.join("far.exr").to_str().unwrap(),
         &["--region", "150,0,12,8"],
     ));
-    assert_eq!(o.status.code(), Some(2));
+    let msg = refused(&o);
     assert!(
-        stderr(&o).contains("--region: the region 150,0,12,8 reaches past the 161×97 image"),
-        "{}",
-        stderr(&o)
+        msg.contains("--region: the region 150,0,12,8 reaches past the 161×97 image"),
+        "{msg}"
     );
 
     // The good pair still merges.
@@ -301,13 +301,12 @@ fn merge_refuses_gaps_and_lack_of_memory_early_and_parts_are_the_same_bytes() {
             merged.to_str().unwrap(),
         ],
     );
-    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    let msg = refused(&o);
     assert!(
-        stderr(&o).contains(
+        msg.contains(
             "a gap: 268435455 pixels of the 16384×16384 image are in no part, the first at (1, 0)"
         ),
-        "{}",
-        stderr(&o)
+        "{msg}"
     );
     assert!(start.elapsed() < std::time::Duration::from_secs(5));
 
@@ -348,11 +347,10 @@ fn merge_refuses_gaps_and_lack_of_memory_early_and_parts_are_the_same_bytes() {
             merged.to_str().unwrap(),
         ],
     );
-    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    let msg = refused(&o);
     assert!(
-        stderr(&o).contains("the merged 4000×3000 image needs about"),
-        "{}",
-        stderr(&o)
+        msg.contains("the merged 4000×3000 image needs about"),
+        "{msg}"
     );
     let o = merge(&halves, &merged);
     assert!(o.status.success(), "{}", stderr(&o));
@@ -401,8 +399,7 @@ fn merge_names_the_real_difference_of_parts() {
     let taller = small_part(&dir, "taller.exr", "64", "40", "0,18,64,22");
     let out = dir.join("out.exr");
     let o = merge(&[top.clone(), taller], &out);
-    assert_eq!(o.status.code(), Some(2));
-    let msg = stderr(&o);
+    let msg = refused(&o);
     assert!(
         msg.contains("taller.exr is a part of a 64×40 image, ") && msg.contains("of a 64×36 one"),
         "{msg}"
@@ -415,8 +412,7 @@ fn merge_names_the_real_difference_of_parts() {
     let crafted_path = dir.join("crafted.exr");
     write_part(&crafted, &crafted_path).unwrap();
     let o = merge(&[top.clone(), crafted_path], &out);
-    assert_eq!(o.status.code(), Some(2));
-    let msg = stderr(&o);
+    let msg = refused(&o);
     assert!(msg.contains("is a part of another scene than"), "{msg}");
     assert!(msg.contains("… (5003 characters)"), "{msg}");
     assert!(msg.len() < 400, "{} bytes: {msg}", msg.len());
@@ -430,20 +426,18 @@ fn merge_names_the_real_difference_of_parts() {
     let empty = dir.join("empty.exr");
     std::fs::write(&empty, bytes).unwrap();
     let o = merge(std::slice::from_ref(&empty), &out);
-    assert_eq!(o.status.code(), Some(2));
+    let msg = refused(&o);
     assert!(
-        stderr(&o).ends_with("empty.exr: its data window is empty (x 0..-1)\n"),
-        "{}",
-        stderr(&o)
+        msg.ends_with("empty.exr: its data window is empty (x 0..-1)\n"),
+        "{msg}"
     );
     assert!(!out.exists());
     // `compare` says the same of it: a part, broken, not an image whose
     // decoder fails in its own words.
     let o = penumbra(&["compare", empty.to_str().unwrap(), top.to_str().unwrap()]);
-    assert_eq!(o.status.code(), Some(2));
+    let msg = refused(&o);
     assert!(
-        stderr(&o).ends_with("empty.exr: its data window is empty (x 0..-1)\n"),
-        "{}",
-        stderr(&o)
+        msg.ends_with("empty.exr: its data window is empty (x 0..-1)\n"),
+        "{msg}"
     );
 }

@@ -392,6 +392,21 @@ fn write_exr(dir: &Path, name: &str, film: &Film) -> std::path::PathBuf {
 
 /// Waits for the reference task and then for the comparison, with a frame
 /// after each so that the viewer takes and shows the results.
+/// The small room at 32×18: its 4096-ray reference takes moments.
+fn reference_room() -> SceneDesc {
+    let mut room = small_room();
+    room.camera.width = 32;
+    room.camera.height = 18;
+    room
+}
+
+/// Clicks *Compute reference* and takes the frame that starts it.
+fn compute_reference(h: &mut Harness<'static, Viewer>) {
+    h.get_by_role_and_label(Role::Button, "Compute reference")
+        .click();
+    h.step();
+}
+
 fn settle_reference(h: &mut Harness<'static, Viewer>) {
     assert!(h.state_mut().wait_for_reference(WAIT), "no reference");
     h.step();
@@ -534,15 +549,11 @@ fn a_reference_of_another_size_is_not_compared() {
 /// so the reference no longer applies.
 #[test]
 fn an_anti_aliased_image_s_reference_samples_the_image_s_places() {
-    let mut room = small_room();
-    room.camera.width = 32;
-    room.camera.height = 18;
+    let mut room = reference_room();
     room.render.samples_per_pixel = 4;
     let mut h = harness(ViewerOptions::new(room.clone()));
     settle(&mut h);
-    h.get_by_role_and_label(Role::Button, "Compute reference")
-        .click();
-    h.step();
+    compute_reference(&mut h);
     settle_reference(&mut h);
     let reference = h.state().reference().expect("a reference").film.clone();
     let mut same_places = Loaded::new(&converged(&room)).unwrap();
@@ -563,14 +574,10 @@ fn an_anti_aliased_image_s_reference_samples_the_image_s_places() {
 
 #[test]
 fn computing_a_reference_in_the_background_then_reads_the_error() {
-    let mut room = small_room();
-    room.camera.width = 32;
-    room.camera.height = 18;
+    let room = reference_room();
     let mut h = harness(ViewerOptions::new(room.clone()));
     settle(&mut h);
-    h.get_by_role_and_label(Role::Button, "Compute reference")
-        .click();
-    h.step();
+    compute_reference(&mut h);
     assert!(h.state().reference_busy());
     settle_reference(&mut h);
     assert!(!h.state().reference_busy());
@@ -615,9 +622,7 @@ fn a_reference_computation_is_cancelled_by_the_button_or_a_scene_change() {
     let mut h = harness(ViewerOptions::new(room));
     settle(&mut h);
 
-    h.get_by_role_and_label(Role::Button, "Compute reference")
-        .click();
-    h.step();
+    compute_reference(&mut h);
     assert!(h.state().reference_busy());
     // Only the estimator changes: the reference still applies.
     h.state_mut().edit(|d, _| d.render.shadow_rays = 2);
@@ -628,9 +633,7 @@ fn a_reference_computation_is_cancelled_by_the_button_or_a_scene_change() {
     assert!(!h.state().reference_busy());
     assert_eq!(h.state().notice(), Some("reference cancelled"));
 
-    h.get_by_role_and_label(Role::Button, "Compute reference")
-        .click();
-    h.step();
+    compute_reference(&mut h);
     assert!(h.state().reference_busy());
     h.state_mut().edit(|d, _| d.camera.position[0] += 0.1);
     h.step();

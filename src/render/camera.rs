@@ -55,15 +55,14 @@ impl Camera {
     }
 
     /// [`Camera::pixel_ray`] of the `n` pixels from (x0, y) rightwards,
-    /// into `out`: the same operations, so the same bits, but eight pixels
-    /// at a time, so that their divisions and square roots overlap instead
-    /// of each waiting for the one before. Whole rays, not directions: a
-    /// ray copied whole from here is read back at the offsets it was
-    /// written with (a direction put into a ray on the stack was read back
-    /// across two of its stores, which stalls the load).
-    ///
-    /// Inlined, so that the tile kernel computes its rays with its CPU
-    /// features (wider vectors; the same operations, so the same bits).
+    /// into `out`: the same operations, so the same bits, eight pixels at
+    /// a time, so that their divisions and square roots overlap instead
+    /// of each waiting for the one before (on AVX2 by intrinsics,
+    /// `row_rays_avx2`: the compiler does not vectorize the
+    /// portable loop). Whole rays, not directions: a ray copied whole from
+    /// here is read back at the offsets it was written with (a direction
+    /// put into a ray on the stack was read back across two of its stores,
+    /// which stalls the load).
     #[inline(always)]
     pub fn row_rays(&self, x0: u32, y: u32, n: u32, out: &mut Vec<Ray>) {
         out.clear();

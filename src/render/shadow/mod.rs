@@ -18,7 +18,9 @@
 //!   rectangle can block nothing; planes with the whole light on p's side
 //!   neither. With no candidate left, every facing point is visible. A
 //!   hit point first narrows the objects to those of its small cube of
-//!   space (`cells.rs`).
+//!   space (`cells.rs`). Hit points whose few rays wait in lanes
+//!   (`hit_lanes.rs`) are culled as a batch: an object is left out if it
+//!   is clear of every ray of the batch (`batch_reach.rs`).
 //! - if one convex candidate, lying wholly between p and the light's plane,
 //!   blocks the rays to all four light corners, it blocks every ray to the
 //!   light (the directions that meet a convex body form a convex cone).
@@ -31,6 +33,7 @@
 //! All only decide what is also what tracing would find, so the image is
 //! the same with skipping on or off.
 
+mod batch_reach;
 mod buffers;
 mod cells;
 mod hit_lanes;

@@ -50,6 +50,28 @@ pub enum HitTarget {
 /// beyond.
 const BVH_THRESHOLD: usize = 8;
 
+/// Rays whose nearest hits [`Scene::closest_hits`] finds side by side.
+const RAY_LANES: usize = 8;
+
+/// Makes object `id` the nearest hit of each ray of `chunk` that `test`
+/// finds it nearer than the ray's `t_max` (`best`: the rays' nearest).
+#[inline(always)]
+fn nearer(
+    id: u32,
+    (chunk, t_max, best): (
+        &[Ray],
+        &mut [f64; RAY_LANES],
+        &mut [Option<HitTarget>; RAY_LANES],
+    ),
+    test: impl Fn(&Ray, f64) -> Option<f64>,
+) {
+    for (j, ray) in chunk.iter().enumerate() {
+        if let Some(t) = test(ray, t_max[j]) {
+            (best[j], t_max[j]) = (Some(HitTarget::Object(id)), t);
+        }
+    }
+}
+
 /// From this many bounded objects on, shadow rays walk a BVH in the
 /// light's frame as packets (`shadow/`); below it, testing every
 /// object in the shadow pyramid against all rays of a hit point is cheaper
@@ -379,6 +401,48 @@ impl Scene {
         best
     }
 
+    /// [`Scene::closest_hit`] of each of `rays` into `out`, [`RAY_LANES`]
+    /// rays at a time: each object tested against all of them in turn
+    /// (the tests of different rays overlap instead of each waiting for
+    /// the one before), each shape's test written out for it. Every ray
+    /// meets the tests in the same order with the same operations, so
+    /// each finds the same hit and distance.
+    #[inline(always)]
+    pub(crate) fn closest_hits(&self, rays: &[Ray], out: &mut Vec<Option<(HitTarget, f64)>>) {
+        out.clear();
+        for chunk in rays.chunks(RAY_LANES) {
+            let mut t_max = [f64::INFINITY; RAY_LANES];
+            let mut best = [None; RAY_LANES];
+            for (j, ray) in chunk.iter().enumerate() {
+                if let Some(t) = self.light.shape.intersect(ray, t_max[j]) {
+                    (best[j], t_max[j]) = (Some(HitTarget::Light), t);
+                }
+            }
+            for &i in self.unbounded.iter().chain(self.bounded.iter()) {
+                let lanes = (chunk, &mut t_max, &mut best);
+                match self.primitive(i) {
+                    Primitive::Shape(Shape::Plane(s)) => nearer(i, lanes, |r, t| s.intersect(r, t)),
+                    Primitive::Shape(Shape::Sphere(s)) => {
+                        nearer(i, lanes, |r, t| s.intersect(r, t))
+                    }
+                    Primitive::Shape(Shape::Cuboid(s)) => {
+                        nearer(i, lanes, |r, t| s.intersect(r, t))
+                    }
+                    _ => nearer(i, lanes, |r, t| self.intersect(i, r, t)),
+                }
+            }
+            for (j, ray) in chunk.iter().enumerate() {
+                if let Some((i, t)) = self
+                    .bvh
+                    .closest(ray, t_max[j], |i, t_max| self.intersect(i, ray, t_max))
+                {
+                    (best[j], t_max[j]) = (Some(HitTarget::Object(i)), t);
+                }
+                out.push(best[j].map(|target| (target, t_max[j])));
+            }
+        }
+    }
+
     /// [`Scene::closest_hit`] for a camera ray: with `cutaway`, planes
     /// seen from behind (the ray runs along their normal) are passed
     /// through, so a camera outside a room sees into it. Only camera rays
@@ -556,5 +620,73 @@ impl Loaded {
     /// Renders it in one pass on all threads.
     pub fn render_image(&self) -> Film {
         progressive::render_image(&self.scene, &self.settings, &self.shading)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::render::rng::Rng;
+
+    /// Rays from anywhere in a room of every kind of shape, in chunks of
+    /// every length: each finds, side by side, what it finds alone (the
+    /// same object or the light, the same distance), and the rays meet
+    /// every object and the light.
+    #[test]
+    fn rays_side_by_side_find_what_each_finds_alone() {
+        let loaded = Loaded::from_json(
+            r#"{
+              "format": 1,
+              "camera": { "position": [0, 4, -14], "look_at": [0, 3.5, 0], "up": [0, 1, 0],
+                          "fov_y_deg": 36, "width": 64, "height": 36 },
+              "render": { "shadow_rays": 1, "sampling": "grid", "max_depth": 4, "seed": 1,
+                          "area_light_model": "sampled",
+                          "terms": { "ambient": 1.0, "diffuse": 1.0, "specular": 1.0 },
+                          "background": [0, 0, 0] },
+              "light": { "corner": [-1, 7.99, -1], "edge_u": [2, 0, 0], "edge_v": [0, 0, 2],
+                         "ambient": [0.1, 0.1, 0.1], "diffuse": [0.9, 0.9, 0.9],
+                         "specular": [1, 1, 1] },
+              "materials": { "m": { "ambient": [0.5, 0.5, 0.5], "diffuse": [0.5, 0.5, 0.5],
+                                    "specular": [0.3, 0.3, 0.3], "shininess": 20,
+                                    "reflectivity": 0.5 } },
+              "objects": [
+                { "type": "plane", "point": [0, 0, 0], "normal": [0, 1, 0], "material": "m" },
+                { "type": "plane", "point": [0, 8, 0], "normal": [0, -1, 0], "material": "m" },
+                { "type": "plane", "point": [5, 0, 0], "normal": [-1, 0.2, 0], "material": "m" },
+                { "type": "box", "min": [-1, 0, -1], "max": [1, 3, 1], "rotate_y_deg": 30,
+                  "translate": [1, 0, 1], "material": "m" },
+                { "type": "sphere", "center": [-2, 2.5, 0], "radius": 1, "material": "m" },
+                { "type": "rect", "corner": [-1, 5, -2], "edge_u": [2, 0, 0.5],
+                  "edge_v": [0, 0.4, 2], "material": "m" },
+                { "type": "triangle", "vertices": [[-4, 1, 3], [-2, 4, 3], [-3, 1, 1]],
+                  "material": "m" }
+              ]
+            }"#,
+        )
+        .expect("the test room");
+        let scene = &loaded.scene;
+        let mut rng = Rng::new(11);
+        let mut r = |lo: f64, hi: f64| lo + (hi - lo) * rng.next_f64();
+        let mut met = Vec::new();
+        let mut hits = Vec::new();
+        for length in 1..=40 {
+            let rays: Vec<Ray> = (0..length)
+                .map(|_| {
+                    let origin = DVec3::new(r(-4.9, 4.9), r(0.1, 7.9), r(-4.9, 4.9));
+                    let dir = DVec3::new(r(-1.0, 1.0), r(-1.0, 1.0), r(-1.0, 1.0));
+                    Ray::new(origin, dir.normalize())
+                })
+                .collect();
+            scene.closest_hits(&rays, &mut hits);
+            assert_eq!(hits.len(), rays.len());
+            for (ray, &hit) in rays.iter().zip(&hits) {
+                assert_eq!(hit, scene.closest_hit(ray), "{ray:?}");
+                met.push(hit.map(|(target, _)| target));
+            }
+        }
+        let objects = (0..7).map(|i| Some(HitTarget::Object(i)));
+        for target in objects.chain([Some(HitTarget::Light)]) {
+            assert!(met.contains(&target), "no ray met {target:?}");
+        }
     }
 }

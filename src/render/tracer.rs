@@ -163,9 +163,15 @@ pub struct TraceScratch {
     shadow_inputs: LaneInputs,
     /// What [`Tracer::tile`]'s camera rays test.
     camera_objects: TileTargets,
-    /// One row of a tile's camera rays, and their nearest hits.
+    /// One row of a tile's camera rays (or one depth's reflected rays),
+    /// and their nearest hits.
     camera_rays: Vec<Ray>,
     camera_hits: Vec<Option<(HitTarget, f64)>>,
+    /// [`Tracer::tile`]'s paths waiting for their reflected rays' hits at
+    /// one depth, and at the next; each path's colour.
+    reflections: Vec<Reflection>,
+    next_reflections: Vec<Reflection>,
+    path_sums: Vec<Vec3>,
 }
 
 impl<'a> Tracer<'a> {
@@ -222,6 +228,9 @@ impl<'a> Tracer<'a> {
             camera_objects: TileTargets::default(),
             camera_rays: Vec::new(),
             camera_hits: Vec::new(),
+            reflections: Vec::new(),
+            next_reflections: Vec::new(),
+            path_sums: Vec::new(),
         }
     }
 
@@ -325,7 +334,9 @@ impl<'a> Tracer<'a> {
     /// with [`Tracer::shades_in_lanes`] the paths' hits wait for their light
     /// factors in [`SampledLanes`] and are shaded
     /// [`LANES`](super::sampled_lanes::LANES) at a time, the colours then
-    /// summed path by path in their order. With several camera samples per
+    /// summed path by path in their order; the reflected rays wait for the
+    /// tile's camera rays and are searched side by side, depth by depth
+    /// ([`Scene::closest_hits`]). With several camera samples per
     /// pixel the tile's objects are those the filter's reach around its
     /// pixels may meet, and each pixel's paths are summed and averaged as
     /// [`Tracer::trace`] sums them. False if cancelled part-way.
@@ -471,7 +482,7 @@ impl<'a> Tracer<'a> {
         sink: &mut S,
         colour: &mut C,
     ) {
-        let (scene, s, shading) = (self.scene, self.settings, self.shading);
+        let (scene, s) = (self.scene, self.settings);
         scratch.stats.camera += 1;
         let mut weight = 1.0f32;
         // The camera ray read where the row's rays are, not copied: a copy
@@ -499,79 +510,146 @@ impl<'a> Tracer<'a> {
                     }
                 },
             );
-            let Some((target, t)) = hit else {
-                colour.add(s.background, weight);
-                sink.end(PathEnd::Background);
+            let at = PathStep {
+                x,
+                y,
+                sample,
+                depth,
+                weight,
+            };
+            let Some(next) = self.path_hit(at, ray, hit, scratch, sink, colour) else {
                 break;
             };
-            let object = match target {
-                HitTarget::Light => {
-                    colour.add(shading.light.diffuse, weight);
-                    sink.end(PathEnd::Light);
-                    break;
-                }
-                HitTarget::Object(i) => i,
-            };
-            let surface = scene.surface(object, ray, t);
-            let material_index = scene.material_of(object);
-            let inside = surface.normal.dot(ray.dir) > 0.0;
-            let (normal, shading_normal) = if inside {
-                (-surface.normal, -surface.shading)
-            } else {
-                (surface.normal, surface.shading)
-            };
-            let shadow_point = if surface.shadow_offset == DVec3::ZERO {
-                surface.point
-            } else {
-                scene.lifted_shadow_point(&surface, normal)
-            };
-            let material = &shading.materials[material_index as usize];
-            let sp = ShadingPoint {
-                point: surface.point,
-                normal: shading_normal,
-                view: -ray.dir,
-                shadow: ShadowQuery {
-                    point: shadow_point,
-                    normal,
-                    object,
-                    inside,
-                },
-                material,
-                material_index,
-            };
-            // A fixed pattern draws no random numbers: its hits need no
-            // stream of their own.
-            let mut rng = if self.pattern.is_fixed() {
-                Rng::new(0)
-            } else {
-                Rng::for_sample(s.seed, x, y, sample, depth)
-            };
-            colour.hit(self, &sp, &mut rng, scratch, weight, sink, t);
-
-            if material.reflectivity == 0.0 || depth == s.max_depth {
-                sink.end(if material.reflectivity == 0.0 {
-                    PathEnd::Absorbed
-                } else {
-                    PathEnd::MaxDepth
-                });
-                break;
-            }
-            // Traced whatever the path weight: however faint, the rest of
-            // the path may meet a light or surface bright enough to matter
-            // (colours reach 10⁶), and the scene format sums every hit up
-            // to `max_depth`.
-            weight *= material.reflectivity;
-            // About the shading normal, unless that would send the ray
-            // into the surface.
-            let mut mirrored = reflect(ray.dir, shading_normal);
-            if mirrored.dot(normal) <= 0.0 {
-                mirrored = reflect(ray.dir, normal);
-            }
-            reflected = Ray::new(spawn_origin(surface.point, normal, scene.scale), mirrored);
+            (reflected, weight) = next;
             ray = &reflected;
-            scratch.stats.reflected += 1;
         }
     }
+
+    /// The hit `hit` of a path's ray `ray` at step `at`: its colour (or
+    /// the background's, or the light's) added to `colour` times the path
+    /// weight; the reflected ray and its weight if the path goes on.
+    #[inline(always)]
+    fn path_hit<S: PathSink, C: PathColour>(
+        &self,
+        at: PathStep,
+        ray: &Ray,
+        hit: Option<(HitTarget, f64)>,
+        scratch: &mut TraceScratch,
+        sink: &mut S,
+        colour: &mut C,
+    ) -> Option<(Ray, f32)> {
+        let (scene, s, shading) = (self.scene, self.settings, self.shading);
+        let PathStep {
+            x,
+            y,
+            sample,
+            depth,
+            weight,
+        } = at;
+        let Some((target, t)) = hit else {
+            colour.add(s.background, weight);
+            sink.end(PathEnd::Background);
+            return None;
+        };
+        let object = match target {
+            HitTarget::Light => {
+                colour.add(shading.light.diffuse, weight);
+                sink.end(PathEnd::Light);
+                return None;
+            }
+            HitTarget::Object(i) => i,
+        };
+        let surface = scene.surface(object, ray, t);
+        let material_index = scene.material_of(object);
+        let inside = surface.normal.dot(ray.dir) > 0.0;
+        let (normal, shading_normal) = if inside {
+            (-surface.normal, -surface.shading)
+        } else {
+            (surface.normal, surface.shading)
+        };
+        let shadow_point = if surface.shadow_offset == DVec3::ZERO {
+            surface.point
+        } else {
+            scene.lifted_shadow_point(&surface, normal)
+        };
+        let material = &shading.materials[material_index as usize];
+        let sp = ShadingPoint {
+            point: surface.point,
+            normal: shading_normal,
+            view: -ray.dir,
+            shadow: ShadowQuery {
+                point: shadow_point,
+                normal,
+                object,
+                inside,
+            },
+            material,
+            material_index,
+        };
+        // A fixed pattern draws no random numbers: its hits need no
+        // stream of their own.
+        let mut rng = if self.pattern.is_fixed() {
+            Rng::new(0)
+        } else {
+            Rng::for_sample(s.seed, x, y, sample, depth)
+        };
+        colour.hit(self, &sp, &mut rng, scratch, weight, sink, t);
+
+        if material.reflectivity == 0.0 || depth == s.max_depth {
+            sink.end(if material.reflectivity == 0.0 {
+                PathEnd::Absorbed
+            } else {
+                PathEnd::MaxDepth
+            });
+            return None;
+        }
+        // Traced whatever the path weight: however faint, the rest of
+        // the path may meet a light or surface bright enough to matter
+        // (colours reach 10⁶), and the scene format sums every hit up
+        // to `max_depth`.
+        // About the shading normal, unless that would send the ray
+        // into the surface.
+        let mut mirrored = reflect(ray.dir, shading_normal);
+        if mirrored.dot(normal) <= 0.0 {
+            mirrored = reflect(ray.dir, normal);
+        }
+        scratch.stats.reflected += 1;
+        let reflected = Ray::new(spawn_origin(surface.point, normal, scene.scale), mirrored);
+        Some((reflected, weight * material.reflectivity))
+    }
+}
+
+/// Where a path is: its pixel, camera sample and hit (1: the camera
+/// ray's), and its weight there.
+#[derive(Debug, Clone, Copy)]
+struct PathStep {
+    x: u32,
+    y: u32,
+    sample: u32,
+    depth: u32,
+    weight: f32,
+}
+
+impl PathStep {
+    /// The camera ray's hit of sample `sample` of pixel (x, y).
+    fn camera(x: u32, y: u32, sample: u32) -> PathStep {
+        PathStep {
+            x,
+            y,
+            sample,
+            depth: 1,
+            weight: 1.0,
+        }
+    }
+}
+
+/// A tile's path waiting for its reflected ray's hit: the step it is at,
+/// the ray, and the path's index in the tile (see [`Deferred::path`]).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Reflection {
+    at: PathStep,
+    ray: Ray,
+    path: u32,
 }
 
 avx2_dispatch!(
@@ -610,6 +688,7 @@ fn tile_in_lanes_generic<S: PathSink>(
     lanes.start(&tracer.pattern);
     let mut colour = Deferred {
         lanes,
+        path: 0,
         terms: std::mem::take(&mut scratch.terms),
         factors: std::mem::take(&mut scratch.factors),
         hits: std::mem::take(&mut scratch.factor_hits),
@@ -629,12 +708,21 @@ fn tile_in_lanes_generic<S: PathSink>(
     let mut rays = std::mem::take(&mut scratch.camera_rays);
     let mut hits = std::mem::take(&mut scratch.camera_hits);
     let spp = tracer.paths_per_pixel();
+    // A one-shot render's reflected rays wait until the tile's camera rays
+    // are traced, and are then searched side by side, depth by depth
+    // (each path's terms still summed in its order). A recording sink
+    // takes each path's hits in its order: its paths are traced whole.
+    let defer = !S::RECORD && S::FINDS_CAMERA_HITS;
+    let mut reflections = std::mem::take(&mut scratch.reflections);
+    reflections.clear();
     let mut finished = true;
     for y in rect.y..rect.y + rect.h {
         if cancel.is_cancelled() {
             finished = false;
             break;
         }
+        // The index of the row's first path in the tile.
+        let row_path = (y - rect.y) * rect.w * spp;
         // One sample a pixel: its ray through the pixel's centre. Several:
         // placed by the filter, as `Tracer::trace` places them, pixel by
         // pixel (`spp` rays to a pixel).
@@ -659,27 +747,57 @@ fn tile_in_lanes_generic<S: PathSink>(
         // instructions), with no division to find its pixel.
         if spp == 1 {
             for (k, (x, ray)) in (rect.x..).zip(&rays).enumerate() {
+                colour.path = row_path + k as u32;
+                if defer {
+                    scratch.stats.camera += 1;
+                    let at = PathStep::camera(x, y, 0);
+                    let step = (at, ray, hits[k]);
+                    colour.step(tracer, step, scratch, sink, &mut reflections);
+                    continue;
+                }
                 let hit = if ahead {
                     CameraHit::Found(hits[k])
                 } else {
                     CameraHit::Search(Some(objects))
                 };
                 tracer.trace_path(x, y, 0, ray, hit, scratch, sink, &mut colour);
-                colour.end_path();
             }
             continue;
         }
         for (k, ray) in (0..).zip(&rays) {
             let (x, sample) = (rect.x + k / spp, k % spp);
+            colour.path = row_path + k;
+            if defer {
+                scratch.stats.camera += 1;
+                let step = (PathStep::camera(x, y, sample), ray, hits[k as usize]);
+                colour.step(tracer, step, scratch, sink, &mut reflections);
+                continue;
+            }
             let hit = if ahead {
                 CameraHit::Found(hits[k as usize])
             } else {
                 CameraHit::Search(Some(objects))
             };
             tracer.trace_path(x, y, sample, ray, hit, scratch, sink, &mut colour);
-            colour.end_path();
         }
     }
+    // The reflected rays, depth by depth: each depth's rays searched side
+    // by side, then each hit shaded, the rays it reflects waiting for the
+    // next depth.
+    let mut next = std::mem::take(&mut scratch.next_reflections);
+    while finished && !reflections.is_empty() {
+        rays.clear();
+        rays.extend(reflections.iter().map(|r| r.ray));
+        tracer.scene.closest_hits(&rays, &mut hits);
+        next.clear();
+        for (r, &hit) in reflections.iter().zip(&hits) {
+            colour.path = r.path;
+            colour.step(tracer, (r.at, &r.ray, hit), scratch, sink, &mut next);
+        }
+        std::mem::swap(&mut reflections, &mut next);
+    }
+    scratch.reflections = reflections;
+    scratch.next_reflections = next;
     scratch.camera_rays = rays;
     scratch.camera_hits = hits;
     if finished {
@@ -693,11 +811,14 @@ fn tile_in_lanes_generic<S: PathSink>(
         for &(hit, bits) in &colour.visible {
             sink.set_visible(hit as usize, bits);
         }
-        out.clear();
-        // Each path's terms in its order; with several samples a pixel,
-        // the pixel's paths summed from zero and averaged (the sums of
-        // `Tracer::trace`).
-        let (mut path, mut pixel, mut paths) = (Vec3::ZERO, Vec3::ZERO, 0);
+        // Each path's terms summed from zero in its order (a path's terms
+        // are in its order among the tile's, if not together); with
+        // several samples a pixel, the pixel's paths summed from zero and
+        // averaged (the sums of `Tracer::trace`).
+        let paths = (rect.w * rect.h * spp) as usize;
+        let sums = &mut scratch.path_sums;
+        sums.clear();
+        sums.resize(paths, Vec3::ZERO);
         for term in &colour.terms {
             let local = match term.colour {
                 TermColour::Known(c) => c,
@@ -706,21 +827,16 @@ fn tile_in_lanes_generic<S: PathSink>(
                     tracer.material_terms[material as usize].colours.colour(f)
                 }
             };
-            path += local * term.weight;
-            if !term.path_end {
-                continue;
-            }
-            if spp == 1 {
-                out.push(path);
-            } else {
-                pixel += path;
-                paths += 1;
-                if paths == spp {
-                    out.push(pixel * (1.0 / spp as f32));
-                    (pixel, paths) = (Vec3::ZERO, 0);
-                }
-            }
-            path = Vec3::ZERO;
+            sums[term.path as usize] += local * term.weight;
+        }
+        out.clear();
+        if spp == 1 {
+            out.extend_from_slice(sums);
+        } else {
+            out.extend(sums.chunks(spp as usize).map(|pixel| {
+                let sum = pixel.iter().fold(Vec3::ZERO, |sum, &path| sum + path);
+                sum * (1.0 / spp as f32)
+            }));
         }
     } else {
         colour.lanes.discard();
@@ -822,9 +938,9 @@ fn lane_hit(scene: &Scene, sp: &ShadingPoint, needs: Needs) -> LaneHit {
 struct Term {
     colour: TermColour,
     weight: f32,
-    /// The path's last term: a mark in the same place for every kind of
-    /// term (set without looking at the kind), not a term of its own.
-    path_end: bool,
+    /// The index of the term's path in the tile: its pixel's, row by row,
+    /// times the samples per pixel, plus its sample's.
+    path: u32,
 }
 
 /// The colour a [`Term`]'s weight multiplies.
@@ -841,11 +957,11 @@ enum TermColour {
 
 impl Term {
     #[inline(always)]
-    fn new(colour: TermColour, weight: f32) -> Term {
+    fn new(colour: TermColour, weight: f32, path: u32) -> Term {
         Term {
             colour,
             weight,
-            path_end: false,
+            path,
         }
     }
 }
@@ -854,6 +970,8 @@ impl Term {
 /// side by side ([`Tracer::tile`]).
 struct Deferred {
     lanes: SampledLanes,
+    /// The index in the tile of the path whose terms are being added.
+    path: u32,
     terms: Vec<Term>,
     factors: Vec<LightTerms>,
     /// A recording sink's index of the hit each of `factors` belongs to.
@@ -866,14 +984,27 @@ struct Deferred {
 }
 
 impl Deferred {
-    /// Marks the last term as the end of its path (every path adds at
-    /// least one term: its end's colour or a hit's).
+    /// Shades step `at` of the current path, whose ray `ray` has hit
+    /// `hit`; the ray it reflects waits in `reflections` for the next
+    /// depth's search.
     #[inline(always)]
-    fn end_path(&mut self) {
-        self.terms
-            .last_mut()
-            .expect("a path adds at least one term")
-            .path_end = true;
+    fn step<S: PathSink>(
+        &mut self,
+        tracer: &Tracer,
+        (at, ray, hit): (PathStep, &Ray, Option<(HitTarget, f64)>),
+        scratch: &mut TraceScratch,
+        sink: &mut S,
+        reflections: &mut Vec<Reflection>,
+    ) {
+        if let Some((ray, weight)) = tracer.path_hit(at, ray, hit, scratch, sink, self) {
+            let at = PathStep {
+                depth: at.depth + 1,
+                weight,
+                ..at
+            };
+            let path = self.path;
+            reflections.push(Reflection { at, ray, path });
+        }
     }
 
     /// Computes the waiting hits' factors.
@@ -896,6 +1027,7 @@ impl Deferred {
                 factors: index as u32,
             },
             weight,
+            self.path,
         ));
         index
     }
@@ -965,7 +1097,7 @@ impl PathColour for Deferred {
     #[inline(always)]
     fn add(&mut self, colour: Vec3, weight: f32) {
         self.terms
-            .push(Term::new(TermColour::Known(colour), weight));
+            .push(Term::new(TermColour::Known(colour), weight, self.path));
     }
 
     // Its factors now, or left to the lanes (the `sampled` sums of a hit
@@ -1055,6 +1187,7 @@ impl PathColour for Deferred {
         self.terms.push(Term::new(
             TermColour::Known(terms.colours.colour(factors)),
             weight,
+            self.path,
         ));
     }
 }

@@ -342,12 +342,6 @@ pub fn decode_channel(c: u8) -> f32 {
 mod tests {
     use super::*;
 
-    /// A film large enough to be mapped in large pages starts black, every
-    /// pixel of it, and keeps what a block writes: the advice changes how
-    /// its memory is mapped, not what it holds. So does one mapped in by a
-    /// pool's threads (1 to 3 of them), one made where a freed film of
-    /// colour was (memory the allocator hands out again, not fresh), and
-    /// the small and empty ones.
     /// A film of `size`, every pixel black.
     fn black(film: &Film, size: (u32, u32)) {
         assert_eq!((film.width, film.height), size);
@@ -355,6 +349,12 @@ mod tests {
         assert!(film.pixels.iter().all(|&p| p == Vec3::ZERO));
     }
 
+    /// A film large enough to be mapped in large pages starts black, every
+    /// pixel of it, and keeps what a block writes: the advice changes how
+    /// its memory is mapped, not what it holds. So does one mapped in by a
+    /// pool's threads (1 to 3 of them), one made where a freed film of
+    /// colour was (memory the allocator hands out again, not fresh), and
+    /// the small and empty ones.
     #[test]
     fn a_full_hd_film_starts_black_and_keeps_its_blocks() {
         let mut film = Film::new(1920, 1080);

@@ -58,11 +58,9 @@ const RAY_LANES: usize = 8;
 #[inline(always)]
 fn nearer(
     id: u32,
-    (chunk, t_max, best): (
-        &[Ray],
-        &mut [f64; RAY_LANES],
-        &mut [Option<HitTarget>; RAY_LANES],
-    ),
+    chunk: &[Ray],
+    t_max: &mut [f64; RAY_LANES],
+    best: &mut [Option<HitTarget>; RAY_LANES],
     test: impl Fn(&Ray, f64) -> Option<f64>,
 ) {
     for (j, ray) in chunk.iter().enumerate() {
@@ -419,16 +417,18 @@ impl Scene {
                 }
             }
             for &i in self.unbounded.iter().chain(self.bounded.iter()) {
-                let lanes = (chunk, &mut t_max, &mut best);
+                let (t_max, best) = (&mut t_max, &mut best);
                 match self.primitive(i) {
-                    Primitive::Shape(Shape::Plane(s)) => nearer(i, lanes, |r, t| s.intersect(r, t)),
+                    Primitive::Shape(Shape::Plane(s)) => {
+                        nearer(i, chunk, t_max, best, |r, t| s.intersect(r, t))
+                    }
                     Primitive::Shape(Shape::Sphere(s)) => {
-                        nearer(i, lanes, |r, t| s.intersect(r, t))
+                        nearer(i, chunk, t_max, best, |r, t| s.intersect(r, t))
                     }
                     Primitive::Shape(Shape::Cuboid(s)) => {
-                        nearer(i, lanes, |r, t| s.intersect(r, t))
+                        nearer(i, chunk, t_max, best, |r, t| s.intersect(r, t))
                     }
-                    _ => nearer(i, lanes, |r, t| self.intersect(i, r, t)),
+                    _ => nearer(i, chunk, t_max, best, |r, t| self.intersect(i, r, t)),
                 }
             }
             for (j, ray) in chunk.iter().enumerate() {
@@ -624,9 +624,36 @@ impl Loaded {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::render::rng::Rng;
+    use crate::render::scene_file::{ObjectDesc, TriangleDesc};
+
+    /// Planes, a turned box, a sphere and a tilted rect under a light (as
+    /// the shadow rays in lanes take them: no triangle).
+    pub(crate) const SHAPES_ROOM: &str = r#"{
+      "format": 1,
+      "camera": { "position": [0, 4, -14], "look_at": [0, 3.5, 0], "up": [0, 1, 0],
+                  "fov_y_deg": 36, "width": 64, "height": 36 },
+      "render": { "shadow_rays": 4, "sampling": "random", "max_depth": 2, "seed": 1,
+                  "area_light_model": "sampled",
+                  "terms": { "ambient": 1.0, "diffuse": 1.0, "specular": 1.0 },
+                  "background": [0, 0, 0] },
+      "light": { "corner": [-1, 7.99, -1], "edge_u": [2, 0, 0], "edge_v": [0, 0, 2],
+                 "ambient": [0.1, 0.1, 0.1], "diffuse": [0.9, 0.9, 0.9], "specular": [1, 1, 1] },
+      "materials": { "m": { "ambient": [0.5, 0.5, 0.5], "diffuse": [0.5, 0.5, 0.5],
+                            "specular": [0.3, 0.3, 0.3], "shininess": 20, "reflectivity": 0.0 } },
+      "objects": [
+        { "type": "plane", "point": [0, 0, 0], "normal": [0, 1, 0], "material": "m" },
+        { "type": "plane", "point": [0, 8, 0], "normal": [0, -1, 0], "material": "m" },
+        { "type": "plane", "point": [5, 0, 0], "normal": [-1, 0, 0], "material": "m" },
+        { "type": "box", "min": [-1, 0, -1], "max": [1, 3, 1], "rotate_y_deg": 30,
+          "translate": [1, 0, 1], "material": "m" },
+        { "type": "sphere", "center": [-2, 2.5, 0], "radius": 1, "material": "m" },
+        { "type": "rect", "corner": [-1, 5, -2], "edge_u": [2, 0, 0.5], "edge_v": [0, 0.4, 2],
+          "material": "m" }
+      ]
+    }"#;
 
     /// Rays from anywhere in a room of every kind of shape, in chunks of
     /// every length: each finds, side by side, what it finds alone (the
@@ -634,36 +661,13 @@ mod tests {
     /// every object and the light.
     #[test]
     fn rays_side_by_side_find_what_each_finds_alone() {
-        let loaded = Loaded::from_json(
-            r#"{
-              "format": 1,
-              "camera": { "position": [0, 4, -14], "look_at": [0, 3.5, 0], "up": [0, 1, 0],
-                          "fov_y_deg": 36, "width": 64, "height": 36 },
-              "render": { "shadow_rays": 1, "sampling": "grid", "max_depth": 4, "seed": 1,
-                          "area_light_model": "sampled",
-                          "terms": { "ambient": 1.0, "diffuse": 1.0, "specular": 1.0 },
-                          "background": [0, 0, 0] },
-              "light": { "corner": [-1, 7.99, -1], "edge_u": [2, 0, 0], "edge_v": [0, 0, 2],
-                         "ambient": [0.1, 0.1, 0.1], "diffuse": [0.9, 0.9, 0.9],
-                         "specular": [1, 1, 1] },
-              "materials": { "m": { "ambient": [0.5, 0.5, 0.5], "diffuse": [0.5, 0.5, 0.5],
-                                    "specular": [0.3, 0.3, 0.3], "shininess": 20,
-                                    "reflectivity": 0.5 } },
-              "objects": [
-                { "type": "plane", "point": [0, 0, 0], "normal": [0, 1, 0], "material": "m" },
-                { "type": "plane", "point": [0, 8, 0], "normal": [0, -1, 0], "material": "m" },
-                { "type": "plane", "point": [5, 0, 0], "normal": [-1, 0.2, 0], "material": "m" },
-                { "type": "box", "min": [-1, 0, -1], "max": [1, 3, 1], "rotate_y_deg": 30,
-                  "translate": [1, 0, 1], "material": "m" },
-                { "type": "sphere", "center": [-2, 2.5, 0], "radius": 1, "material": "m" },
-                { "type": "rect", "corner": [-1, 5, -2], "edge_u": [2, 0, 0.5],
-                  "edge_v": [0, 0.4, 2], "material": "m" },
-                { "type": "triangle", "vertices": [[-4, 1, 3], [-2, 4, 3], [-3, 1, 1]],
-                  "material": "m" }
-              ]
-            }"#,
-        )
-        .expect("the test room");
+        // The lanes' room and a triangle.
+        let mut desc = SceneDesc::from_json(SHAPES_ROOM).expect("the test room");
+        desc.objects.push(ObjectDesc::Triangle(TriangleDesc {
+            vertices: [[-4.0, 1.0, 3.0], [-2.0, 4.0, 3.0], [-3.0, 1.0, 1.0]],
+            material: "m".into(),
+        }));
+        let loaded = Loaded::new(&desc).expect("the test room");
         let scene = &loaded.scene;
         let mut rng = Rng::new(11);
         let mut r = |lo: f64, hi: f64| lo + (hi - lo) * rng.next_f64();

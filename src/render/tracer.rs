@@ -603,16 +603,16 @@ impl<'a> Tracer<'a> {
             });
             return None;
         }
-        // Traced whatever the path weight: however faint, the rest of
-        // the path may meet a light or surface bright enough to matter
-        // (colours reach 10⁶), and the scene format sums every hit up
-        // to `max_depth`.
         // About the shading normal, unless that would send the ray
         // into the surface.
         let mut mirrored = reflect(ray.dir, shading_normal);
         if mirrored.dot(normal) <= 0.0 {
             mirrored = reflect(ray.dir, normal);
         }
+        // Traced whatever the path weight: however faint, the rest of
+        // the path may meet a light or surface bright enough to matter
+        // (colours reach 10⁶), and the scene format sums every hit up
+        // to `max_depth`.
         scratch.stats.reflected += 1;
         let reflected = Ray::new(spawn_origin(surface.point, normal, scene.scale), mirrored);
         Some((reflected, weight * material.reflectivity))
@@ -646,7 +646,7 @@ impl PathStep {
 /// A tile's path waiting for its reflected ray's hit: the step it is at,
 /// the ray, and the path's index in the tile (see [`Deferred::path`]).
 #[derive(Debug, Clone, Copy)]
-pub(crate) struct Reflection {
+struct Reflection {
     at: PathStep,
     ray: Ray,
     path: u32,

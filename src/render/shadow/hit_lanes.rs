@@ -426,33 +426,9 @@ mod tests {
     use super::*;
     use crate::render::rng::Rng;
     use crate::render::scene::Loaded;
+    use crate::render::scene::tests::SHAPES_ROOM;
     use crate::render::shadow::{ShadowBuffers, visibility};
     use crate::render::stats::RayStats;
-
-    /// Planes, a turned box, a sphere and a tilted rect under a light.
-    const ROOM: &str = r#"{
-      "format": 1,
-      "camera": { "position": [0, 4, -14], "look_at": [0, 3.5, 0], "up": [0, 1, 0],
-                  "fov_y_deg": 36, "width": 64, "height": 36 },
-      "render": { "shadow_rays": 4, "sampling": "random", "max_depth": 2, "seed": 1,
-                  "area_light_model": "sampled",
-                  "terms": { "ambient": 1.0, "diffuse": 1.0, "specular": 1.0 },
-                  "background": [0, 0, 0] },
-      "light": { "corner": [-1, 7.99, -1], "edge_u": [2, 0, 0], "edge_v": [0, 0, 2],
-                 "ambient": [0.1, 0.1, 0.1], "diffuse": [0.9, 0.9, 0.9], "specular": [1, 1, 1] },
-      "materials": { "m": { "ambient": [0.5, 0.5, 0.5], "diffuse": [0.5, 0.5, 0.5],
-                            "specular": [0.3, 0.3, 0.3], "shininess": 20, "reflectivity": 0.0 } },
-      "objects": [
-        { "type": "plane", "point": [0, 0, 0], "normal": [0, 1, 0], "material": "m" },
-        { "type": "plane", "point": [0, 8, 0], "normal": [0, -1, 0], "material": "m" },
-        { "type": "plane", "point": [5, 0, 0], "normal": [-1, 0, 0], "material": "m" },
-        { "type": "box", "min": [-1, 0, -1], "max": [1, 3, 1], "rotate_y_deg": 30,
-          "translate": [1, 0, 1], "material": "m" },
-        { "type": "sphere", "center": [-2, 2.5, 0], "radius": 1, "material": "m" },
-        { "type": "rect", "corner": [-1, 5, -2], "edge_u": [2, 0, 0.5], "edge_v": [0, 0.4, 2],
-          "material": "m" }
-      ]
-    }"#;
 
     /// Hit points waiting in lanes get, ray for ray, the visibility that
     /// each gets alone with its culling (skipping on): points anywhere in
@@ -461,7 +437,7 @@ mod tests {
     /// points each, full lanes and part-filled ones.
     #[test]
     fn hits_in_lanes_see_what_each_sees_alone() {
-        let loaded = Loaded::from_json(ROOM).expect("the test room");
+        let loaded = Loaded::from_json(SHAPES_ROOM).expect("the test room");
         let (scene, settings) = (&loaded.scene, &loaded.settings);
         assert!(settings.skip && lanes_fit(scene));
         let mut rng = Rng::new(7);
@@ -479,7 +455,8 @@ mod tests {
             // Every other round, a batch as a tile gives: points close
             // together (on the floor, or anywhere), which leaves most
             // objects out of the batch; else points all over the room.
-            let (centre, spread) = if round % 2 == 1 {
+            let clustered = round % 2 == 1;
+            let (centre, spread) = if clustered {
                 let c = DVec3::new(r(&mut rng, -5.0, 5.0), 0.0, r(&mut rng, -5.0, 5.0));
                 (c, r(&mut rng, 0.0, 0.5))
             } else {
@@ -488,7 +465,6 @@ mod tests {
             let near = |rng: &mut Rng, c: f64, lo: f64, hi: f64| {
                 r(rng, c - spread, c + spread).clamp(lo, hi)
             };
-            let clustered = round % 2 == 1;
             for h in 0..HIT_LANES - round % 5 {
                 let u = unit(&mut rng);
                 let kind = if clustered { h % 2 } else { h % 6 };

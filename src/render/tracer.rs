@@ -330,13 +330,13 @@ impl<'a> Tracer<'a> {
 
     /// Linear RGB of the pixels of `rect` (rows packed) into `out`, as
     /// [`Tracer::pixel`] gives each (the same bits): the camera rays test
-    /// only the objects the tile's rays may meet ([`camera_objects`]), and
-    /// with [`Tracer::shades_in_lanes`] the paths' hits wait for their light
-    /// factors in [`SampledLanes`] and are shaded
-    /// [`LANES`](super::sampled_lanes::LANES) at a time, the colours then
-    /// summed path by path in their order; the reflected rays wait for the
-    /// tile's camera rays and are searched side by side, depth by depth
-    /// ([`Scene::closest_hits`]). With several camera samples per
+    /// only the objects the tile's rays may meet ([`camera_objects`]), the
+    /// reflected rays (under every model) wait for the tile's camera rays
+    /// and are searched side by side, depth by depth
+    /// ([`Scene::closest_hits`]), and the colours are summed path by path
+    /// in their order. With [`Tracer::shades_in_lanes`] the paths' hits
+    /// also wait for their light factors in [`SampledLanes`] and are shaded
+    /// [`LANES`](super::sampled_lanes::LANES) at a time. With several camera samples per
     /// pixel the tile's objects are those the filter's reach around its
     /// pixels may meet, and each pixel's paths are summed and averaged as
     /// [`Tracer::trace`] sums them. False if cancelled part-way.
@@ -347,9 +347,6 @@ impl<'a> Tracer<'a> {
         scratch: &mut TraceScratch,
         out: &mut Vec<Vec3>,
     ) -> bool {
-        if !self.shades_in_lanes() {
-            return self.trace_rect(rect, cancel, scratch, &mut (), out);
-        }
         self.per_tile(rect, scratch, |objects, scratch| {
             tile_in_lanes(self, rect, objects, cancel, scratch, &mut (), out)
         })
@@ -654,8 +651,8 @@ struct Reflection {
 
 avx2_dispatch!(
     /// The pixels of `rect` with their hits shaded side by side, each
-    /// path given to `sink` ([`Tracer::tile`] with `()`, and
-    /// [`Tracer::trace_rect`] of a recording sink under the `sampled`
+    /// path given to `sink` ([`Tracer::tile`] with `()` under every model,
+    /// and [`Tracer::trace_rect`] of a recording sink under the `sampled`
     /// model, whose hits are recorded as they are traced and their factors
     /// set once the lanes have them). Compiled for AVX2 as a whole where
     /// the CPU has it: one feature check per tile, and the shading kernels
@@ -673,7 +670,7 @@ avx2_dispatch!(
 );
 
 /// [`tile_in_lanes`], the hits' `sampled` sums side by side in
-/// [`Deferred`].
+/// [`Deferred`] (other models' factors computed hit by hit).
 #[inline(always)]
 fn tile_in_lanes_generic<S: PathSink>(
     tracer: &Tracer<'_>,
@@ -1167,7 +1164,10 @@ impl PathColour for Deferred {
         );
         let factors = match lit {
             Lit::Known(f) => f,
-            Lit::Points if !any_visible(buf, count) => model_terms(scene, s, sp, needs, count, buf),
+            // The lanes hold the `sampled` sums: other models' terms now.
+            Lit::Points if !any_visible(buf, count) || s.model != AreaLightModel::Sampled => {
+                model_terms(scene, s, sp, needs, count, buf)
+            }
             Lit::Points => {
                 let index = self.wait_for_factors(sp, weight);
                 if S::RECORD {
@@ -1388,5 +1388,83 @@ mod tests {
         };
         assert!(tracer.tile(r, &CancelToken::new(), &mut scratch, &mut tile));
         assert_eq!(tile[5], tracer.pixel(501, 301, &mut scratch));
+    }
+
+    /// Under the other models a tile's paths are traced side by side too
+    /// (reflected rays searched depth by depth, terms summed path by path),
+    /// their factors computed hit by hit: the same bits as each pixel
+    /// traced alone. The mirror sphere and boxes reflect (depth 4); the
+    /// `exact` model's hits are exact in the seed room and all fall back
+    /// to the `analytic` estimate under a light too small for it.
+    #[test]
+    fn a_tile_gives_the_bits_of_each_pixel_under_every_model() {
+        use crate::render::scene::SEED_ROOM_JSON;
+        // The seed room's 2 × 2 light made 2 × 10⁻⁶ (below the exact
+        // model's smallest light from 0.02 below it).
+        let tiny = SEED_ROOM_JSON
+            .replace("[-1, 7.99, -1]", "[-1e-6, 7.99, -1e-6]")
+            .replace("\"edge_u\": [2, 0, 0]", "\"edge_u\": [2e-6, 0, 0]")
+            .replace("\"edge_v\": [0, 0, 2]", "\"edge_v\": [0, 0, 2e-6]");
+        assert_ne!(tiny, SEED_ROOM_JSON);
+        let rooms = [
+            (Loaded::seed_room(), false),
+            (Loaded::from_json(&tiny).expect("a valid room"), true),
+        ];
+        for (loaded, small_light) in &rooms {
+            for (model, rays, skip) in [
+                (AreaLightModel::Exact, 4, true),
+                (AreaLightModel::Analytic, 4, true),
+                (AreaLightModel::Analytic, 9, false),
+                (AreaLightModel::NearestPoint, 4, true),
+            ] {
+                if *small_light && model != AreaLightModel::Exact {
+                    continue;
+                }
+                let mut settings = loaded.settings.clone();
+                (settings.model, settings.shadow_rays, settings.skip) = (model, rays, skip);
+                let tracer = Tracer::new(&loaded.scene, &settings, &loaded.shading, rays);
+                assert!(!tracer.shades_in_lanes());
+                let mut scratch = tracer.scratch();
+                let mut tile = Vec::new();
+                // Tiles over the floor, the boxes, the mirror sphere and
+                // the back wall.
+                for i in 0..24 {
+                    let r = TileRect {
+                        x: 300 + 16 * (i % 6),
+                        y: 120 + 60 * (i / 6),
+                        w: 11,
+                        h: 9,
+                    };
+                    let before = scratch.stats;
+                    assert!(tracer.tile(r, &CancelToken::new(), &mut scratch, &mut tile));
+                    let (exact, fallbacks) = (
+                        scratch.stats.exact_hits - before.exact_hits,
+                        scratch.stats.exact_fallbacks - before.exact_fallbacks,
+                    );
+                    if model == AreaLightModel::Exact {
+                        // Every hit takes the branch the room sets.
+                        let (want, other) = if *small_light {
+                            (fallbacks, exact)
+                        } else {
+                            (exact, fallbacks)
+                        };
+                        assert!(
+                            want >= u64::from(r.w * r.h),
+                            "{model:?} small light {small_light} tile {i}: {want} {other}"
+                        );
+                        assert_eq!(other, 0, "{model:?} tile {i}");
+                    }
+                    for (k, c) in tile.iter().enumerate() {
+                        let (x, y) = (r.x + k as u32 % r.w, r.y + k as u32 / r.w);
+                        let want = tracer.pixel(x, y, &mut scratch);
+                        assert_eq!(
+                            c.to_array().map(f32::to_bits),
+                            want.to_array().map(f32::to_bits),
+                            "{model:?} {rays} skip {skip} small light {small_light}: pixel ({x}, {y})"
+                        );
+                    }
+                }
+            }
+        }
     }
 }

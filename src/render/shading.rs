@@ -5,7 +5,7 @@
 use glam::{DVec3, Vec3};
 
 use super::analytic;
-use super::exact::{CircleFit, ExactPoint, exact_factors};
+use super::exact::{CircleFit, ExactFactors, ExactPoint, ExactStep, exact_step};
 use super::math::{
     WIDE_POINTS, avx2_dispatch, avx512_dispatch, pow_approx, pow_from_log2, pow_log2,
 };
@@ -151,9 +151,20 @@ pub fn light_terms(
         buf,
         stats,
         Shadows::Traced,
-    ) {
-        Lit::Known(factors) => factors,
-        Lit::Points => model_terms(scene, s, sp, needs, pattern.count(), buf),
+    )
+    .known(buf)
+    {
+        Some(factors) => factors,
+        None => model_terms(scene, s, sp, needs, pattern.count(), buf),
+    }
+}
+
+/// The light factors of the `exact` model's factors.
+#[inline(always)]
+pub(crate) fn exact_terms(f: ExactFactors) -> LightTerms {
+    LightTerms {
+        diffuse: f.diffuse as f32,
+        specular: f.specular as f32,
     }
 }
 
@@ -162,9 +173,27 @@ pub(crate) enum Lit {
     /// The factors, without light points (behind the light, not needed,
     /// or the `exact` model).
     Known(LightTerms),
+    /// The `exact` model's point that sees the whole light above its
+    /// horizon, left in the buffers' exact scratch: its factors from
+    /// [`WholeLight::factors`](super::exact::WholeLight::factors), or side
+    /// by side with others' ([`WholeLights`](super::exact::WholeLights)).
+    Whole,
     /// The light points are in the buffers, and with [`Shadows::Traced`]
     /// their visibility, for [`model_terms`].
     Points,
+}
+
+impl Lit {
+    /// The factors, unless they wait for the light points: a whole-light
+    /// point's taken now, alone.
+    #[inline(always)]
+    pub(crate) fn known(self, buf: &mut ShadowBuffers) -> Option<LightTerms> {
+        match self {
+            Lit::Known(factors) => Some(factors),
+            Lit::Whole => Some(exact_terms(buf.exact.whole_point().factors(&mut buf.exact))),
+            Lit::Points => None,
+        }
+    }
 }
 
 /// Whether [`light_points`] traces the shadow rays of the points it draws.
@@ -234,13 +263,14 @@ pub(crate) fn light_points_generic(
             inside: query.inside,
             shadows: s.shadows,
         };
-        match exact_factors(scene, &p, need_s, CircleFit::SameArea, &mut buf.exact) {
-            Ok(f) => {
+        match exact_step(scene, &p, need_s, CircleFit::SameArea, &mut buf.exact) {
+            Ok(ExactStep::Done(f)) => {
                 stats.exact_hits += 1;
-                return Lit::Known(LightTerms {
-                    diffuse: f.diffuse as f32,
-                    specular: f.specular as f32,
-                });
+                return Lit::Known(exact_terms(f));
+            }
+            Ok(ExactStep::Whole) => {
+                stats.exact_hits += 1;
+                return Lit::Whole;
             }
             // Outside what the model does exactly: the `analytic` estimate.
             Err(_) => stats.exact_fallbacks += 1,

@@ -10,6 +10,7 @@
 
 use glam::{DVec3, Vec3};
 
+use super::exact::WholeLights;
 use super::geometry::{Ray, spawn_origin};
 use super::live::record::ColourHit;
 use super::math::avx2_dispatch;
@@ -22,8 +23,8 @@ use super::scene::{HitTarget, Scene};
 use super::scene_file::AreaLightModel;
 use super::settings::RenderSettings;
 use super::shading::{
-    LightTerms, Lit, Needs, PhongColours, ShadingPoint, Shadows, any_visible, light_points_generic,
-    light_terms, model_terms, nearest_point_specular_direction,
+    LightTerms, Lit, Needs, PhongColours, ShadingPoint, Shadows, any_visible, exact_terms,
+    light_points_generic, light_terms, model_terms, nearest_point_specular_direction,
 };
 use super::shading_params::ShadingParams;
 use super::shadow::{HitLanes, LANE_RAYS, ShadowBuffers, ShadowQuery, lanes_fit};
@@ -172,6 +173,9 @@ pub struct TraceScratch {
     reflections: Vec<Reflection>,
     next_reflections: Vec<Reflection>,
     path_sums: Vec<Vec3>,
+    /// [`Tracer::tile`]'s `exact` points that see the whole light, waiting
+    /// to be taken side by side.
+    whole_lights: WholeLights,
 }
 
 impl<'a> Tracer<'a> {
@@ -231,6 +235,7 @@ impl<'a> Tracer<'a> {
             reflections: Vec::new(),
             next_reflections: Vec::new(),
             path_sums: Vec::new(),
+            whole_lights: WholeLights::default(),
         }
     }
 
@@ -800,6 +805,7 @@ fn tile_in_lanes_generic<S: PathSink>(
     if finished {
         colour.trace_waiting_shadows::<S>(tracer, scratch);
         colour.flush();
+        colour.take_whole_lights(scratch);
         // Only a recording sink's waiting hits have entries in `hits` and
         // `visible`.
         for (&hit, &factors) in colour.hits.iter().zip(&colour.factors) {
@@ -839,6 +845,7 @@ fn tile_in_lanes_generic<S: PathSink>(
         colour.lanes.discard();
         scratch.shadow_lanes.clear();
         scratch.shadow_index.clear();
+        scratch.whole_lights.clear();
     }
     scratch.lanes = colour.lanes;
     scratch.terms = colour.terms;
@@ -1012,6 +1019,19 @@ impl Deferred {
             .flush(self.edges.0, self.edges.1, |i, f| factors[i] = f);
     }
 
+    /// Computes the factors of the `exact` model's points waiting in
+    /// [`WholeLights`]. Not inlined: its kernels stay out of the hit loop
+    /// the other models share.
+    #[inline(never)]
+    fn take_whole_lights(&mut self, scratch: &mut TraceScratch) {
+        let factors = &mut self.factors;
+        scratch
+            .whole_lights
+            .flush(&mut scratch.shadow.exact, |i, f| {
+                factors[i as usize] = exact_terms(f)
+            });
+    }
+
     /// Adds hit `sp`'s term, its colour waiting for its light factors:
     /// their index in `factors`, returned.
     #[inline(always)]
@@ -1129,14 +1149,15 @@ impl PathColour for Deferred {
                 buf.vis[..count].fill(0.0);
             }
             let later = Shadows::Later;
-            match light_points_generic(scene, s, sp, needs, pattern, rng, buf, stats, later) {
-                Lit::Known(f) => {
+            let lit = light_points_generic(scene, s, sp, needs, pattern, rng, buf, stats, later);
+            match lit.known(buf) {
+                Some(f) => {
                     if S::RECORD {
                         sink.hit(tracer.hit_record(sp, t, f), buf, count);
                     }
                     self.add(terms.colours.colour(f), weight)
                 }
-                Lit::Points => {
+                None => {
                     if S::RECORD {
                         let open = tracer.hit_record(sp, t, LightTerms::default());
                         self.hits.push(sink.hit(open, buf, count) as u32);
@@ -1164,6 +1185,18 @@ impl PathColour for Deferred {
         );
         let factors = match lit {
             Lit::Known(f) => f,
+            // Taken side by side with the tile's next such points.
+            Lit::Whole if !S::RECORD => {
+                let index = self.wait_for_factors(sp, weight);
+                if scratch
+                    .whole_lights
+                    .push(index as u32, &scratch.shadow.exact)
+                {
+                    self.take_whole_lights(scratch);
+                }
+                return;
+            }
+            Lit::Whole => exact_terms(buf.exact.whole_point().factors(&mut buf.exact)),
             // The lanes hold the `sampled` sums: other models' terms now.
             Lit::Points if !any_visible(buf, count) || s.model != AreaLightModel::Sampled => {
                 model_terms(scene, s, sp, needs, count, buf)

@@ -33,7 +33,7 @@
 
 use std::sync::OnceLock;
 
-use glam::{DVec2, DVec3};
+use glam::{DVec2, DVec3, Vec3};
 
 use super::diffuse::{Outline, outline};
 use super::polygon::{HalfPlane, Pieces, clip_into, edges_of};
@@ -48,7 +48,7 @@ pub const TOLERANCE: f64 = 1e-4;
 
 /// The integrand: max(0, n·H)^s at light point (a, b), in the light's frame
 /// seen from the shadow point.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, Default)]
 pub struct Lobe {
     /// Unit shading normal and view direction.
     pub n: DVec3,
@@ -127,9 +127,7 @@ fn lobe_at_nested_nodes_generic(
 /// cubature's tolerance.
 #[inline(always)]
 fn lobe_f32<const M: usize>(l: &Lobe, af: &[f32; M], bf: &[f32; M], out: &mut [f64; M]) {
-    let (c, u, w) = (l.corner.as_vec3(), l.edge_u.as_vec3(), l.edge_v.as_vec3());
-    let (n, v) = (l.n.as_vec3(), l.v.as_vec3());
-    let half_s = (0.5 * l.shininess) as f32;
+    let l = LobeF32::new(l);
     // Three loops, each a third of a node's chain of dependent operations
     // (as `shading::point_terms`): in one loop the CPU overlapped too few
     // vectors to hide the chain's latency. The same operations lane by
@@ -137,9 +135,48 @@ fn lobe_f32<const M: usize>(l: &Lobe, af: &[f32; M], bf: &[f32; M], out: &mut [f
     let mut sin2 = [0f32; M];
     let mut lit = [false; M];
     for j in 0..M {
-        let x = c.x + u.x * af[j] + w.x * bf[j];
-        let y = c.y + u.y * af[j] + w.y * bf[j];
-        let z = c.z + u.z * af[j] + w.z * bf[j];
+        (sin2[j], lit[j]) = l.sin2_at(af[j], bf[j]);
+    }
+    let mut exponent = [0f32; M];
+    for j in 0..M {
+        exponent[j] = log2_one_minus_times(sin2[j], l.half_s);
+    }
+    for j in 0..M {
+        out[j] = lobe_value(exponent[j], sin2[j], lit[j]);
+    }
+}
+
+/// A [`Lobe`] in f32, as [`lobe_f32`] takes it.
+#[derive(Debug, Clone, Copy, Default)]
+struct LobeF32 {
+    c: Vec3,
+    u: Vec3,
+    w: Vec3,
+    n: Vec3,
+    v: Vec3,
+    half_s: f32,
+}
+
+impl LobeF32 {
+    #[inline(always)]
+    fn new(l: &Lobe) -> LobeF32 {
+        LobeF32 {
+            c: l.corner.as_vec3(),
+            u: l.edge_u.as_vec3(),
+            w: l.edge_v.as_vec3(),
+            n: l.n.as_vec3(),
+            v: l.v.as_vec3(),
+            half_s: (0.5 * l.shininess) as f32,
+        }
+    }
+
+    /// sin²θ_H at light point (a, b), and whether the lobe is lit there.
+    #[inline(always)]
+    fn sin2_at(&self, a: f32, b: f32) -> (f32, bool) {
+        let LobeF32 { c, u, w, n, v, .. } = *self;
+        let x = c.x + u.x * a + w.x * b;
+        let y = c.y + u.y * a + w.y * b;
+        let z = c.z + u.z * a + w.z * b;
         let inv = 1.0 / (x * x + y * y + z * z).sqrt();
         let (hx, hy, hz) = (x * inv + v.x, y * inv + v.y, z * inv + v.z);
         let h2 = hx * hx + hy * hy + hz * hz;
@@ -149,19 +186,19 @@ fn lobe_f32<const M: usize>(l: &Lobe, af: &[f32; M], bf: &[f32; M], out: &mut [f
             n.z * hx - n.x * hz,
             n.x * hy - n.y * hx,
         );
-        sin2[j] = ((cx * cx + cy * cy + cz * cz) / h2).min(1.0);
         // N·H ≤ 0 and H = 0 (light exactly behind the viewer) give 0.
-        lit[j] = nh > 0.0 && h2 > 0.0;
+        (
+            ((cx * cx + cy * cy + cz * cz) / h2).min(1.0),
+            nh > 0.0 && h2 > 0.0,
+        )
     }
-    let mut exponent = [0f32; M];
-    for j in 0..M {
-        exponent[j] = log2_one_minus_times(sin2[j], half_s);
-    }
-    for j in 0..M {
-        let value = exp2_unless_zero(exponent[j], sin2[j]);
-        let kept = if lit[j] { value } else { 0.0 };
-        out[j] = kept as f64;
-    }
+}
+
+/// The lobe's value from [`log2_one_minus_times`]'s exponent.
+#[inline(always)]
+fn lobe_value(exponent: f32, sin2: f32, lit: bool) -> f64 {
+    let value = exp2_unless_zero(exponent, sin2);
+    (if lit { value } else { 0.0 }) as f64
 }
 
 /// (1 − e)^y for e in [0, 1] and y > 0 in f32 without a libm call:
@@ -310,6 +347,182 @@ fn nested_cell(lobe: &Lobe, lo: DVec2, size: f64, coarse: bool) -> Option<(f64, 
         previous = q;
     }
     None
+}
+
+/// Lobes whose whole-light cells [`whole_light_specular`] takes side by
+/// side.
+pub const WHOLE_LANES: usize = 8;
+
+avx512_dispatch!(
+    /// The integrand of each lobe at nodes `chunk · CHUNK ..` of the nested
+    /// rules over the whole light (the cell [0, 1]²) into `out[k]`: the
+    /// lobes' chains of dependent operations side by side, each lane's
+    /// operations those of [`lobe_at_nested_nodes`] (so the same bits).
+    fn lobes_at_whole_nodes(ls: &[LobeF32; WHOLE_LANES], chunk: usize, out: &mut [[f64; CHUNK]; WHOLE_LANES])
+        => lobes_at_whole_nodes_generic if true
+);
+
+#[inline(always)]
+fn lobes_at_whole_nodes_generic(
+    ls: &[LobeF32; WHOLE_LANES],
+    chunk: usize,
+    out: &mut [[f64; CHUNK]; WHOLE_LANES],
+) {
+    let r = nested_rule();
+    let nodes = chunk * CHUNK..(chunk + 1) * CHUNK;
+    // As `lobe_at_nested_nodes` places them on the cell at 0 of side 1.
+    let a: [f32; CHUNK] = std::array::from_fn(|j| (0.0 + r.x[nodes.start + j] * 1.0) as f32);
+    let b: [f32; CHUNK] = std::array::from_fn(|j| (0.0 + r.y[nodes.start + j] * 1.0) as f32);
+    let mut sin2 = [[0f32; CHUNK]; WHOLE_LANES];
+    let mut lit = [[false; CHUNK]; WHOLE_LANES];
+    for k in 0..WHOLE_LANES {
+        for j in 0..CHUNK {
+            (sin2[k][j], lit[k][j]) = ls[k].sin2_at(a[j], b[j]);
+        }
+    }
+    let mut exponent = [[0f32; CHUNK]; WHOLE_LANES];
+    for k in 0..WHOLE_LANES {
+        for j in 0..CHUNK {
+            exponent[k][j] = log2_one_minus_times(sin2[k][j], ls[k].half_s);
+        }
+    }
+    for k in 0..WHOLE_LANES {
+        for j in 0..CHUNK {
+            out[k][j] = lobe_value(exponent[k][j], sin2[k][j], lit[k][j]);
+        }
+    }
+}
+
+/// How [`whole_light_specular`] takes a lobe's root cell: as
+/// [`specular_factor`] would, or not at all.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Root {
+    /// Left to [`specular_factor`].
+    Alone,
+    /// The nested rules (`coarse`: as [`whole_cell`] takes it).
+    Nested { coarse: bool },
+    /// The fit at the tensor nodes (a cell in the near field).
+    Fit,
+}
+
+/// [`specular_factor`] of up to [`WHOLE_LANES`] lobes of light `span`
+/// over the whole light (`visible`: its area as [`Pieces::area`] gives it
+/// for the light's square) side by side, where the root cell takes the
+/// nested rules' 3² or 4² value or its fit is accepted: the same value
+/// and report as [`specular_factor`] gives (the same gates and
+/// operations); `None` where it would do anything else (skip the lobe,
+/// split the cell, or take the 5² rule), left to [`specular_factor`].
+pub fn whole_light_specular(
+    span: &LightSpan,
+    lobes: &[(&Lobe, f64)],
+    out: &mut [Option<(f64, CubatureReport)>; WHOLE_LANES],
+) {
+    debug_assert!(lobes.len() <= WHOLE_LANES);
+    let r = nested_rule();
+    let empty = Pieces::default();
+    let mut root = [Root::Alone; WHOLE_LANES];
+    // `specular_factor`'s, `cell`'s and `whole_cell`'s gates of the root
+    // cell.
+    for (k, &(lobe, visible)) in lobes.iter().enumerate() {
+        out[k] = None;
+        let share = visible.min(1.0);
+        // `cell`'s tests of a cell of side 1 (covered, then full).
+        let full = visible >= 1.0 * 1.0 * (1.0 - 1e-12);
+        if !full || !settled_by_centre(lobe, share) {
+            continue;
+        }
+        let ctx = Ctx::new(lobe, span, &empty);
+        let view = CellView::new(&ctx, DVec2::ZERO, 1.0);
+        root[k] = if !(view.near_field(&ctx, 1.0) || view.lobe_unresolved(NESTED_ORDERS[2])) {
+            Root::Nested {
+                coarse: !view.lobe_unresolved(NESTED_ORDERS[1]),
+            }
+        } else if view.lobe_unresolved(ORDER) {
+            Root::Alone
+        } else {
+            Root::Fit
+        };
+    }
+    // The fitted cells, one lobe at a time (64 nodes fill the lanes), as
+    // `cell` fits a whole cell of side 1.
+    let half = 0.5 * 1.0;
+    let fit = rule();
+    let xs: [f64; ORDER] = std::array::from_fn(|i| 0.0 + (fit.x[i] + 1.0) * half);
+    for (k, &(lobe, visible)) in lobes.iter().enumerate() {
+        if root[k] != Root::Fit {
+            continue;
+        }
+        let mut nf = [0.0; NODES];
+        lobe_at_tensor_nodes(lobe, &xs, &xs, &mut nf);
+        let (tail, sum) = whole_cell_fit(fit, &nf);
+        if tail <= TOLERANCE {
+            out[k] = Some((4.0 * sum * (half * half), whole_report(tail * visible)));
+        }
+    }
+    let mut ls = [LobeF32::default(); WHOLE_LANES];
+    let mut nested = false;
+    for (k, &(lobe, _)) in lobes.iter().enumerate() {
+        if let Root::Nested { .. } = root[k] {
+            ls[k] = LobeF32::new(lobe);
+            nested = true;
+        }
+    }
+    if !nested {
+        return;
+    }
+    // The 2², 3² and 4² rules (nodes 0..29: two chunks), as `nested_cell`
+    // sums and compares them on a cell of area 1.
+    let mut f = [[0.0; NESTED_NODES]; WHOLE_LANES];
+    let mut chunk = [[0.0; CHUNK]; WHOLE_LANES];
+    lobes_at_whole_nodes(&ls, 0, &mut chunk);
+    for k in 0..WHOLE_LANES {
+        f[k][..CHUNK].copy_from_slice(&chunk[k]);
+    }
+    let area = 1.0 * 1.0;
+    let sum = |f: &[f64; NESTED_NODES], k: usize| -> f64 {
+        let start = if k == 0 { 0 } else { r.ends[k - 1] };
+        (start..r.ends[k]).map(|i| r.w[i] * f[i]).sum()
+    };
+    let mut previous = [0.0; WHOLE_LANES];
+    let mut more = false;
+    for k in 0..lobes.len() {
+        let Root::Nested { coarse } = root[k] else {
+            continue;
+        };
+        let (q0, q1) = (sum(&f[k], 0), sum(&f[k], 1));
+        let estimate = START_SAFETY * (q1 - q0).abs() * area;
+        if coarse && estimate <= TOLERANCE * area {
+            out[k] = Some((q1 * area, whole_report(estimate)));
+        } else {
+            previous[k] = q1;
+            more = true;
+        }
+    }
+    if !more {
+        return;
+    }
+    debug_assert!(r.ends[2] <= 2 * CHUNK);
+    lobes_at_whole_nodes(&ls, 1, &mut chunk);
+    for k in 0..lobes.len() {
+        if !matches!(root[k], Root::Nested { .. }) || out[k].is_some() {
+            continue;
+        }
+        f[k][CHUNK..2 * CHUNK].copy_from_slice(&chunk[k]);
+        let q2 = sum(&f[k], 2);
+        let estimate = (q2 - previous[k]).abs() * area;
+        if estimate <= TOLERANCE * area {
+            out[k] = Some((q2 * area, whole_report(estimate)));
+        }
+    }
+}
+
+/// [`specular_factor`]'s report of a root cell taken whole, with error
+/// estimate `estimate`.
+fn whole_report(estimate: f64) -> CubatureReport {
+    let mut report = CubatureReport::default();
+    report.cells += 1;
+    report.error += estimate;
+    report
 }
 
 /// Gauss–Legendre nodes and weights on [−1, 1], and the Legendre values
@@ -631,7 +844,7 @@ pub struct CubatureReport {
 
 /// What the cubature's gates take of the light's shape alone: the same
 /// from every point, so kept with the light's frame.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, Default)]
 pub struct LightSpan {
     /// The longer edge.
     side: f64,
@@ -1121,9 +1334,9 @@ fn clip_level(root: &Pieces, s: &mut CubatureScratch, d: usize, lo: DVec2, size:
 #[cfg(test)]
 mod tests {
     use super::{
-        CHUNK, CellView, Ctx, LightSpan, Lobe, MAX_DEPTH, Pieces, SKIP, SKIP_MARGIN, TOLERANCE,
-        bound_ln, lobe_at_nested_nodes, lobe_bound_cos, pow_one_minus, settled_by_centre,
-        whole_cell,
+        CHUNK, CellView, Ctx, CubatureScratch, LightSpan, Lobe, MAX_DEPTH, Pieces, SKIP,
+        SKIP_MARGIN, TOLERANCE, WHOLE_LANES, bound_ln, lobe_at_nested_nodes, lobe_bound_cos,
+        pow_one_minus, settled_by_centre, specular_factor, whole_cell, whole_light_specular,
     };
     use crate::render::rng::Rng;
     use glam::{DVec2, DVec3};
@@ -1381,6 +1594,87 @@ mod tests {
     /// side off its plane to four sides, cells from the whole light to the
     /// deepest level, each in front of the surface as the visible pieces
     /// are.
+    #[test]
+    fn whole_lights_side_by_side_give_the_bits_of_each_alone() {
+        let mut rng = Rng::new(41);
+        let mut next = || rng.next_f64();
+        let mut scratch = CubatureScratch::default();
+        let (mut nested, mut fitted, mut alone) = (0, 0, 0);
+        for round in 0..1500 {
+            let span_edges = (DVec3::new(2.0, 0.0, 0.0), DVec3::new(0.0, 0.0, 2.0));
+            let span = LightSpan::new(span_edges.0, span_edges.1);
+            let count = 1 + round % WHOLE_LANES;
+            let lobes: Vec<Lobe> = (0..count)
+                .map(|k| {
+                    let n = DVec3::new(next() - 0.5, 1.0, next() - 0.5).normalize();
+                    // From far (nested rules) to near the light (fits,
+                    // splits) above the point.
+                    let height = match (round + k) % 3 {
+                        0 => 0.05 + next(),
+                        1 => 1.0 + 3.0 * next(),
+                        _ => 6.0 + 6.0 * next(),
+                    };
+                    let corner = DVec3::new(-1.8 * next(), height, -1.8 * next());
+                    let v = match k % 3 {
+                        0 => {
+                            let c = (corner + DVec3::new(1.0, 0.0, 1.0)).normalize();
+                            n * (2.0 * n.dot(c)) - c
+                        }
+                        _ => DVec3::new(next() - 0.5, 0.2 + next(), next() - 0.5),
+                    }
+                    .normalize();
+                    Lobe {
+                        n,
+                        v,
+                        shininess: [1.0, 5.0, 20.0, 100.0, 500.0][(round + k) % 5],
+                        corner,
+                        edge_u: span_edges.0,
+                        edge_v: span_edges.1,
+                    }
+                })
+                .collect();
+            // The light's square, to rounding, as the points see it.
+            let eps = [0.0, 1e-17, -2e-16][round % 3];
+            let square = [
+                DVec2::new(0.0, eps),
+                DVec2::new(1.0, 0.0),
+                DVec2::new(1.0 + eps, 1.0),
+                DVec2::new(0.0, 1.0),
+            ];
+            let mut pieces = Pieces::default();
+            pieces.push(&square, 0.0);
+            let visible = pieces.area();
+            let asked: Vec<(&Lobe, f64)> = lobes.iter().map(|l| (l, visible)).collect();
+            let mut out = [None; WHOLE_LANES];
+            whole_light_specular(&span, &asked, &mut out);
+            for (k, lobe) in lobes.iter().enumerate() {
+                let (want, report) = specular_factor(lobe, &span, &pieces, &mut scratch);
+                let Some((got, got_report)) = out[k] else {
+                    alone += 1;
+                    continue;
+                };
+                assert_eq!(got.to_bits(), want.to_bits(), "round {round} lobe {k}");
+                assert_eq!(got_report.cells, report.cells);
+                assert_eq!(got_report.error.to_bits(), report.error.to_bits());
+                // The near field (the light's side above half the
+                // distance less its reach) takes the fit; far, the nested
+                // rules.
+                let distance = (lobe.corner + DVec3::new(1.0, 0.0, 1.0)).length();
+                if distance < 5.5 {
+                    fitted += 1;
+                } else if distance > 6.5 {
+                    nested += 1;
+                }
+            }
+        }
+        // Every way: the nested rules, the near field's fit, and points
+        // left to the one-point path.
+        assert!(
+            nested > 500 && fitted > 500 && alone > 500,
+            "{nested} {fitted} {alone}"
+        );
+    }
+
     #[test]
     fn nested_rules_of_a_whole_cell_keep_their_estimate() {
         let mut rng = Rng::new(15);

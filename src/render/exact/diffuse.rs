@@ -52,15 +52,7 @@ pub fn diffuse_over_pieces(
     h: f64,
     outline_scratch: &mut Outline,
 ) -> f64 {
-    let centre = (rect[0] + rect[1] + rect[2] + rect[3]) * 0.25;
-    // One square root of the largest square: the same number as the
-    // largest root (the root is rounded correctly, so it keeps the order).
-    let radius = rect
-        .iter()
-        .map(|&p| (p - centre).length_squared())
-        .fold(0.0, f64::max)
-        .sqrt();
-    if radius < SMALL_LIGHT * (centre.length_squared() + h * h).sqrt() {
+    if small_light(rect, h) {
         return pieces
             .iter()
             .map(|poly| diffuse_polygon_integral(poly, a, b, h))
@@ -105,6 +97,21 @@ pub fn diffuse_over_pieces(
         },
     );
     rest + b * h.abs() * angle.total()
+}
+
+/// Whether the light `rect` is small against its distance (|h| below the
+/// plane): [`diffuse_over_pieces`] then takes `analytic.rs`'s per-piece
+/// integral.
+pub fn small_light(rect: &[DVec2; 4], h: f64) -> bool {
+    let centre = (rect[0] + rect[1] + rect[2] + rect[3]) * 0.25;
+    // One square root of the largest square: the same number as the
+    // largest root (the root is rounded correctly, so it keeps the order).
+    let radius = rect
+        .iter()
+        .map(|&p| (p - centre).length_squared())
+        .fold(0.0, f64::max)
+        .sqrt();
+    radius < SMALL_LIGHT * (centre.length_squared() + h * h).sqrt()
 }
 
 /// The outline of a set of pieces: its edges, and the hash table that
@@ -196,7 +203,7 @@ fn piece_integral(poly: &[DVec2], a: DVec2, b: f64, h: f64) -> f64 {
 }
 
 /// The edge sum of one counter-clockwise convex piece.
-fn edge_sum(poly: &[DVec2], a: DVec2, b: f64, h: f64) -> f64 {
+pub fn edge_sum(poly: &[DVec2], a: DVec2, b: f64, h: f64) -> f64 {
     let mut angle = AngleSum::default();
     let mut rest = 0.0;
     let k = poly.len();
@@ -309,11 +316,22 @@ fn segment_lanes<const N: usize>(
     b: f64,
     h: f64,
 ) -> ([f64; N], [DVec2; N]) {
-    let ah = h.abs();
+    segment_lanes_of(p, q, |_| (a, b, h))
+}
+
+/// [`segment_lanes`] with each lane's own (a, b, h) from `params`.
+#[inline(always)]
+fn segment_lanes_of<const N: usize>(
+    p: &[DVec2; N],
+    q: &[DVec2; N],
+    params: impl Fn(usize) -> (DVec2, f64, f64),
+) -> ([f64; N], [DVec2; N]) {
     let (mut len, mut c2, mut ratio) = ([0.0; N], [0.0; N], [0.0; N]);
     let (mut part, mut coef) = ([0.0; N], [0.0; N]);
     let (mut zx, mut zy) = ([0.0; N], [0.0; N]);
     for k in 0..N {
+        let (a, b, h) = params(k);
+        let ah = h.abs();
         let (px, py, qx, qy) = (p[k].x, p[k].y, q[k].x, q[k].y);
         let (ex, ey) = (qx - px, qy - py);
         len[k] = (ex * ex + ey * ey).sqrt();
@@ -359,6 +377,58 @@ fn segment_lanes<const N: usize>(
     (rest, z)
 }
 
+/// Rectangles whose edge sums [`rect_edge_sums`] takes side by side.
+pub const RECTS: usize = 8;
+
+avx2_dispatch!(
+    /// [`segment_parts`] of the four edges of each rectangle, each with its
+    /// own (a, b, h), compiled for AVX2 (the same operations lane by lane,
+    /// so the same bits).
+    fn rect_edges_at_once(p: &[DVec2; 4 * RECTS], q: &[DVec2; 4 * RECTS], params: &[(DVec2, f64, f64); RECTS])
+        -> ([f64; 4 * RECTS], [DVec2; 4 * RECTS]) => rect_edge_lanes
+);
+
+#[inline(always)]
+fn rect_edge_lanes(
+    p: &[DVec2; 4 * RECTS],
+    q: &[DVec2; 4 * RECTS],
+    params: &[(DVec2, f64, f64); RECTS],
+) -> ([f64; 4 * RECTS], [DVec2; 4 * RECTS]) {
+    segment_lanes_of(p, q, |k| params[k / 4])
+}
+
+/// [`edge_sum`] of `count` ≤ [`RECTS`] counter-clockwise convex
+/// quadrilaterals `rect(i)` = (corners, a, b, h) at once: the same bits as
+/// [`edge_sum`] of each.
+pub fn rect_edge_sums<'a>(
+    count: usize,
+    rect: impl Fn(usize) -> (&'a [DVec2; 4], DVec2, f64, f64),
+    out: &mut [f64; RECTS],
+) {
+    debug_assert!(count <= RECTS);
+    let (mut p, mut q) = ([DVec2::ZERO; 4 * RECTS], [DVec2::X; 4 * RECTS]);
+    let mut params = [(DVec2::ZERO, 0.0, 1.0); RECTS];
+    for i in 0..count {
+        let (corners, a, b, h) = rect(i);
+        for e in 0..4 {
+            (p[4 * i + e], q[4 * i + e]) = (corners[e], corners[(e + 1) % 4]);
+        }
+        params[i] = (a, b, h);
+    }
+    let (rest, z) = rect_edges_at_once(&p, &q, &params);
+    for i in 0..count {
+        let (_, b, h) = params[i];
+        // As `edge_sum` adds them.
+        let mut angle = AngleSum::default();
+        let mut sum = 0.0;
+        for e in 4 * i..4 * i + 4 {
+            sum += rest[e];
+            angle.add(z[e]);
+        }
+        out[i] = sum + b * h.abs() * angle.total();
+    }
+}
+
 /// The terms of the edges `edge(i)` for i < `count`, `LANES` at a time,
 /// handed in order to `each` (with the edge's index).
 fn for_each_segment(
@@ -384,7 +454,7 @@ fn for_each_segment(
 
 #[cfg(test)]
 mod tests {
-    use super::{AngleSum, segment_term};
+    use super::{AngleSum, RECTS, edge_sum, rect_edge_sums, segment_term};
     use crate::render::rng::Rng;
     use glam::DVec2;
 
@@ -422,6 +492,47 @@ mod tests {
                 (got - want).abs() <= 1e-14 * scale,
                 "case {case}: {got} vs {want}"
             );
+        }
+    }
+
+    /// Quadrilaterals side by side, each with its own integrand: the bits
+    /// of each one's own edge sum (random convex quadrilaterals, lights
+    /// beside and above the point, a degenerate edge, any count).
+    #[test]
+    fn rect_edge_sums_give_the_bits_of_each_edge_sum() {
+        let mut rng = Rng::new(42);
+        let mut next = || rng.next_f64() * 2.0 - 1.0;
+        for round in 0..3000 {
+            let count = 1 + round % RECTS;
+            let quads: Vec<([DVec2; 4], DVec2, f64, f64)> = (0..count)
+                .map(|k| {
+                    let o = DVec2::new(next(), next()) * 4.0;
+                    let (u, v) = (
+                        DVec2::new(1.0 + next(), 0.3 * next()),
+                        DVec2::new(0.3 * next(), 1.0 + next()),
+                    );
+                    let mut corners = [o, o + u, o + u + v, o + v];
+                    if (round + k) % 11 == 0 {
+                        corners[2] = corners[1];
+                    }
+                    let h = if (round + k) % 13 == 0 {
+                        0.0
+                    } else {
+                        -4.0 * next().abs() - 0.01
+                    };
+                    (corners, DVec2::new(next(), next()), next() * 3.0, h)
+                })
+                .collect();
+            let mut out = [0.0; RECTS];
+            rect_edge_sums(
+                count,
+                |i| (&quads[i].0, quads[i].1, quads[i].2, quads[i].3),
+                &mut out,
+            );
+            for (i, (corners, a, b, h)) in quads.iter().enumerate() {
+                let want = edge_sum(corners, *a, *b, *h);
+                assert_eq!(out[i].to_bits(), want.to_bits(), "round {round} quad {i}");
+            }
         }
     }
 

@@ -17,7 +17,12 @@
 //!    (`conic.rs`: over the pieces before the spheres were subtracted,
 //!    minus each sphere's part, whose arcs are integrated by an adaptive
 //!    Gauss–Legendre rule), the specular factor max(0, N·H)^s by an
-//!    adaptive cubature with an error estimate below 1e-4 (`cubature.rs`).
+//!    adaptive cubature with an error estimate below 1e-4 (`cubature.rs`);
+//! 5. a point that sees the whole light above its horizon (most points of
+//!    a lit room) is left to its caller at step 4 ([`ExactStep::Whole`]):
+//!    a tile takes several such points' integrals side by side
+//!    (`whole_light.rs`), each lane doing what the point alone would, so
+//!    the factors keep their bits.
 //!
 //! It is the integrand of `sampled` — the same directions (from the shadow
 //! point), the same visibility test (blocked at t in (0, `RAY_END`), light
@@ -46,6 +51,7 @@ mod diffuse;
 mod polygon;
 mod projection;
 mod visible;
+mod whole_light;
 
 use glam::{DVec2, DVec3};
 
@@ -54,10 +60,11 @@ pub use projection::{CircleFit, Unsupported};
 pub use visible::{
     CONIC_SPHERE_EDGES, Fallback, MAX_PIECES, MAX_TRIANGLES, SPHERE_EDGES, TINY_LIGHT,
 };
+pub use whole_light::{WholeLight, WholeLights};
 
 use conic::{ArcScratch, ConicShadow};
 use cubature::{CubatureScratch, LightSpan, Lobe, specular_factor};
-use diffuse::{Outline, diffuse_over_pieces};
+use diffuse::{Outline, diffuse_over_pieces, small_light};
 use polygon::{HalfPlane, Pieces};
 use projection::{LightFrame, LightView};
 use visible::{RegionScratch, visible_region};
@@ -117,6 +124,8 @@ pub struct ExactScratch {
     arcs: ArcScratch,
     before: Pieces,
     outline: Outline,
+    /// The point [`exact_step`] last left to its caller.
+    whole: WholeLight,
 }
 
 /// The diffuse integral with the spheres' shadows as their conics: over
@@ -159,6 +168,39 @@ pub fn exact_factors(
     sphere: CircleFit,
     s: &mut ExactScratch,
 ) -> Result<ExactFactors, Fallback> {
+    Ok(match exact_step(scene, p, specular, sphere, s)? {
+        ExactStep::Done(factors) => factors,
+        ExactStep::Whole => s.whole_point().factors(s),
+    })
+}
+
+/// What [`exact_step`] leaves of a point.
+#[derive(Debug, Clone, Copy)]
+pub enum ExactStep {
+    Done(ExactFactors),
+    /// A point that sees the whole light above its horizon, left in the
+    /// scratch: its integrals over the whole rectangle, which
+    /// [`WholeLights`] takes for several points side by side
+    /// ([`WholeLight::factors`] for one).
+    Whole,
+}
+
+impl ExactScratch {
+    /// The point [`exact_step`] last left as [`ExactStep::Whole`].
+    pub fn whole_point(&self) -> WholeLight {
+        self.whole
+    }
+}
+
+/// [`exact_factors`] up to the integrals of a point that sees the whole
+/// light, left to the caller.
+pub fn exact_step(
+    scene: &Scene,
+    p: &ExactPoint,
+    specular: bool,
+    sphere: CircleFit,
+    s: &mut ExactScratch,
+) -> Result<ExactStep, Fallback> {
     let light = &scene.light.shape;
     let (frame, span) = match &s.frame {
         Some((f, span)) if f.is_of(light) => (f, *span),
@@ -170,7 +212,7 @@ pub fn exact_factors(
         }
     };
     let Some(view) = LightView::new(light, frame, p.shadow_point) else {
-        return Ok(ExactFactors::default());
+        return Ok(ExactStep::Done(ExactFactors::default()));
     };
     if view.side < TINY_LIGHT * view.h {
         return Err(Fallback::TinyLight);
@@ -200,7 +242,7 @@ pub fn exact_factors(
         ..ExactFactors::default()
     };
     if s.pieces.is_empty() {
-        return Ok(out);
+        return Ok(ExactStep::Done(out));
     }
 
     // Diffuse: (1/A) ∫ max(0, N·L) over the pieces, each clipped to the
@@ -216,6 +258,26 @@ pub fn exact_factors(
         s.lit.clone_from(&s.pieces);
         s.lit.clip(horizon, 0.0, &mut s.region.work);
     }
+    // The whole light, above the horizon, with no sphere's conic to take
+    // and not small against its distance (`diffuse_over_pieces` then takes
+    // the rectangle's edge sum).
+    if all_lit
+        && s.pieces.len() == 1
+        && s.pieces.piece(0) == view.rect
+        && s.region.spheres.is_empty()
+        && !small_light(&view.rect, h)
+    {
+        s.whole = WholeLight {
+            rect: view.rect,
+            a,
+            b,
+            h,
+            area: view.area,
+            lobe: specular.then(|| lobe_of(&view, n, p)),
+            span,
+        };
+        return Ok(ExactStep::Whole);
+    }
     let conic = match sphere {
         CircleFit::SameArea => conic_diffuse(&view, a, b, h, s),
         _ => None,
@@ -226,30 +288,38 @@ pub fn exact_factors(
     out.diffuse = (diffuse / view.area).clamp(0.0, 1.0);
 
     if specular {
-        // The pieces in the light's (a, b) coordinates: y = corner + a u + b v.
-        let (u, v) = (view.rect[1] - view.rect[0], view.rect[3] - view.rect[0]);
-        let det = u.perp_dot(v);
-        let o = view.rect[0];
-        let to_ab = |y: DVec2| {
-            let d = y - o;
-            DVec2::new(d.perp_dot(v) / det, u.perp_dot(d) / det)
-        };
         s.ab.clear();
         for poly in s.pieces.iter() {
-            s.ab.verts.extend(poly.iter().map(|&y| to_ab(y)));
+            s.ab.verts
+                .extend(poly.iter().map(|&y| to_ab(&view.rect, y)));
             s.ab.ends.push(s.ab.verts.len());
         }
-        let lobe = Lobe {
-            n,
-            v: view.local_dir(p.view),
-            shininess: p.shininess,
-            corner: view.corner,
-            edge_u: view.edge_u,
-            edge_v: view.edge_v,
-        };
+        let lobe = lobe_of(&view, n, p);
         let (value, report) = specular_factor(&lobe, &span, &s.ab, &mut s.cubature);
         out.specular = value.clamp(0.0, 1.0);
         out.cubature = report;
     }
-    Ok(out)
+    Ok(ExactStep::Done(out))
+}
+
+/// A point of the light's plane in the light's (a, b) coordinates, the
+/// light `rect` seen in the plane: y = corner + a u + b v.
+#[inline]
+fn to_ab(rect: &[DVec2; 4], y: DVec2) -> DVec2 {
+    let (u, v) = (rect[1] - rect[0], rect[3] - rect[0]);
+    let det = u.perp_dot(v);
+    let d = y - rect[0];
+    DVec2::new(d.perp_dot(v) / det, u.perp_dot(d) / det)
+}
+
+/// The specular lobe of `p` (shading normal `n` in the light's frame).
+fn lobe_of(view: &LightView, n: DVec3, p: &ExactPoint) -> Lobe {
+    Lobe {
+        n,
+        v: view.local_dir(p.view),
+        shininess: p.shininess,
+        corner: view.corner,
+        edge_u: view.edge_u,
+        edge_v: view.edge_v,
+    }
 }

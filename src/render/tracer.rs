@@ -1316,6 +1316,27 @@ mod tests {
     /// sphere (reflected paths), the image's corners, several patterns and
     /// counts, with and without cut-away, with one camera sample a pixel
     /// and several.
+    /// Every pixel of `tile` (rectangle `r`, rows packed) has the bits of
+    /// the pixel traced alone.
+    fn assert_tile_is_its_pixels(
+        tracer: &Tracer,
+        r: TileRect,
+        tile: &[Vec3],
+        scratch: &mut TraceScratch,
+        what: &str,
+    ) {
+        assert_eq!(tile.len(), (r.w * r.h) as usize, "{what}");
+        for (k, c) in tile.iter().enumerate() {
+            let (x, y) = (r.x + k as u32 % r.w, r.y + k as u32 / r.w);
+            let want = tracer.pixel(x, y, scratch);
+            assert_eq!(
+                c.to_array().map(f32::to_bits),
+                want.to_array().map(f32::to_bits),
+                "{what}: pixel ({x}, {y})"
+            );
+        }
+    }
+
     #[test]
     fn a_tile_in_lanes_gives_the_bits_of_each_pixel() {
         let loaded = Loaded::seed_room();
@@ -1394,16 +1415,8 @@ mod tests {
             for i in 0..105 {
                 let r = small(i);
                 assert!(tracer.tile(r, &CancelToken::new(), &mut scratch, &mut tile));
-                assert_eq!(tile.len(), (r.w * r.h) as usize);
-                for (k, c) in tile.iter().enumerate() {
-                    let (x, y) = (r.x + k as u32 % r.w, r.y + k as u32 / r.w);
-                    let want = tracer.pixel(x, y, &mut scratch);
-                    assert_eq!(
-                        c.to_array().map(f32::to_bits),
-                        want.to_array().map(f32::to_bits),
-                        "{sampling:?} {rays} skip {skip} spp {spp}: pixel ({x}, {y})"
-                    );
-                }
+                let what = format!("{sampling:?} {rays} skip {skip} spp {spp}");
+                assert_tile_is_its_pixels(&tracer, r, &tile, &mut scratch, &what);
             }
         }
         // Cancelled: no pixels, and the next tile is still right.
@@ -1487,15 +1500,8 @@ mod tests {
                         );
                         assert_eq!(other, 0, "{model:?} tile {i}");
                     }
-                    for (k, c) in tile.iter().enumerate() {
-                        let (x, y) = (r.x + k as u32 % r.w, r.y + k as u32 / r.w);
-                        let want = tracer.pixel(x, y, &mut scratch);
-                        assert_eq!(
-                            c.to_array().map(f32::to_bits),
-                            want.to_array().map(f32::to_bits),
-                            "{model:?} {rays} skip {skip} small light {small_light}: pixel ({x}, {y})"
-                        );
-                    }
+                    let what = format!("{model:?} {rays} skip {skip} small light {small_light}");
+                    assert_tile_is_its_pixels(&tracer, r, &tile, &mut scratch, &what);
                 }
             }
         }

@@ -202,6 +202,34 @@ fn every_model_and_pattern_reshades_exactly() {
     }
 }
 
+/// Every model's recorded frames (traced side by side, their factors set
+/// in the records once the lanes have them) serve a light edit, then
+/// colour, strength and shininess edits, each equal to a fresh render; the
+/// mirror's reflections and one and several camera samples included.
+#[test]
+fn every_model_s_records_serve_light_and_colour_edits_exactly() {
+    for model in AreaLightModel::ALL {
+        for spp in [1, 3] {
+            let what = format!("{} × {spp} spp", model.name());
+            let mut live = LiveRender::default();
+            let mut d = room(48, 27);
+            d.render.area_light_model = model;
+            d.render.shadow_rays = 16;
+            d.render.samples_per_pixel = spp;
+            step(&mut live, &d, &what);
+            d.light.corner[0] += 0.4;
+            let r = step(&mut live, &d, &format!("{what}, light moved"));
+            assert!(r.record_bytes > 0, "{what}: the paths are recorded again");
+            d.render.terms.diffuse = 0.5;
+            material(&mut d, "sand").diffuse = [0.1, 0.7, 0.3];
+            let r = step(&mut live, &d, &format!("{what}, colours"));
+            assert_eq!(r.stats.traced(), 0, "{what}: colours trace no ray");
+            material(&mut d, "steel").shininess = 9.0;
+            step(&mut live, &d, &format!("{what}, shininess"));
+        }
+    }
+}
+
 #[test]
 fn anti_aliased_frames_recombine_and_reshade_exactly() {
     let mut live = LiveRender::default();

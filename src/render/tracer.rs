@@ -256,40 +256,19 @@ impl<'a> Tracer<'a> {
         scratch: &mut TraceScratch,
         sink: &mut S,
     ) -> Vec3 {
-        self.trace_among(x, y, None, scratch, sink)
-    }
-
-    /// [`Tracer::trace`], the camera rays testing `camera_objects` (what
-    /// they may meet, if known: the same hits).
-    fn trace_among<S: PathSink>(
-        &self,
-        x: u32,
-        y: u32,
-        camera_objects: Option<&TileTargets>,
-        scratch: &mut TraceScratch,
-        sink: &mut S,
-    ) -> Vec3 {
         let camera = &self.scene.camera;
         let Some(filter) = &self.filter else {
             let mut colour = Sum(Vec3::ZERO);
             let ray = camera.pixel_ray(x, y);
-            let camera_hit = CameraHit::Search(camera_objects);
+            let camera_hit = CameraHit::Search(None);
             self.trace_path(x, y, 0, &ray, camera_hit, scratch, sink, &mut colour);
             return colour.0;
         };
         let mut sum = Vec3::ZERO;
         for (sample, ray) in (0..).zip(self.sample_rays(filter, x, y)) {
             let mut colour = Sum(Vec3::ZERO);
-            self.trace_path(
-                x,
-                y,
-                sample,
-                &ray,
-                CameraHit::Search(camera_objects),
-                scratch,
-                sink,
-                &mut colour,
-            );
+            let camera_hit = CameraHit::Search(None);
+            self.trace_path(x, y, sample, &ray, camera_hit, scratch, sink, &mut colour);
             sum += colour.0;
         }
         sum * (1.0 / self.settings.samples_per_pixel as f32)
@@ -378,11 +357,12 @@ impl<'a> Tracer<'a> {
     }
 
     /// The pixels of `rect` (rows packed) into `out`, each path given to
-    /// `sink`, as [`Tracer::trace`] gives them (the same bits): a
-    /// recording sink's paths under the `sampled` model as [`Tracer::tile`]
-    /// traces them ([`tile_in_lanes`]), others path by path. The camera
-    /// rays test only the tile's [`camera_objects`], and every tile's hit
-    /// points check the thread's occluder lists once
+    /// `sink`, as [`Tracer::trace`] gives them (the same bits), traced as
+    /// [`Tracer::tile`] traces them ([`tile_in_lanes`]): a recording
+    /// sink's hits are recorded as they are met, their factors (and under
+    /// the `sampled` model their visibility) set once the lanes have them.
+    /// The camera rays test only the tile's [`camera_objects`], and every
+    /// tile's hit points check the thread's occluder lists once
     /// ([`Tracer::per_tile`]). False if cancelled part-way.
     pub fn trace_rect<S: PathSink>(
         &self,
@@ -393,29 +373,8 @@ impl<'a> Tracer<'a> {
         out: &mut Vec<Vec3>,
     ) -> bool {
         out.clear();
-        if S::RECORD && self.shades_in_lanes() {
-            return self.per_tile(rect, scratch, |objects, scratch| {
-                tile_in_lanes(self, rect, objects, cancel, scratch, sink, out)
-            });
-        }
         self.per_tile(rect, scratch, |objects, scratch| {
-            if !self.traces_tiles() {
-                for y in rect.y..rect.y + rect.h {
-                    if cancel.is_cancelled() {
-                        return false;
-                    }
-                    for x in rect.x..rect.x + rect.w {
-                        out.push(self.trace_among(x, y, Some(objects), scratch, sink));
-                    }
-                }
-                return true;
-            }
-            self.each_camera_ray(rect, cancel, scratch, |x, y, ray, scratch| {
-                let mut colour = Sum(Vec3::ZERO);
-                let camera_hit = CameraHit::Search(Some(objects));
-                self.trace_path(x, y, 0, &ray, camera_hit, scratch, sink, &mut colour);
-                out.push(colour.0);
-            })
+            tile_in_lanes(self, rect, objects, cancel, scratch, sink, out)
         })
     }
 
@@ -438,35 +397,6 @@ impl<'a> Tracer<'a> {
             normal: sp.normal.as_vec3(),
             view: sp.view.as_vec3(),
         }
-    }
-
-    /// Calls `each` with the camera ray of every pixel of `rect` (one
-    /// sample a pixel), row by row, a row's rays computed at once
-    /// ([`Camera::row_rays`](super::camera::Camera::row_rays));
-    /// false if cancelled part-way.
-    #[inline]
-    fn each_camera_ray(
-        &self,
-        rect: TileRect,
-        cancel: &CancelToken,
-        scratch: &mut TraceScratch,
-        mut each: impl FnMut(u32, u32, Ray, &mut TraceScratch),
-    ) -> bool {
-        let camera = &self.scene.camera;
-        let mut rays = std::mem::take(&mut scratch.camera_rays);
-        let mut finished = true;
-        for y in rect.y..rect.y + rect.h {
-            if cancel.is_cancelled() {
-                finished = false;
-                break;
-            }
-            camera.row_rays(rect.x, y, rect.w, &mut rays);
-            for (x, &ray) in (rect.x..).zip(&rays) {
-                each(x, y, ray, scratch);
-            }
-        }
-        scratch.camera_rays = rays;
-        finished
     }
 
     /// One camera sample's path, its linear RGB added to `colour`;
@@ -656,10 +586,10 @@ struct Reflection {
 
 avx2_dispatch!(
     /// The pixels of `rect` with their hits shaded side by side, each
-    /// path given to `sink` ([`Tracer::tile`] with `()` under every model,
-    /// and [`Tracer::trace_rect`] of a recording sink under the `sampled`
-    /// model, whose hits are recorded as they are traced and their factors
-    /// set once the lanes have them). Compiled for AVX2 as a whole where
+    /// path given to `sink` ([`Tracer::tile`] with `()`, and
+    /// [`Tracer::trace_rect`] of a recording sink, whose hits are recorded
+    /// as they are traced and their factors set once the lanes have
+    /// them), under every model. Compiled for AVX2 as a whole where
     /// the CPU has it: one feature check per tile, and the shading kernels
     /// and the sink inlined into the path loop instead of a dispatched call
     /// per hit point (the same operations, so the same bits).
@@ -704,8 +634,8 @@ fn tile_in_lanes_generic<S: PathSink>(
     colour.factors.clear();
     colour.hits.clear();
     colour.visible.clear();
-    // The rows written out, not through `each_camera_ray`: a closure would
-    // be compiled without this function's CPU features.
+    // The rows written out, not through a closure: it would be compiled
+    // without this function's CPU features.
     let camera = &tracer.scene.camera;
     let mut rays = std::mem::take(&mut scratch.camera_rays);
     let mut hits = std::mem::take(&mut scratch.camera_hits);
@@ -1186,8 +1116,12 @@ impl PathColour for Deferred {
         let factors = match lit {
             Lit::Known(f) => f,
             // Taken side by side with the tile's next such points.
-            Lit::Whole if !S::RECORD => {
+            Lit::Whole => {
                 let index = self.wait_for_factors(sp, weight);
+                if S::RECORD {
+                    let open = tracer.hit_record(sp, t, LightTerms::default());
+                    self.hits.push(sink.hit(open, buf, count) as u32);
+                }
                 if scratch
                     .whole_lights
                     .push(index as u32, &scratch.shadow.exact)
@@ -1196,7 +1130,6 @@ impl PathColour for Deferred {
                 }
                 return;
             }
-            Lit::Whole => exact_terms(buf.exact.whole_point().factors(&mut buf.exact)),
             // The lanes hold the `sampled` sums: other models' terms now.
             Lit::Points if !any_visible(buf, count) || s.model != AreaLightModel::Sampled => {
                 model_terms(scene, s, sp, needs, count, buf)

@@ -410,8 +410,9 @@ enum Root {
 /// for the light's square) side by side, where the root cell takes the
 /// nested rules' 3² or 4² value or its fit is accepted: the same value
 /// and report as [`specular_factor`] gives (the same gates and
-/// operations); `None` where it would do anything else (skip the lobe,
-/// split the cell, or take the 5² rule), left to [`specular_factor`].
+/// operations), or where it skips the lobe; `None` where it would do
+/// anything else (split the cell, or take the 5² rule), left to
+/// [`specular_factor`].
 pub fn whole_light_specular(
     span: &LightSpan,
     lobes: &[(&Lobe, f64)],
@@ -425,10 +426,13 @@ pub fn whole_light_specular(
     // cell.
     for (k, &(lobe, visible)) in lobes.iter().enumerate() {
         out[k] = None;
-        let share = visible.min(1.0);
+        if let Some(report) = skipped(lobe, visible.min(1.0)) {
+            out[k] = Some((0.0, report));
+            continue;
+        }
         // `cell`'s tests of a cell of side 1 (covered, then full).
         let full = visible >= 1.0 * 1.0 * (1.0 - 1e-12);
-        if !full || !settled_by_centre(lobe, share) {
+        if !full {
             continue;
         }
         let ctx = Ctx::new(lobe, span, &empty);
@@ -879,26 +883,9 @@ pub fn specular_factor(
     if pieces.is_empty() {
         return (0.0, report);
     }
-    // A lobe whose bound over the light, times the visible share of the
-    // light, is below the skip level: the factor is 0 within that bound.
     let visible = pieces.area();
-    let share = visible.min(1.0);
-    // Most lobes are settled (well above the skip) by their value in the
-    // light centre's direction, a lower bound of the bound: without the
-    // bound's square roots.
-    if !settled_by_centre(lobe, share) {
-        let cos_h = lobe_bound_cos(lobe);
-        // ln x ≥ 1 − 1/x: a lower bound of the logarithms that settles most
-        // points (a lobe well above the skip) without taking them.
-        let lower = lobe.shininess * (1.0 - 1.0 / cos_h) + (1.0 - 1.0 / share);
-        let settled = lower > SKIP.ln() + SKIP_MARGIN;
-        if !settled {
-            let bound_ln = bound_ln(cos_h, lobe.shininess) + share.ln();
-            if bound_ln <= SKIP.ln() {
-                report.error = bound_ln.exp();
-                return (0.0, report);
-            }
-        }
+    if let Some(skipped) = skipped(lobe, visible.min(1.0)) {
+        return (0.0, skipped);
     }
     if s.levels.len() < MAX_DEPTH as usize + 1 {
         s.levels
@@ -907,6 +894,31 @@ pub fn specular_factor(
     let ctx = Ctx::new(lobe, span, pieces);
     let total = cell(&ctx, s, 0, DVec2::ZERO, 1.0, visible, &mut report);
     (total, report)
+}
+
+/// The report of a lobe taken as 0: its bound over the light, times the
+/// visible share of the light `share`, is below the skip level (the factor
+/// is 0 within that bound); `None` for a lobe to integrate.
+#[inline]
+fn skipped(lobe: &Lobe, share: f64) -> Option<CubatureReport> {
+    // Most lobes are settled (well above the skip) by their value in the
+    // light centre's direction, a lower bound of the bound: without the
+    // bound's square roots.
+    if settled_by_centre(lobe, share) {
+        return None;
+    }
+    let cos_h = lobe_bound_cos(lobe);
+    // ln x ≥ 1 − 1/x: a lower bound of the logarithms that settles most
+    // points (a lobe well above the skip) without taking them.
+    let lower = lobe.shininess * (1.0 - 1.0 / cos_h) + (1.0 - 1.0 / share);
+    if lower > SKIP.ln() + SKIP_MARGIN {
+        return None;
+    }
+    let bound_ln = bound_ln(cos_h, lobe.shininess) + share.ln();
+    (bound_ln <= SKIP.ln()).then(|| CubatureReport {
+        error: bound_ln.exp(),
+        ..CubatureReport::default()
+    })
 }
 
 /// A lobe whose bound over the light is below this is taken as 0 (far

@@ -348,8 +348,7 @@ fn a_bench_size_out_of_range_names_the_file_and_the_option() {
         "--width",
         "16384",
     ]);
-    let err = String::from_utf8_lossy(&o.stderr);
-    assert_eq!(o.status.code(), Some(2), "{err}");
+    let err = common::refused(&o, "");
     assert!(
         err.contains(&format!("{}: camera.height: ", tall.display()))
             && err.contains("the height that --width 16384 gives"),
@@ -464,8 +463,7 @@ fn bench_outputs_are_refused_before_the_sweep() {
         args.extend_from_slice(extra);
         let start = std::time::Instant::now();
         let o = penumbra(&args);
-        let err = String::from_utf8_lossy(&o.stderr);
-        assert_eq!(o.status.code(), Some(2), "{extra:?}: {err}");
+        let err = common::refused(&o, format!("{extra:?}"));
         assert!(err.contains(want), "{extra:?}: {want:?} in {err}");
         assert!(
             !String::from_utf8_lossy(&o.stdout).contains("reference"),
@@ -520,8 +518,7 @@ fn a_file_at_a_default_folder_stops_only_the_modes_that_use_it() {
         (&["--spp-split", "--width", "16"], "--cache"),
     ] {
         let o = run(args);
-        let err = String::from_utf8_lossy(&o.stderr);
-        assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+        let err = common::refused(&o, format!("{args:?}"));
         assert!(
             err.contains(&format!("{flag} is a file, expected a folder")),
             "{args:?}: {err}"
@@ -533,8 +530,7 @@ fn a_file_at_a_default_folder_stops_only_the_modes_that_use_it() {
 /// option named) before any work: nothing on standard output.
 fn assert_refused_by_the_parser(args: &[&str]) {
     let o = penumbra(args);
-    let err = String::from_utf8_lossy(&o.stderr);
-    assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+    let err = common::refused(&o, format!("{args:?}"));
     assert!(
         err.contains("cannot be used with") || err.contains("required arguments were not provided"),
         "{args:?}: {err}"
@@ -616,8 +612,7 @@ fn read_only_default_outputs_are_refused_before_the_work() {
             args.extend(["--counts", "1", "--runs", "1"]);
         }
         let o = penumbra(&args);
-        let err = String::from_utf8_lossy(&o.stderr);
-        assert_eq!(o.status.code(), Some(2), "{name}: {err}");
+        let err = common::refused(&o, name);
         assert!(err.contains("read-only"), "{name}: {err}");
         assert!(
             !String::from_utf8_lossy(&o.stdout).contains("reference"),
@@ -676,8 +671,7 @@ fn spheres_stop_at_what_the_room_holds() {
     );
     assert_eq!(MAX_SPHERES + ROOM_OBJECTS, limits::MAX_OBJECTS);
     let o = penumbra(&["bench", "--spheres", "10,1000000", "--scaling"]);
-    let err = String::from_utf8_lossy(&o.stderr);
-    assert_eq!(o.status.code(), Some(2), "{err}");
+    let err = common::refused(&o, "");
     assert!(
         err.contains("--spheres") && err.contains(&format!("1..={MAX_SPHERES}")),
         "{err}"
@@ -724,8 +718,7 @@ fn a_scene_or_option_a_mode_does_not_use_is_refused() {
         ),
     ] {
         let o = penumbra(args);
-        let err = String::from_utf8_lossy(&o.stderr);
-        assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+        let err = common::refused(&o, format!("{args:?}"));
         assert!(err.contains(want) && err.contains("room.json"), "{err}");
         assert_eq!(err.trim().lines().count(), 1, "{err}");
         assert!(String::from_utf8_lossy(&o.stdout).is_empty(), "{args:?}");

@@ -157,8 +157,7 @@ fn the_cli_refuses_scale_and_translate_outside_the_range_with_exit_2() {
         let mut full = vec!["render", "-o", o, "--width", "16", "--height", "9"];
         full.extend(&args);
         let r = penumbra(&full);
-        let err = stderr(&r);
-        assert_eq!(r.status.code(), Some(2), "{args:?}: {err}");
+        let err = common::refused(&r, format!("{args:?}"));
         assert!(err.contains("(after --scale"), "{args:?}: {err}");
         assert!(!out.exists(), "{args:?}");
     }
@@ -264,8 +263,7 @@ fn a_device_of_endless_bytes_is_refused_promptly_with_exit_2() {
     let out = dir.path().join("x.png");
     let start = Instant::now();
     let r = penumbra(&["render", "/dev/zero", "-o", out.to_str().unwrap()]);
-    let err = stderr(&r);
-    assert_eq!(r.status.code(), Some(2), "{err}");
+    let err = common::refused(&r, "");
     // Refused for what it is, before a byte is read.
     assert!(
         err.contains("/dev/zero: a character device, not a regular file"),
@@ -294,7 +292,7 @@ fn a_device_of_endless_bytes_is_refused_promptly_with_exit_2() {
     ] {
         let start = Instant::now();
         let r = penumbra(&args);
-        assert_eq!(r.status.code(), Some(2), "{}", stderr(&r));
+        common::refused(&r, "");
         assert_eq!(stderr(&r), says);
         assert!(
             start.elapsed() < Duration::from_secs(2),
@@ -338,7 +336,7 @@ fn a_scene_piped_through_stdin_is_bounded_too() {
     let o = feed(1 << 20);
     assert!(o.status.success(), "{}", stderr(&o));
     let o = feed(65 << 20);
-    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    common::refused(&o, "");
     assert!(
         stderr(&o).contains("more than 67108864 bytes"),
         "{}",
@@ -368,8 +366,7 @@ fn a_fifo_as_the_scene_or_a_mesh_is_refused_at_once_with_exit_2() {
         "-o",
         out.to_str().unwrap(),
     ]);
-    let err = stderr(&r);
-    assert_eq!(r.status.code(), Some(2), "{err}");
+    let err = common::refused(&r, "");
     assert!(
         err.contains(&format!("{}: a FIFO, not a regular file", fifo.display())),
         "{err}"
@@ -401,8 +398,7 @@ fn a_fifo_as_the_scene_or_a_mesh_is_refused_at_once_with_exit_2() {
         "-o",
         out.to_str().unwrap(),
     ]);
-    let err = stderr(&r);
-    assert_eq!(r.status.code(), Some(2), "{err}");
+    let err = common::refused(&r, "");
     assert!(err.contains("a FIFO, not a regular file"), "{err}");
 }
 
@@ -427,8 +423,7 @@ fn an_output_that_is_an_input_is_refused_through_links() {
             "--height",
             "8",
         ]);
-        let err = stderr(&r);
-        assert_eq!(r.status.code(), Some(2), "{out}: {err}");
+        let err = common::refused(&r, out);
         assert!(
             err.contains("is the same file as the scene"),
             "{out}: {err}"
@@ -460,8 +455,7 @@ fn an_output_that_is_an_input_is_refused_through_links() {
             "--diff",
             d.join(diff).to_str().unwrap(),
         ]);
-        let err = stderr(&r);
-        assert_eq!(r.status.code(), Some(2), "{diff}: {err}");
+        let err = common::refused(&r, diff);
         assert!(err.contains("is the same file as the"), "{diff}: {err}");
     }
     assert_eq!(std::fs::read(&b).unwrap(), before);
@@ -476,7 +470,7 @@ fn an_output_that_is_an_input_is_refused_through_links() {
             json.to_str().unwrap(),
             "--quick",
         ]);
-        assert_eq!(r.status.code(), Some(2), "{flag}: {}", stderr(&r));
+        common::refused(&r, flag);
         assert_eq!(std::fs::read_to_string(&json).unwrap(), SEED_ROOM_JSON);
     }
 }
@@ -549,8 +543,7 @@ fn an_output_that_is_a_mesh_of_the_scene_is_refused() {
     ];
     for args in cases {
         let r = penumbra(args);
-        let err = stderr(&r);
-        assert_eq!(r.status.code(), Some(2), "{args:?}: {err}");
+        let err = common::refused(&r, format!("{args:?}"));
         assert!(
             err.contains("is the same file as the mesh"),
             "{args:?}: {err}"
@@ -583,8 +576,7 @@ fn an_output_that_is_a_mesh_is_refused_before_the_meshes_load() {
         .arg(d.join("mesh-link.png"))
         .output()
         .unwrap();
-    let err = stderr(&r);
-    assert_eq!(r.status.code(), Some(2), "{err}");
+    let err = common::refused(&r, "");
     assert!(err.contains("is the same file as the mesh"), "{err}");
 }
 
@@ -601,8 +593,7 @@ fn an_output_that_is_the_scene_read_from_standard_input_is_refused() {
         .stdin(std::fs::File::open(&scene).unwrap())
         .output()
         .unwrap();
-    let err = stderr(&r);
-    assert_eq!(r.status.code(), Some(2), "{err}");
+    let err = common::refused(&r, "");
     assert!(err.contains("is the same file as the scene"), "{err}");
     assert_eq!(std::fs::read_to_string(&scene).unwrap(), SEED_ROOM_JSON);
 }
@@ -652,8 +643,7 @@ fn a_read_only_output_is_refused_before_the_work() {
     ];
     for (args, target) in &cases {
         let r = penumbra(args);
-        let err = stderr(&r);
-        assert_eq!(r.status.code(), Some(2), "{args:?}: {err}");
+        let err = common::refused(&r, format!("{args:?}"));
         assert!(
             err.starts_with(&format!("penumbra: {target}: the ")) && err.contains("read-only"),
             "{args:?}: {err}"
@@ -703,8 +693,7 @@ fn an_output_link_into_a_missing_folder_or_looping_is_refused_before_rendering()
             .args(outputs)
             .output()
             .unwrap();
-        let err = stderr(&r);
-        assert_eq!(r.status.code(), Some(2), "{outputs:?}: {err}");
+        let err = common::refused(&r, format!("{outputs:?}"));
         assert!(err.contains(says), "{outputs:?}: {err}");
         assert!(!Path::new(image).exists(), "{outputs:?}: rendered first");
     }
@@ -724,8 +713,7 @@ fn a_mesh_path_from_the_scene_is_escaped_in_messages() {
         .arg(&out)
         .output()
         .unwrap();
-    let err = stderr(&r);
-    assert_eq!(r.status.code(), Some(2), "{err}");
+    let err = common::refused(&r, "");
     assert_eq!(err.trim_end().lines().count(), 1, "{err}");
     assert!(!err.contains('\u{1b}') && err.contains("\\u{1b}"), "{err}");
 }
@@ -1021,8 +1009,7 @@ fn compare_refuses_non_finite_pixels_with_count_and_position() {
         "--diff",
         diff.to_str().unwrap(),
     ]);
-    let err = stderr(&r);
-    assert_eq!(r.status.code(), Some(2), "{err}");
+    let err = common::refused(&r, "");
     assert!(
         err.contains("nan.exr: 2 pixels are NaN or infinite, the first at (2, 1)"),
         "{err}"
@@ -1104,7 +1091,7 @@ fn compare_decodes_by_content_and_exits_2_for_a_bad_diff_name() {
             "--diff",
             target.to_str().unwrap(),
         ]);
-        assert_eq!(r.status.code(), Some(2), "{name}: {}", stderr(&r));
+        common::refused(&r, name);
         assert_eq!(
             stderr(&r),
             format!(
@@ -1158,7 +1145,7 @@ fn an_existing_output_is_replaced_whole_and_keeps_its_permissions() {
     let folder = dir.path().join("f.png");
     std::fs::create_dir(&folder).unwrap();
     let r = render_tiny(&folder);
-    assert_eq!(r.status.code(), Some(2), "{}", stderr(&r));
+    common::refused(&r, "");
     assert!(
         stderr(&r).contains("the output is a folder, not a file"),
         "{}",
@@ -1173,9 +1160,8 @@ fn a_missing_output_folder_is_named_before_rendering_without_the_temporary_file(
     let dir = scratch();
     let out = dir.path().join("no/such/folder/x.png");
     let r = render_tiny(&out);
-    let err = stderr(&r);
     // Refused before rendering, as bad input.
-    assert_eq!(r.status.code(), Some(2), "{err}");
+    let err = common::refused(&r, "a missing folder");
     assert!(err.contains("there is no folder"), "{err}");
     assert!(err.contains("no/such/folder"), "{err}");
     assert!(
@@ -1340,8 +1326,7 @@ fn an_image_too_large_for_the_memory_limit_is_refused_with_exit_2() {
             out.to_str().unwrap(),
         ],
     );
-    let err = stderr(&o);
-    assert_eq!(o.status.code(), Some(2), "{err}");
+    let err = common::refused(&o, "");
     // The film and the EXR's buffer (6.4 GB), and room for two threads.
     assert!(
         err.contains("16384×16384 needs about 6.8 GB of memory"),
@@ -1392,8 +1377,7 @@ fn an_image_too_large_to_read_in_the_memory_limit_is_refused_with_exit_2() {
     ];
     for (kib, name, args) in cases {
         let o = penumbra_within_memory(kib, &args);
-        let err = stderr(&o);
-        assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+        let err = common::refused(&o, format!("{args:?}"));
         assert!(err.contains(&format!("{name}: ")), "{err}");
         assert!(
             err.contains("needs about") && err.contains("more than this process can have"),
@@ -1685,8 +1669,7 @@ fn a_render_that_passes_the_memory_check_does_not_abort() {
         )
     };
     let o = render("7300");
-    let err = stderr(&o);
-    assert_eq!(o.status.code(), Some(2), "{err}");
+    let err = common::refused(&o, "");
     assert!(err.contains("7300×7300 needs about"), "{err}");
     for side in ["6200", "6000"] {
         let o = render(side);
@@ -1750,8 +1733,7 @@ fn a_bench_too_large_for_the_memory_limit_is_refused_with_exit_2() {
     for args in &cases {
         let args: Vec<&str> = args.iter().map(String::as_str).collect();
         let o = penumbra_within_memory(2_000_000, &args);
-        let err = stderr(&o);
-        assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+        let err = common::refused(&o, format!("{args:?}"));
         assert!(
             err.contains("16384×16384 needs about")
                 && err.contains("more than this process can have"),
@@ -1762,8 +1744,7 @@ fn a_bench_too_large_for_the_memory_limit_is_refused_with_exit_2() {
     }
     // `--target` renders 1920×1080 whatever the scene's size.
     let o = penumbra_within_memory(300_000, &["bench", "--target", "--threads", "2"]);
-    let err = stderr(&o);
-    assert_eq!(o.status.code(), Some(2), "{err}");
+    let err = common::refused(&o, "");
     assert!(err.contains("1920×1080 needs about"), "{err}");
     assert_eq!(files_in(dir.path()), Vec::<String>::new());
 }

@@ -59,6 +59,14 @@ pub fn penumbra_ok(args: &[&str]) -> String {
     String::from_utf8_lossy(&out.stdout).into_owned()
 }
 
+/// The standard error of a run that must refuse its input (exit 2, the
+/// code of every input error); `what` names the case in the failure.
+pub fn refused(out: &Output, what: impl std::fmt::Display) -> String {
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert_eq!(out.status.code(), Some(2), "{what}: {err}");
+    err
+}
+
 /// The names of the files in `dir`, sorted.
 pub fn files_in(dir: &Path) -> Vec<String> {
     let mut v: Vec<String> = std::fs::read_dir(dir)

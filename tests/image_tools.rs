@@ -6,8 +6,7 @@ use std::time::Duration;
 
 mod common;
 
-use common::viewer::harness;
-use common::viewer::{WAIT, double_click, finished, settle, small_room};
+use common::viewer::{WAIT, double_click, finished, settle, settled, small_room};
 use egui_kittest::Harness;
 use egui_kittest::kittest::Queryable;
 use penumbra::app::image_view::{MAX_ZOOM, Zoom};
@@ -33,8 +32,7 @@ const BRIGHT_FILMIC: DisplayTransform = DisplayTransform {
 
 #[test]
 fn exposure_curve_zoom_and_pin_leave_the_linear_film_as_rendered() {
-    let mut h = harness(ViewerOptions::new(small_room()));
-    settle(&mut h);
+    let mut h = settled(ViewerOptions::new(small_room()));
     let core = Loaded::new(&small_room()).unwrap().render_image();
     assert_eq!(finished(h.state()), core);
     let plain = shown_rgb(h.state());
@@ -89,8 +87,7 @@ fn exposure_curve_zoom_and_pin_leave_the_linear_film_as_rendered() {
 #[test]
 fn a_saved_png_is_what_is_shown_and_an_exr_stays_linear() {
     let dir = tempfile::tempdir().unwrap();
-    let mut h = harness(ViewerOptions::new(small_room()));
-    settle(&mut h);
+    let mut h = settled(ViewerOptions::new(small_room()));
     h.state_mut().set_display(BRIGHT_FILMIC);
     h.step();
     let film = finished(h.state());
@@ -119,8 +116,7 @@ fn a_saved_png_is_what_is_shown_and_an_exr_stays_linear() {
 
 #[test]
 fn at_32x_the_inspector_picks_the_pixel_under_the_cursor_live_and_pinned() {
-    let mut h = harness(ViewerOptions::new(small_room()));
-    settle(&mut h);
+    let mut h = settled(ViewerOptions::new(small_room()));
     let a = finished(h.state());
     h.key_press(egui::Key::P);
     h.step();
@@ -159,8 +155,7 @@ fn at_32x_the_inspector_picks_the_pixel_under_the_cursor_live_and_pinned() {
 
 #[test]
 fn ctrl_wheel_zooms_the_image_about_the_cursor_and_the_wheel_still_zooms_the_camera() {
-    let mut h = harness(ViewerOptions::new(small_room()));
-    settle(&mut h);
+    let mut h = settled(ViewerOptions::new(small_room()));
     let camera = h.state().desc().camera.clone();
     h.step();
     let (area, ppp) = h.state().image_area();
@@ -225,8 +220,7 @@ fn settle_difference(h: &mut Harness<'static, Viewer>) {
 
 #[test]
 fn the_difference_against_the_pinned_image_is_the_cores() {
-    let mut h = harness(ViewerOptions::new(small_room()));
-    settle(&mut h);
+    let mut h = settled(ViewerOptions::new(small_room()));
     let a = finished(h.state());
     h.get_by_label("Pin A").click();
     h.step();
@@ -261,8 +255,7 @@ fn the_difference_against_the_pinned_image_is_the_cores() {
 
 #[test]
 fn a_still_image_with_its_tools_asks_for_no_frames_and_flicker_asks_for_some() {
-    let mut h = harness(ViewerOptions::new(small_room()));
-    settle(&mut h);
+    let mut h = settled(ViewerOptions::new(small_room()));
     h.key_press(egui::Key::P);
     h.step();
     h.key_press(egui::Key::Num1);

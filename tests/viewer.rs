@@ -7,7 +7,7 @@ use std::time::{Duration, Instant};
 mod common;
 
 use common::viewer::{
-    WAIT, double_click, drop_file, finished, harness, settle, small_room, step_until,
+    WAIT, double_click, drop_file, finished, harness, settle, settled, small_room, step_until,
 };
 use egui::accesskit::Role;
 use egui_kittest::Harness;
@@ -41,8 +41,7 @@ fn room_render(edit: impl FnOnce(&mut SceneDesc)) -> Film {
 
 #[test]
 fn first_frame_renders_the_scene_into_the_texture() {
-    let mut h = harness(ViewerOptions::new(small_room()));
-    settle(&mut h);
+    let h = settled(ViewerOptions::new(small_room()));
     let film = finished(h.state());
     assert_eq!(film, core_render(&small_room()));
     assert_shows(h.state(), &film);
@@ -58,8 +57,7 @@ fn first_frame_renders_the_scene_into_the_texture() {
 fn with_the_exact_model_the_status_bar_names_it_instead_of_samples() {
     let mut desc = small_room();
     desc.render.area_light_model = penumbra::render::AreaLightModel::Exact;
-    let mut h = harness(ViewerOptions::new(desc.clone()));
-    settle(&mut h);
+    let h = settled(ViewerOptions::new(desc.clone()));
     assert_eq!(finished(h.state()), core_render(&desc));
     h.get_by_label("exact light");
     assert!(h.query_by_label_contains("samples/hit").is_none());
@@ -76,27 +74,23 @@ fn with_the_exact_model_the_status_bar_names_it_instead_of_samples() {
 fn the_panel_says_how_many_points_a_grid_makes_of_the_shadow_rays() {
     let mut desc = small_room();
     desc.render.shadow_rays = 2;
-    let mut h = harness(ViewerOptions::new(desc.clone()));
-    settle(&mut h);
+    let h = settled(ViewerOptions::new(desc.clone()));
     h.get_by_label("grid: 1 point per hit (a 1×1 grid)");
     h.get_by_label("1 samples/hit");
     desc.render.shadow_rays = 20;
     desc.render.sampling = penumbra::render::Sampling::Mixed;
-    let mut h = harness(ViewerOptions::new(desc.clone()));
-    settle(&mut h);
+    let h = settled(ViewerOptions::new(desc.clone()));
     h.get_by_label("mixed: 32 points per hit (a 4×4 grid and as many random)");
     h.get_by_label("32 samples/hit");
     desc.render.shadow_rays = 16;
     desc.render.sampling = penumbra::render::Sampling::Grid;
-    let mut h = harness(ViewerOptions::new(desc));
-    settle(&mut h);
+    let h = settled(ViewerOptions::new(desc));
     assert!(h.query_by_label_contains("per hit (a").is_none());
 }
 
 #[test]
 fn slider_move_restarts_the_render_with_the_new_value() {
-    let mut h = harness(ViewerOptions::new(small_room()));
-    settle(&mut h);
+    let mut h = settled(ViewerOptions::new(small_room()));
     let before = h.state().render_generation();
 
     h.get_by_role_and_label(Role::Slider, "Shadow rays")
@@ -134,8 +128,7 @@ fn rapid_changes_leave_only_the_last_render() {
 
 #[test]
 fn ambient_only_equals_the_cores_ambient_only_render() {
-    let mut h = harness(ViewerOptions::new(small_room()));
-    settle(&mut h);
+    let mut h = settled(ViewerOptions::new(small_room()));
     let full = finished(h.state());
 
     h.get_by_role_and_label(Role::CheckBox, "Diffuse").click();
@@ -159,8 +152,7 @@ fn ambient_only_equals_the_cores_ambient_only_render() {
 
 #[test]
 fn shadows_toggle_and_reflections_toggle_reach_the_renderer() {
-    let mut h = harness(ViewerOptions::new(small_room()));
-    settle(&mut h);
+    let mut h = settled(ViewerOptions::new(small_room()));
     h.get_by_role_and_label(Role::CheckBox, "Shadows").click();
     h.step();
     h.get_by_role_and_label(Role::CheckBox, "Reflections")
@@ -176,8 +168,7 @@ fn shadows_toggle_and_reflections_toggle_reach_the_renderer() {
 
 #[test]
 fn sampling_model_and_adaptive_controls_reach_the_renderer() {
-    let mut h = harness(ViewerOptions::new(small_room()));
-    settle(&mut h);
+    let mut h = settled(ViewerOptions::new(small_room()));
     h.get_by_role_and_label(Role::CheckBox, "Adaptive shadow rays")
         .click();
     h.step();
@@ -227,8 +218,7 @@ fn ctrl_s_exports_a_full_size_png_that_decodes() {
 
 #[test]
 fn a_failed_export_is_shown_not_panicked() {
-    let mut h = harness(ViewerOptions::new(small_room()));
-    settle(&mut h);
+    let mut h = settled(ViewerOptions::new(small_room()));
     let ctx = h.ctx.clone();
     h.state_mut()
         .save_png(&ctx, "/nonexistent-dir/x/out.png".into());
@@ -274,8 +264,7 @@ fn a_broken_scene_file_shows_a_banner_and_keeps_the_old_image() {
     write(&path, &good);
     let mut options = ViewerOptions::new(SceneDesc::load(&path).unwrap());
     options.scene_path = Some(path.clone());
-    let mut h = harness(options);
-    settle(&mut h);
+    let mut h = settled(options);
     let image = h.state().shown_image().clone();
     let generation = h.state().render_generation();
 
@@ -310,8 +299,7 @@ fn reload_keeps_the_camera_when_the_file_did_not_change_it() {
     write(&path, &small_room().to_json());
     let mut options = ViewerOptions::new(SceneDesc::load(&path).unwrap());
     options.scene_path = Some(path.clone());
-    let mut h = harness(options);
-    settle(&mut h);
+    let mut h = settled(options);
     h.state_mut().edit(|d, _| d.camera.position[0] = 1.0);
     let mut changed = small_room();
     changed.render.shadow_rays = 4;
@@ -322,8 +310,7 @@ fn reload_keeps_the_camera_when_the_file_did_not_change_it() {
 
 #[test]
 fn a_panicking_worker_shows_the_error_and_the_viewer_goes_on() {
-    let mut h = harness(ViewerOptions::new(small_room()));
-    settle(&mut h);
+    let mut h = settled(ViewerOptions::new(small_room()));
     h.state().inject_worker_panic();
     h.state_mut().edit(|d, _| d.render.terms.ambient = 0.5);
     settle(&mut h);
@@ -338,8 +325,7 @@ fn a_panicking_worker_shows_the_error_and_the_viewer_goes_on() {
 
 #[test]
 fn dragging_the_image_orbits_the_camera_and_double_click_picks() {
-    let mut h = harness(ViewerOptions::new(small_room()));
-    settle(&mut h);
+    let mut h = settled(ViewerOptions::new(small_room()));
     let before = h.state().desc().camera.clone();
     let generation = h.state().render_generation();
     // The image area: right of the side panel, above the status bar.
@@ -437,8 +423,7 @@ fn readout_label(film: &Film, reference: &Film) -> String {
 fn loading_the_cores_own_render_as_reference_reads_rmse_zero() {
     let dir = tempfile::tempdir().unwrap();
     let path = write_exr(dir.path(), "same.exr", &core_render(&small_room()));
-    let mut h = harness(ViewerOptions::new(small_room()));
-    settle(&mut h);
+    let mut h = settled(ViewerOptions::new(small_room()));
 
     h.get_by_role_and_label(Role::Button, "Load reference…")
         .click();
@@ -468,8 +453,7 @@ fn a_reference_of_more_shadow_rays_reads_the_cores_rmse_and_error_image() {
     converged.render.sampling = penumbra::render::Sampling::Stratified;
     let reference = core_render(&converged);
     let path = write_exr(dir.path(), "ref.exr", &reference);
-    let mut h = harness(ViewerOptions::new(small_room()));
-    settle(&mut h);
+    let mut h = settled(ViewerOptions::new(small_room()));
     let ctx = h.ctx.clone();
     h.state_mut().load_reference(&ctx, path);
     h.step();
@@ -525,8 +509,7 @@ fn a_reference_of_another_size_is_not_compared() {
     half.camera.width = 32;
     half.camera.height = 18;
     let path = write_exr(dir.path(), "half.exr", &core_render(&half));
-    let mut h = harness(ViewerOptions::new(small_room()));
-    settle(&mut h);
+    let mut h = settled(ViewerOptions::new(small_room()));
     let ctx = h.ctx.clone();
     h.state_mut().load_reference(&ctx, path);
     h.step();
@@ -551,8 +534,7 @@ fn a_reference_of_another_size_is_not_compared() {
 fn an_anti_aliased_image_s_reference_samples_the_image_s_places() {
     let mut room = reference_room();
     room.render.samples_per_pixel = 4;
-    let mut h = harness(ViewerOptions::new(room.clone()));
-    settle(&mut h);
+    let mut h = settled(ViewerOptions::new(room.clone()));
     compute_reference(&mut h);
     settle_reference(&mut h);
     let reference = h.state().reference().expect("a reference").film.clone();
@@ -575,8 +557,7 @@ fn an_anti_aliased_image_s_reference_samples_the_image_s_places() {
 #[test]
 fn computing_a_reference_in_the_background_then_reads_the_error() {
     let room = reference_room();
-    let mut h = harness(ViewerOptions::new(room.clone()));
-    settle(&mut h);
+    let mut h = settled(ViewerOptions::new(room.clone()));
     compute_reference(&mut h);
     assert!(h.state().reference_busy());
     settle_reference(&mut h);
@@ -619,8 +600,7 @@ fn a_reference_computation_is_cancelled_by_the_button_or_a_scene_change() {
     room.camera.width = 320;
     room.camera.height = 180;
     room.render.shadow_rays = 1;
-    let mut h = harness(ViewerOptions::new(room));
-    settle(&mut h);
+    let mut h = settled(ViewerOptions::new(room));
 
     compute_reference(&mut h);
     assert!(h.state().reference_busy());
@@ -702,8 +682,7 @@ fn camera_distance(v: &Viewer, x: f64, y: f64, cutaway: bool) -> Option<f64> {
 
 #[test]
 fn an_orbit_about_the_pivot_keeps_it_in_view_with_the_cutaway() {
-    let mut h = harness(ViewerOptions::new(small_room()));
-    settle(&mut h);
+    let mut h = settled(ViewerOptions::new(small_room()));
     // The pivot on the first bounded object found left of the centre row
     // (a sphere or box, not a wall): double-click there.
     let loaded = Loaded::new(&h.state().render_desc()).unwrap();
@@ -755,8 +734,7 @@ fn an_orbit_about_the_pivot_keeps_it_in_view_with_the_cutaway() {
 
 #[test]
 fn frame_all_shows_the_whole_scene_and_home_resets_the_camera() {
-    let mut h = harness(ViewerOptions::new(small_room()));
-    settle(&mut h);
+    let mut h = settled(ViewerOptions::new(small_room()));
     let home = h.state().desc().camera.clone();
     // Far off, zoomed in on a corner.
     h.state_mut().edit(|d, _| {
@@ -791,8 +769,7 @@ fn frame_all_shows_the_whole_scene_and_home_resets_the_camera() {
 
 #[test]
 fn undo_restores_the_image_bit_for_bit_and_a_drag_is_one_step() {
-    let mut h = harness(ViewerOptions::new(small_room()));
-    settle(&mut h);
+    let mut h = settled(ViewerOptions::new(small_room()));
     let original = finished(h.state());
     let camera = h.state().desc().camera.clone();
     assert!(!h.state().can_undo());
@@ -858,8 +835,7 @@ fn unsaved_edits_mark_the_title_and_quit_or_open_asks_first() {
     let mut o = small_room();
     o.render.shadow_rays = 4;
     write(&other, &o.to_json());
-    let mut h = harness(ViewerOptions::new(small_room()));
-    settle(&mut h);
+    let mut h = settled(ViewerOptions::new(small_room()));
     assert_eq!(h.state().title(), "seed room — penumbra");
     assert!(!h.state().is_dirty());
     h.get_by_role_and_label(Role::CheckBox, "Specular").click();
@@ -904,8 +880,7 @@ fn dropping_a_scene_file_opens_it_and_a_png_loads_a_reference() {
     let mut d = small_room();
     d.render.terms.ambient = 0.5;
     write(&scene, &d.to_json());
-    let mut h = harness(ViewerOptions::new(small_room()));
-    settle(&mut h);
+    let mut h = settled(ViewerOptions::new(small_room()));
     drop_file(&mut h, &scene);
     h.step();
     loaded(&mut h);
@@ -930,8 +905,7 @@ fn a_hot_reload_takes_the_files_changes_keeps_other_edits_and_is_undoable() {
     write(&path, &small_room().to_json());
     let mut options = ViewerOptions::new(SceneDesc::load(&path).unwrap());
     options.scene_path = Some(path.clone());
-    let mut h = harness(options);
-    settle(&mut h);
+    let mut h = settled(options);
     // Edits in the viewer: shadow rays, a material's shininess, the camera,
     // a toggle.
     h.state_mut().edit(|d, v| {
@@ -979,8 +953,7 @@ fn launch_with_a_broken_file_shows_the_seed_room_and_loads_it_once_fixed() {
         ..Default::default()
     };
     let options = ViewerOptions::from_args(&args).expect("the viewer starts");
-    let mut h = harness(options);
-    settle(&mut h);
+    let mut h = settled(options);
     let banner = h
         .state()
         .banner()
@@ -1006,8 +979,7 @@ fn launch_with_a_broken_file_shows_the_seed_room_and_loads_it_once_fixed() {
         refine_spp: Some(1),
         ..Default::default()
     };
-    let mut h = harness(ViewerOptions::from_args(&args).unwrap());
-    settle(&mut h);
+    let mut h = settled(ViewerOptions::from_args(&args).unwrap());
     assert!(h.state().banner().unwrap().contains("later.json"));
     write(&missing, &fixed.to_json());
     step_until(&mut h, |v| v.banner().is_none());
@@ -1016,8 +988,7 @@ fn launch_with_a_broken_file_shows_the_seed_room_and_loads_it_once_fixed() {
 
 #[test]
 fn f1_shows_the_help_and_the_menus_reach_every_command() {
-    let mut h = harness(ViewerOptions::new(small_room()));
-    settle(&mut h);
+    let mut h = settled(ViewerOptions::new(small_room()));
     h.key_press(egui::Key::F1);
     h.step();
     h.step();
@@ -1077,8 +1048,7 @@ fn the_last_scene_recent_files_and_view_settings_are_remembered() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("kept.json");
     write(&path, &small_room().to_json());
-    let mut h = harness(ViewerOptions::new(small_room()));
-    settle(&mut h);
+    let mut h = settled(ViewerOptions::new(small_room()));
     drop_file(&mut h, &path);
     h.step();
     loaded(&mut h);
@@ -1123,8 +1093,7 @@ fn the_file_dialog_starts_in_the_scenes_folder_keeps_its_size_and_asks_before_re
     write(&path, &small_room().to_json());
     let mut options = ViewerOptions::new(small_room());
     options.scene_path = Some(path.clone());
-    let mut h = harness(options);
-    settle(&mut h);
+    let mut h = settled(options);
 
     // Save scene… starts in the scene's folder with its name: the file
     // exists, so Save asks first and "Keep it" writes nothing.
@@ -1211,8 +1180,7 @@ fn at_500_points_wide_the_status_bar_wraps_instead_of_being_cut_off() {
 fn a_finished_image_is_refined_to_more_samples_exactly() {
     let mut options = ViewerOptions::new(small_room());
     options.refine_spp = 4;
-    let mut h = harness(options);
-    settle(&mut h);
+    let mut h = settled(options);
     // Refinement runs on by itself: 2, then 4 samples per pixel.
     let start = std::time::Instant::now();
     let film = loop {
@@ -1245,8 +1213,7 @@ fn a_finished_image_is_refined_to_more_samples_exactly() {
 
 #[test]
 fn w_a_s_d_walk_the_camera_and_its_pivot_and_a_walk_is_one_undo_step() {
-    let mut h = harness(ViewerOptions::new(small_room()));
-    settle(&mut h);
+    let mut h = settled(ViewerOptions::new(small_room()));
     let before = h.state().desc().camera.clone();
     let centre = egui::pos2(800.0, 450.0);
     h.hover_at(centre);
@@ -1308,8 +1275,7 @@ fn refined_to(h: &mut Harness<'static, Viewer>, spp: u32) -> Film {
 fn a_recombine_or_reshade_edit_keeps_the_refined_samples() {
     let mut options = ViewerOptions::new(small_room());
     options.refine_spp = 8;
-    let mut h = harness(options);
-    settle(&mut h);
+    let mut h = settled(options);
     refined_to(&mut h, 8);
     let at = |edit: &dyn Fn(&mut SceneDesc), spp: u32| {
         let mut d = small_room();
@@ -1372,8 +1338,7 @@ fn a_dropped_mesh_joins_the_scene_and_its_toggle_hides_it() {
     let file = dir.join("box.obj");
     std::fs::write(&file, common::box_obj([1.0; 3])).unwrap();
 
-    let mut h = harness(ViewerOptions::new(small_room()));
-    settle(&mut h);
+    let mut h = settled(ViewerOptions::new(small_room()));
     let room = finished(h.state());
     let before = h.state().desc().objects.len();
     drop_file(&mut h, &file);
@@ -1514,8 +1479,7 @@ fn light_centre(d: &SceneDesc) -> [f64; 3] {
 
 #[test]
 fn typed_numbers_are_clamped_to_the_formats_limits_and_nan_is_refused() {
-    let mut h = harness(ViewerOptions::new(small_room()));
-    settle(&mut h);
+    let mut h = settled(ViewerOptions::new(small_room()));
     let x = |h: &Harness<'static, Viewer>| h.get_by_role_and_label(Role::SpinButton, "x").rect();
 
     // A slider's number field: the light depth stops at the longest edge
@@ -1579,8 +1543,7 @@ fn the_light_size_controls_cover_every_size_the_loader_takes() {
     d.light.corner = [-25.0, 7.99, -1.0];
     d.light.edge_u = [50.0, 0.0, 0.0];
     d.light.edge_v = [0.0, 0.0, 0.004];
-    let mut h = harness(ViewerOptions::new(d.clone()));
-    settle(&mut h);
+    let mut h = settled(ViewerOptions::new(d.clone()));
     assert_eq!(
         h.state().desc(),
         &d,
@@ -1661,8 +1624,7 @@ fn the_light_size_controls_cover_every_size_the_loader_takes() {
 /// by hundreds), and the rail holds still under the drag.
 #[test]
 fn dragging_the_light_width_changes_it_finely() {
-    let mut h = harness(ViewerOptions::new(small_room()));
-    settle(&mut h);
+    let mut h = settled(ViewerOptions::new(small_room()));
     let width = |h: &Harness<'static, Viewer>| length(h.state().desc().light.edge_u);
     let rail = h.get_by_role_and_label(Role::Slider, "Light width").rect();
     let from = rail.center();
@@ -1693,8 +1655,7 @@ fn dragging_the_light_width_changes_it_finely() {
 /// way.
 #[test]
 fn a_typed_number_applies_on_enter_not_at_each_key() {
-    let mut h = harness(ViewerOptions::new(small_room()));
-    settle(&mut h);
+    let mut h = settled(ViewerOptions::new(small_room()));
     for (slider, typed) in [
         ("Shadow rays", "64"),
         ("Resolution scale", "0.25"),
@@ -1725,8 +1686,7 @@ fn a_typed_number_applies_on_enter_not_at_each_key() {
 /// the limit, the last valid value kept: no failed render, no NaN.
 #[test]
 fn an_edit_the_loader_would_refuse_is_undone_and_named_in_the_banner() {
-    let mut h = harness(ViewerOptions::new(small_room()));
-    settle(&mut h);
+    let mut h = settled(ViewerOptions::new(small_room()));
     let light = h.state().desc().light.clone();
     let image = h.state().shown_image().clone();
     let x = |h: &Harness<'static, Viewer>| h.get_by_role_and_label(Role::SpinButton, "x").rect();
@@ -1764,8 +1724,7 @@ fn an_edit_the_loader_would_refuse_is_undone_and_named_in_the_banner() {
 fn save_scene_refuses_a_scene_that_would_not_load() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("broken.json");
-    let mut h = harness(ViewerOptions::new(small_room()));
-    settle(&mut h);
+    let mut h = settled(ViewerOptions::new(small_room()));
     h.state_mut().edit(|d, _| d.light.corner[0] = f64::INFINITY);
     settle(&mut h);
     assert!(matches!(
@@ -1814,8 +1773,7 @@ fn wheel(h: &mut Harness<'static, Viewer>, delta: f32, times: usize) {
 
 #[test]
 fn wheel_zoom_and_pan_keep_the_camera_within_the_formats_range() {
-    let mut h = harness(ViewerOptions::new(small_room()));
-    settle(&mut h);
+    let mut h = settled(ViewerOptions::new(small_room()));
     let pivot = glam::DVec3::from(h.state().desc().camera.look_at);
     let distance = |v: &Viewer| {
         (glam::DVec3::from(v.desc().camera.position) - glam::DVec3::from(v.desc().camera.look_at))
@@ -1884,8 +1842,7 @@ fn pan_image(h: &mut Harness<'static, Viewer>, from: egui::Pos2, by: egui::Vec2)
 fn save_png_after_a_failed_render_says_so_and_the_banner_goes_with_the_fix() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("failed.png");
-    let mut h = harness(ViewerOptions::new(small_room()));
-    settle(&mut h);
+    let mut h = settled(ViewerOptions::new(small_room()));
     h.state_mut().edit(|d, _| d.light.corner[2] = -5e299);
     settle(&mut h);
     assert!(matches!(
@@ -1935,8 +1892,7 @@ fn room_with_a_missing_mesh(dir: &Path) -> std::path::PathBuf {
 fn a_scene_whose_mesh_is_missing_keeps_the_scene_before_and_its_name() {
     let dir = tempfile::tempdir().unwrap();
     let path = room_with_a_missing_mesh(dir.path());
-    let mut h = harness(ViewerOptions::new(small_room()));
-    settle(&mut h);
+    let mut h = settled(ViewerOptions::new(small_room()));
     let title = h.state().title();
     let image = h.state().shown_image().clone();
 
@@ -1969,8 +1925,7 @@ fn a_scene_whose_mesh_is_missing_keeps_the_scene_before_and_its_name() {
 
 #[test]
 fn the_behind_a_wall_hint_shows_only_while_the_cutaway_is_off() {
-    let mut h = harness(ViewerOptions::new(small_room()));
-    settle(&mut h);
+    let mut h = settled(ViewerOptions::new(small_room()));
     const HINT: &str = "behind a wall";
     // Behind the back wall (z = 5, facing -z).
     h.state_mut()
@@ -2015,8 +1970,7 @@ fn a_scene_larger_than_a_display_is_previewed_at_a_displays_size() {
     std::fs::write(&path, huge.to_json()).unwrap();
     let mut options = ViewerOptions::new(small_room());
     options.refine_spp = 1;
-    let mut h = harness(options);
-    settle(&mut h);
+    let mut h = settled(options);
 
     let ctx = h.ctx.clone();
     h.state_mut().open_scene(&ctx, &path);
@@ -2045,8 +1999,7 @@ fn a_scene_larger_than_a_display_is_previewed_at_a_displays_size() {
 fn an_opened_scene_is_built_under_the_loading_strip_before_it_replaces_the_shown_one() {
     let dir = tempfile::tempdir().unwrap();
     let missing = room_with_a_missing_mesh(dir.path());
-    let mut h = harness(ViewerOptions::new(small_room()));
-    settle(&mut h);
+    let mut h = settled(ViewerOptions::new(small_room()));
     let title = h.state().title();
 
     h.state().hold_loads_for_tests(true);
@@ -2098,8 +2051,7 @@ fn an_opened_scene_is_built_under_the_loading_strip_before_it_replaces_the_shown
 /// the walking keys and the right-drag look were missing.
 #[test]
 fn the_help_lists_the_walking_keys_and_every_drag() {
-    let mut h = harness(ViewerOptions::new(small_room()));
-    settle(&mut h);
+    let mut h = settled(ViewerOptions::new(small_room()));
     h.key_press(egui::Key::F1);
     h.step();
     h.step();
@@ -2116,8 +2068,7 @@ fn the_help_lists_the_walking_keys_and_every_drag() {
 /// reader took the key before egui's popups saw it).
 #[test]
 fn escape_closes_a_menu_and_the_colour_picker() {
-    let mut h = harness(ViewerOptions::new(small_room()));
-    settle(&mut h);
+    let mut h = settled(ViewerOptions::new(small_room()));
     type Opener = fn(&Harness<'static, Viewer>);
     let openers: [(&str, Opener); 2] = [
         ("menu", |h| h.get_by_label("File").click()),
@@ -2144,8 +2095,7 @@ fn escape_closes_a_menu_and_the_colour_picker() {
 /// fonts (its copy button's 📋 drew as a box).
 #[test]
 fn the_colour_picker_draws_no_missing_glyph() {
-    let mut h = harness(ViewerOptions::new(small_room()));
-    settle(&mut h);
+    let mut h = settled(ViewerOptions::new(small_room()));
     h.get_all_by_role(Role::ColorWell).next().unwrap().click();
     h.step();
     h.step();
@@ -2177,8 +2127,7 @@ fn the_colour_picker_draws_no_missing_glyph() {
 /// does not move.
 #[test]
 fn the_image_strip_does_not_shift_when_the_exposure_label_widens() {
-    let mut h = harness(ViewerOptions::new(small_room()));
-    settle(&mut h);
+    let mut h = settled(ViewerOptions::new(small_room()));
     let reset = |h: &Harness<'static, Viewer>| h.get_by_role_and_label(Role::Button, "0").rect();
     let before = reset(&h);
     for exposure in [10.0, -10.0] {
@@ -2198,8 +2147,7 @@ fn the_image_strip_does_not_shift_when_the_exposure_label_widens() {
 /// says nothing.
 #[test]
 fn the_save_scene_dialog_says_what_the_file_leaves_out() {
-    let mut h = harness(ViewerOptions::new(small_room()));
-    settle(&mut h);
+    let mut h = settled(ViewerOptions::new(small_room()));
     let open_save = |h: &mut Harness<'_, Viewer>| {
         h.key_press_modifiers(
             egui::Modifiers::COMMAND | egui::Modifiers::SHIFT,

@@ -12,7 +12,7 @@ use std::time::Duration;
 use egui::accesskit::Role;
 mod common;
 
-use common::viewer::{WAIT, harness, harness_of, settle, small_room, step_until};
+use common::viewer::{WAIT, harness, harness_of, settle, settled, small_room, step_until};
 use egui_kittest::Harness;
 use egui_kittest::kittest::Queryable;
 use penumbra::app::render_job::JobState;
@@ -325,8 +325,7 @@ fn an_edit_that_rebuilds_the_scene_is_built_under_the_loading_strip_or_refused()
     };
     let mut options = ViewerOptions::new(desc.clone());
     options.scene_path = Some(path.clone());
-    let mut h = harness(options);
-    settle(&mut h);
+    let mut h = settled(options);
     let generation = h.state().render_generation();
 
     h.state().hold_loads_for_tests(true);
@@ -409,8 +408,7 @@ fn the_render_pauses_while_a_load_runs_and_goes_on_once_it_is_cancelled() {
     let mut options = ViewerOptions::new(small_room());
     // Refines for longer than the test runs.
     options.refine_spp = 1 << 16;
-    let mut h = harness(options);
-    settle(&mut h);
+    let mut h = settled(options);
     let tiles = h.state().render_tiles_delivered();
     step_until(&mut h, |v| v.render_tiles_delivered() > tiles);
 
@@ -457,8 +455,7 @@ fn an_edit_whose_build_fails_or_is_cancelled_is_not_undone() {
     };
     let mut options = ViewerOptions::new(desc.clone());
     options.scene_path = Some(path.clone());
-    let mut h = harness(options);
-    settle(&mut h);
+    let mut h = settled(options);
     h.state_mut().edit(|d, _| d.render.terms.ambient = 0.5);
     settle(&mut h);
     let edited = h.state().desc().clone();

@@ -25,6 +25,14 @@ pub fn harness(options: ViewerOptions) -> Harness<'static, Viewer> {
     harness_of(Viewer::new(options))
 }
 
+/// A harness around a viewer of `options` whose first render has ended
+/// ([`settle`]).
+pub fn settled(options: ViewerOptions) -> Harness<'static, Viewer> {
+    let mut h = harness(options);
+    settle(&mut h);
+    h
+}
+
 /// A harness around a viewer made by the test (to set its test hooks
 /// before the first frame).
 pub fn harness_of(viewer: Viewer) -> Harness<'static, Viewer> {

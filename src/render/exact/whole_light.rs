@@ -41,7 +41,8 @@ pub struct WholeLight {
 }
 
 impl WholeLight {
-    /// The factors, one point alone.
+    /// The factors, one point alone. Not inlined: the hit loops that may
+    /// call it stay as small as the other models' need.
     #[inline(never)]
     pub fn factors(&self, s: &mut ExactScratch) -> ExactFactors {
         let mut out = self.with_diffuse(edge_sum(&self.rect, self.a, self.b, self.h));

@@ -337,16 +337,31 @@ fn nested_cell(lobe: &Lobe, lo: DVec2, size: f64, coarse: bool) -> Option<(f64, 
             lobe_at_nested_nodes(lobe, lo, size, x, y, out);
             evaluated += CHUNK;
         }
-        let q: f64 = (start..end).map(|i| r.w[i] * f[i]).sum();
+        let q = rule_value(r, &f, start, end);
         start = end;
-        let safety = if k == 1 { START_SAFETY } else { 1.0 };
-        let estimate = safety * (q - previous).abs() * area;
-        if k > 0 && (coarse || k > 1) && estimate <= TOLERANCE * area {
-            return Some((q * area, estimate));
+        if let Some(taken) = rule_taken(k, q, previous, area, coarse) {
+            return Some(taken);
         }
         previous = q;
     }
     None
+}
+
+/// The value of the nested rule whose nodes are `start..end` of `r`, from
+/// the integrand `f` at the nodes.
+#[inline]
+fn rule_value(r: &NestedRule, f: &[f64; NESTED_NODES], start: usize, end: usize) -> f64 {
+    (start..end).map(|i| r.w[i] * f[i]).sum()
+}
+
+/// Whether [`nested_cell`] takes rule `k`'s value `q` (on a cell of area
+/// `area`, the rule before's value `previous`): its integral and estimated
+/// error if so.
+#[inline]
+fn rule_taken(k: usize, q: f64, previous: f64, area: f64, coarse: bool) -> Option<(f64, f64)> {
+    let safety = if k == 1 { START_SAFETY } else { 1.0 };
+    let estimate = safety * (q - previous).abs() * area;
+    (k > 0 && (coarse || k > 1) && estimate <= TOLERANCE * area).then_some((q * area, estimate))
 }
 
 /// Lobes whose whole-light cells [`whole_light_specular`] takes side by
@@ -437,14 +452,10 @@ pub fn whole_light_specular(
         }
         let ctx = Ctx::new(lobe, span, &empty);
         let view = CellView::new(&ctx, DVec2::ZERO, 1.0);
-        root[k] = if !(view.near_field(&ctx, 1.0) || view.lobe_unresolved(NESTED_ORDERS[2])) {
-            Root::Nested {
-                coarse: !view.lobe_unresolved(NESTED_ORDERS[1]),
-            }
-        } else if view.lobe_unresolved(ORDER) {
-            Root::Alone
-        } else {
-            Root::Fit
+        root[k] = match view.nested_rules(&ctx, 1.0) {
+            Some(coarse) => Root::Nested { coarse },
+            None if view.lobe_unresolved(ORDER) => Root::Alone,
+            None => Root::Fit,
         };
     }
     // The fitted cells, one lobe at a time (64 nodes fill the lanes), as
@@ -483,21 +494,20 @@ pub fn whole_light_specular(
         f[k][..CHUNK].copy_from_slice(&chunk[k]);
     }
     let area = 1.0 * 1.0;
-    let sum = |f: &[f64; NESTED_NODES], k: usize| -> f64 {
-        let start = if k == 0 { 0 } else { r.ends[k - 1] };
-        (start..r.ends[k]).map(|i| r.w[i] * f[i]).sum()
-    };
+    let [end_2, end_3, end_4, _] = r.ends;
+    let taken = |(value, estimate)| (value, whole_report(estimate));
     let mut previous = [0.0; WHOLE_LANES];
     let mut more = false;
     for k in 0..lobes.len() {
         let Root::Nested { coarse } = root[k] else {
             continue;
         };
-        let (q0, q1) = (sum(&f[k], 0), sum(&f[k], 1));
-        let estimate = START_SAFETY * (q1 - q0).abs() * area;
-        if coarse && estimate <= TOLERANCE * area {
-            out[k] = Some((q1 * area, whole_report(estimate)));
-        } else {
+        let (q0, q1) = (
+            rule_value(r, &f[k], 0, end_2),
+            rule_value(r, &f[k], end_2, end_3),
+        );
+        out[k] = rule_taken(1, q1, q0, area, coarse).map(taken);
+        if out[k].is_none() {
             previous[k] = q1;
             more = true;
         }
@@ -505,18 +515,18 @@ pub fn whole_light_specular(
     if !more {
         return;
     }
-    debug_assert!(r.ends[2] <= 2 * CHUNK);
+    debug_assert!(end_4 <= 2 * CHUNK);
     lobes_at_whole_nodes(&ls, 1, &mut chunk);
     for k in 0..lobes.len() {
-        if !matches!(root[k], Root::Nested { .. }) || out[k].is_some() {
+        let Root::Nested { coarse } = root[k] else {
+            continue;
+        };
+        if out[k].is_some() {
             continue;
         }
         f[k][CHUNK..2 * CHUNK].copy_from_slice(&chunk[k]);
-        let q2 = sum(&f[k], 2);
-        let estimate = (q2 - previous[k]).abs() * area;
-        if estimate <= TOLERANCE * area {
-            out[k] = Some((q2 * area, whole_report(estimate)));
-        }
+        let q2 = rule_value(r, &f[k], end_3, end_4);
+        out[k] = rule_taken(2, q2, previous[k], area, coarse).map(taken);
     }
 }
 
@@ -1133,6 +1143,17 @@ impl CellView {
         self.angular / nodes as f64 > 0.5 * self.narrow && self.near_mirror
     }
 
+    /// Whether the nested rules may take the cell (of side `size`) whole:
+    /// `None` where it is in the near field or too coarse for them, else
+    /// whether the 3² rule resolves the lobe (`coarse` of
+    /// [`nested_cell`]).
+    fn nested_rules(&self, ctx: &Ctx, size: f64) -> Option<bool> {
+        if self.near_field(ctx, size) || self.lobe_unresolved(NESTED_ORDERS[2]) {
+            return None;
+        }
+        Some(!self.lobe_unresolved(NESTED_ORDERS[1]))
+    }
+
     /// Too near the point for the nested rules: the side above
     /// [`NEAR_FIELD`] of a lower bound on the cell's distance.
     fn near_field(&self, ctx: &Ctx, size: f64) -> bool {
@@ -1146,12 +1167,7 @@ impl CellView {
 /// deepest level, where they are always tried), as [`nested_cell`].
 fn whole_cell(ctx: &Ctx, lo: DVec2, size: f64, view: Option<&CellView>) -> Option<(f64, f64)> {
     let coarse = match view {
-        Some(v) => {
-            if v.near_field(ctx, size) || v.lobe_unresolved(NESTED_ORDERS[2]) {
-                return None;
-            }
-            !v.lobe_unresolved(NESTED_ORDERS[1])
-        }
+        Some(v) => v.nested_rules(ctx, size)?,
         None => true,
     };
     nested_cell(ctx.lobe, lo, size, coarse)

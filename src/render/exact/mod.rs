@@ -289,9 +289,9 @@ pub fn exact_step(
 
     if specular {
         s.ab.clear();
+        let to_ab = to_ab(&view.rect);
         for poly in s.pieces.iter() {
-            s.ab.verts
-                .extend(poly.iter().map(|&y| to_ab(&view.rect, y)));
+            s.ab.verts.extend(poly.iter().map(|&y| to_ab(y)));
             s.ab.ends.push(s.ab.verts.len());
         }
         let lobe = lobe_of(&view, n, p);
@@ -302,14 +302,18 @@ pub fn exact_step(
     Ok(ExactStep::Done(out))
 }
 
-/// A point of the light's plane in the light's (a, b) coordinates, the
-/// light `rect` seen in the plane: y = corner + a u + b v.
+/// The map from the light's plane to the light's (a, b) coordinates, the
+/// light `rect` seen in the plane: y = corner + a u + b v (its edges and
+/// determinant taken once).
 #[inline]
-fn to_ab(rect: &[DVec2; 4], y: DVec2) -> DVec2 {
+fn to_ab(rect: &[DVec2; 4]) -> impl Fn(DVec2) -> DVec2 {
     let (u, v) = (rect[1] - rect[0], rect[3] - rect[0]);
     let det = u.perp_dot(v);
-    let d = y - rect[0];
-    DVec2::new(d.perp_dot(v) / det, u.perp_dot(d) / det)
+    let o = rect[0];
+    move |y| {
+        let d = y - o;
+        DVec2::new(d.perp_dot(v) / det, u.perp_dot(d) / det)
+    }
 }
 
 /// The specular lobe of `p` (shading normal `n` in the light's frame).

@@ -67,7 +67,7 @@ impl WholeLight {
     /// The light's corners in its (a, b) coordinates (the unit square, to
     /// rounding).
     fn light_ab(&self) -> [DVec2; 4] {
-        self.rect.map(|y| super::to_ab(&self.rect, y))
+        self.rect.map(super::to_ab(&self.rect))
     }
 
     /// The visible area in the (a, b) coordinates, as [`Pieces::area`]
@@ -132,6 +132,7 @@ impl WholeLights {
                 }
             }
             let mut taken = [None; WHOLE_LANES];
+            // One tile's points: one light, one span.
             whole_light_specular(&batch[0].1.span, &lobes[..count], &mut taken);
             let mut specular = [None; WHOLE_POINTS];
             for (&i, taken) in of[..count].iter().zip(taken) {

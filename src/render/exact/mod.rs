@@ -65,7 +65,7 @@ pub use whole_light::{WholeLight, WholeLights};
 use conic::{ArcScratch, ConicShadow};
 use cubature::{CubatureScratch, LightSpan, Lobe, specular_factor};
 use diffuse::{Outline, diffuse_over_pieces, small_light};
-use polygon::{HalfPlane, Pieces};
+use polygon::{HalfPlane, Pieces, twice_area};
 use projection::{LightFrame, LightView};
 use visible::{RegionScratch, visible_region};
 
@@ -228,6 +228,24 @@ pub fn exact_step(
         possible_occluders(scene, &query, &mut s.cells, &mut s.occluders);
     }
     let front = view.front_of(p.geometric);
+    let n = view.local_dir(p.normal);
+    let (a, b, h) = (DVec2::new(n.x, n.y), -view.h * n.z, -view.h);
+    let horizon = HalfPlane { n: a, c: b };
+    // Nothing in the pyramid and the whole light in front of the surface
+    // and above its horizon (most points of a lit room): the region would
+    // be the light's rectangle as it is (a clip that keeps every corner
+    // keeps the piece), so it is not built.
+    if s.occluders.is_empty()
+        && view
+            .rect
+            .iter()
+            .all(|&y| front.eval(y) >= 0.0 && horizon.eval(y) >= 0.0)
+        && twice_area(&view.rect) > 0.0
+        && !small_light(&view.rect, h)
+    {
+        s.whole = whole_light(&view, a, b, h, n, p, specular, span);
+        return Ok(ExactStep::Whole);
+    }
     visible_region(
         scene,
         &view,
@@ -247,9 +265,6 @@ pub fn exact_step(
 
     // Diffuse: (1/A) ∫ max(0, N·L) over the pieces, each clipped to the
     // shading normal's horizon where N·L ≥ 0.
-    let n = view.local_dir(p.normal);
-    let (a, b, h) = (DVec2::new(n.x, n.y), -view.h * n.z, -view.h);
-    let horizon = HalfPlane { n: a, c: b };
     // Pieces wholly above the horizon (on a flat surface the front's clip
     // made them so) are lit as they are: no copy to clip (the clip would
     // keep them).
@@ -267,15 +282,7 @@ pub fn exact_step(
         && s.region.spheres.is_empty()
         && !small_light(&view.rect, h)
     {
-        s.whole = WholeLight {
-            rect: view.rect,
-            a,
-            b,
-            h,
-            area: view.area,
-            lobe: specular.then(|| lobe_of(&view, n, p)),
-            span,
-        };
+        s.whole = whole_light(&view, a, b, h, n, p, specular, span);
         return Ok(ExactStep::Whole);
     }
     let conic = match sphere {
@@ -300,6 +307,33 @@ pub fn exact_step(
         out.cubature = report;
     }
     Ok(ExactStep::Done(out))
+}
+
+/// What a point that sees the whole light leaves to [`WholeLights`]: the
+/// light seen from it, the diffuse integrand's (a, b, h), and its lobe if
+/// the specular factor is asked for (`n`: the shading normal in the
+/// light's frame).
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn whole_light(
+    view: &LightView,
+    a: DVec2,
+    b: f64,
+    h: f64,
+    n: DVec3,
+    p: &ExactPoint,
+    specular: bool,
+    span: LightSpan,
+) -> WholeLight {
+    WholeLight {
+        rect: view.rect,
+        a,
+        b,
+        h,
+        area: view.area,
+        lobe: specular.then(|| lobe_of(view, n, p)),
+        span,
+    }
 }
 
 /// The map from the light's plane to the light's (a, b) coordinates, the

@@ -408,6 +408,51 @@ fn lobes_at_whole_nodes_generic(
     }
 }
 
+avx512_dispatch!(
+    /// The integrand of the first `count` lobes at the tensor nodes of the
+    /// whole light's fit (as `cell` places them on the cell at 0 of side
+    /// 1) into `out[k]`: the lobes side by side, each lane's operations
+    /// those of [`lobe_at_tensor_nodes`] (so the same bits). One lobe's 64
+    /// nodes are too few vectors to hide the chain's latency; several
+    /// lobes' are not.
+    fn lobes_at_whole_tensor_nodes(ls: &[LobeF32; WHOLE_LANES], count: usize, out: &mut [[f64; NODES]; WHOLE_LANES])
+        => lobes_at_whole_tensor_nodes_generic if true
+);
+
+#[inline(always)]
+fn lobes_at_whole_tensor_nodes_generic(
+    ls: &[LobeF32; WHOLE_LANES],
+    count: usize,
+    out: &mut [[f64; NODES]; WHOLE_LANES],
+) {
+    let fit = rule();
+    let half = 0.5 * 1.0;
+    // As `cell` spreads the nodes on the cell at 0 of side 1, and
+    // `lobe_at_tensor_nodes` takes them.
+    let xs: [f64; ORDER] = std::array::from_fn(|i| 0.0 + (fit.x[i] + 1.0) * half);
+    let a: [f32; NODES] = std::array::from_fn(|k| xs[k / ORDER] as f32);
+    let b: [f32; NODES] = std::array::from_fn(|k| xs[k % ORDER] as f32);
+    let count = count.min(WHOLE_LANES);
+    let mut sin2 = [[0f32; NODES]; WHOLE_LANES];
+    let mut lit = [[false; NODES]; WHOLE_LANES];
+    for k in 0..count {
+        for j in 0..NODES {
+            (sin2[k][j], lit[k][j]) = ls[k].sin2_at(a[j], b[j]);
+        }
+    }
+    let mut exponent = [[0f32; NODES]; WHOLE_LANES];
+    for k in 0..count {
+        for j in 0..NODES {
+            exponent[k][j] = log2_one_minus_times(sin2[k][j], ls[k].half_s);
+        }
+    }
+    for k in 0..count {
+        for j in 0..NODES {
+            out[k][j] = lobe_value(exponent[k][j], sin2[k][j], lit[k][j]);
+        }
+    }
+}
+
 /// How [`whole_light_specular`] takes a lobe's root cell: as
 /// [`specular_factor`] would, or not at all.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -458,20 +503,28 @@ pub fn whole_light_specular(
             None => Root::Fit,
         };
     }
-    // The fitted cells, one lobe at a time (64 nodes fill the lanes), as
-    // `cell` fits a whole cell of side 1.
-    let half = 0.5 * 1.0;
-    let fit = rule();
-    let xs: [f64; ORDER] = std::array::from_fn(|i| 0.0 + (fit.x[i] + 1.0) * half);
-    for (k, &(lobe, visible)) in lobes.iter().enumerate() {
-        if root[k] != Root::Fit {
-            continue;
+    // The fitted cells, their nodes side by side, each fit as `cell` fits
+    // a whole cell of side 1.
+    let mut fitted = [0; WHOLE_LANES];
+    let mut ls = [LobeF32::default(); WHOLE_LANES];
+    let mut count = 0;
+    for (k, &(lobe, _)) in lobes.iter().enumerate() {
+        if root[k] == Root::Fit {
+            (fitted[count], ls[count]) = (k, LobeF32::new(lobe));
+            count += 1;
         }
-        let mut nf = [0.0; NODES];
-        lobe_at_tensor_nodes(lobe, &xs, &xs, &mut nf);
-        let (tail, sum) = whole_cell_fit(fit, &nf);
-        if tail <= TOLERANCE {
-            out[k] = Some((4.0 * sum * (half * half), whole_report(tail * visible)));
+    }
+    if count > 0 {
+        let half = 0.5 * 1.0;
+        let fit = rule();
+        let mut nf = [[0.0; NODES]; WHOLE_LANES];
+        lobes_at_whole_tensor_nodes(&ls, count, &mut nf);
+        for (&k, nf) in fitted[..count].iter().zip(&nf) {
+            let (tail, sum) = whole_cell_fit(fit, nf);
+            if tail <= TOLERANCE {
+                let visible = lobes[k].1;
+                out[k] = Some((4.0 * sum * (half * half), whole_report(tail * visible)));
+            }
         }
     }
     let mut ls = [LobeF32::default(); WHOLE_LANES];

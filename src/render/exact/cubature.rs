@@ -388,21 +388,36 @@ fn lobes_at_whole_nodes_generic(
     // As `lobe_at_nested_nodes` places them on the cell at 0 of side 1.
     let a: [f32; CHUNK] = std::array::from_fn(|j| (0.0 + r.x[nodes.start + j] * 1.0) as f32);
     let b: [f32; CHUNK] = std::array::from_fn(|j| (0.0 + r.y[nodes.start + j] * 1.0) as f32);
-    let mut sin2 = [[0f32; CHUNK]; WHOLE_LANES];
-    let mut lit = [[false; CHUNK]; WHOLE_LANES];
-    for k in 0..WHOLE_LANES {
-        for j in 0..CHUNK {
+    lobes_f32(ls, WHOLE_LANES, &a, &b, out);
+}
+
+/// The first `count` lobes at the light points (a\[j\], b\[j\]), each lane
+/// as [`lobe_f32`] does it for one lobe (the same three loops, so the
+/// same bits), the lobes' chains side by side.
+#[inline(always)]
+fn lobes_f32<const M: usize>(
+    ls: &[LobeF32; WHOLE_LANES],
+    count: usize,
+    a: &[f32; M],
+    b: &[f32; M],
+    out: &mut [[f64; M]; WHOLE_LANES],
+) {
+    let count = count.min(WHOLE_LANES);
+    let mut sin2 = [[0f32; M]; WHOLE_LANES];
+    let mut lit = [[false; M]; WHOLE_LANES];
+    for k in 0..count {
+        for j in 0..M {
             (sin2[k][j], lit[k][j]) = ls[k].sin2_at(a[j], b[j]);
         }
     }
-    let mut exponent = [[0f32; CHUNK]; WHOLE_LANES];
-    for k in 0..WHOLE_LANES {
-        for j in 0..CHUNK {
+    let mut exponent = [[0f32; M]; WHOLE_LANES];
+    for k in 0..count {
+        for j in 0..M {
             exponent[k][j] = log2_one_minus_times(sin2[k][j], ls[k].half_s);
         }
     }
-    for k in 0..WHOLE_LANES {
-        for j in 0..CHUNK {
+    for k in 0..count {
+        for j in 0..M {
             out[k][j] = lobe_value(exponent[k][j], sin2[k][j], lit[k][j]);
         }
     }
@@ -432,25 +447,7 @@ fn lobes_at_whole_tensor_nodes_generic(
     let xs: [f64; ORDER] = std::array::from_fn(|i| 0.0 + (fit.x[i] + 1.0) * half);
     let a: [f32; NODES] = std::array::from_fn(|k| xs[k / ORDER] as f32);
     let b: [f32; NODES] = std::array::from_fn(|k| xs[k % ORDER] as f32);
-    let count = count.min(WHOLE_LANES);
-    let mut sin2 = [[0f32; NODES]; WHOLE_LANES];
-    let mut lit = [[false; NODES]; WHOLE_LANES];
-    for k in 0..count {
-        for j in 0..NODES {
-            (sin2[k][j], lit[k][j]) = ls[k].sin2_at(a[j], b[j]);
-        }
-    }
-    let mut exponent = [[0f32; NODES]; WHOLE_LANES];
-    for k in 0..count {
-        for j in 0..NODES {
-            exponent[k][j] = log2_one_minus_times(sin2[k][j], ls[k].half_s);
-        }
-    }
-    for k in 0..count {
-        for j in 0..NODES {
-            out[k][j] = lobe_value(exponent[k][j], sin2[k][j], lit[k][j]);
-        }
-    }
+    lobes_f32(ls, count, &a, &b, out);
 }
 
 /// How [`whole_light_specular`] takes a lobe's root cell: as

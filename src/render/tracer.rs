@@ -298,27 +298,13 @@ impl<'a> Tracer<'a> {
         }
     }
 
-    /// Whether a tile's camera rays are one a pixel, through its centre
-    /// (computed a row at once); otherwise the filter places several.
-    pub fn traces_tiles(&self) -> bool {
-        self.filter.is_none()
-    }
-
-    /// Whether [`Tracer::tile`] shades its hits side by side: under the
-    /// `sampled` model (hits with fewer light points than
-    /// [`LANE_POINTS`](super::sampled_lanes::LANE_POINTS)
-    /// a hit per lane, others with only their sums side by side).
-    pub fn shades_in_lanes(&self) -> bool {
-        self.settings.model == AreaLightModel::Sampled
-    }
-
     /// Linear RGB of the pixels of `rect` (rows packed) into `out`, as
     /// [`Tracer::pixel`] gives each (the same bits): the camera rays test
     /// only the objects the tile's rays may meet ([`camera_objects`]), the
     /// reflected rays (under every model) wait for the tile's camera rays
     /// and are searched side by side, depth by depth
     /// ([`Scene::closest_hits`]), and the colours are summed path by path
-    /// in their order. With [`Tracer::shades_in_lanes`] the paths' hits
+    /// in their order. Under the `sampled` model the paths' hits
     /// also wait for their light factors in [`SampledLanes`] and are shaded
     /// [`LANES`](super::sampled_lanes::LANES) at a time. With several camera samples per
     /// pixel the tile's objects are those the filter's reach around its
@@ -1299,8 +1285,9 @@ mod tests {
             settings.cutaway = cutaway;
             settings.samples_per_pixel = spp;
             let tracer = Tracer::new(&loaded.scene, &settings, &loaded.shading, rays);
-            assert_eq!(tracer.traces_tiles(), spp == 1);
-            assert!(tracer.shades_in_lanes());
+            // One camera ray a pixel through its centre, or the filter's.
+            assert_eq!(tracer.filter.is_none(), spp == 1);
+            assert_eq!(tracer.settings.model, AreaLightModel::Sampled);
             // Up to four light points with skipping on, the hits' shadow
             // rays are traced side by side too.
             assert_eq!(tracer.shadows_in_lanes, skip && rays <= 4);
@@ -1402,7 +1389,7 @@ mod tests {
                 let mut settings = loaded.settings.clone();
                 (settings.model, settings.shadow_rays, settings.skip) = (model, rays, skip);
                 let tracer = Tracer::new(&loaded.scene, &settings, &loaded.shading, rays);
-                assert!(!tracer.shades_in_lanes());
+                assert_ne!(tracer.settings.model, AreaLightModel::Sampled);
                 let mut scratch = tracer.scratch();
                 let mut tile = Vec::new();
                 // Tiles over the floor, the boxes, the mirror sphere and

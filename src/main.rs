@@ -5,6 +5,7 @@ use clap::Parser;
 use penumbra::cli::{self, Cli, CliError, Command};
 
 fn main() {
+    penumbra::render::memory::share_one_arena_under_address_limit();
     let cli = Cli::parse();
     let result = match cli.command.unwrap_or(Command::View(cli.view)) {
         Command::View(args) => penumbra::app::run(&args).map_err(CliError::input),

@@ -1639,9 +1639,10 @@ fn sigterm_while_render_reads_its_scene_says_so_and_exits_1() {
 }
 
 /// A size that passed the memory check aborted (SIGABRT, exit 134) when
-/// the film's allocation failed: the check left out the worker threads'
-/// address space. Sizes at the check's edge, either side, now render or
-/// are refused with exit 2, never abort.
+/// the film's allocation failed: the check left out threads' address
+/// space (their malloc arenas, made as they first run). Down from a size
+/// well beyond 1 GB, every size is refused with exit 2 until the largest
+/// that passes the check, which renders: the size at the check's edge.
 #[test]
 fn a_render_that_passes_the_memory_check_does_not_abort() {
     let dir = scratch();
@@ -1668,18 +1669,26 @@ fn a_render_that_passes_the_memory_check_does_not_abort() {
             ],
         )
     };
-    let o = render("7300");
-    let err = common::refused(&o, "");
-    assert!(err.contains("7300×7300 needs about"), "{err}");
-    for side in ["6200", "6000"] {
-        let o = render(side);
-        assert!(
-            matches!(o.status.code(), Some(0 | 2)),
-            "{side}: {:?}: {}",
-            o.status,
-            stderr(&o)
-        );
+    // 12 bytes a pixel of film and 3 of PNG codes: 1 GB holds about 8100².
+    let mut rendered = None;
+    for side in (6000..=9000).rev().step_by(25) {
+        let o = render(&side.to_string());
+        match o.status.code() {
+            Some(2) => {
+                let err = stderr(&o);
+                let expected = format!("{side}×{side} needs about");
+                assert!(err.contains(&expected), "{side}: {err}");
+            }
+            Some(0) => {
+                rendered = Some(side);
+                break;
+            }
+            _ => panic!("{side}: {:?}: {}", o.status, stderr(&o)),
+        }
     }
+    let side = rendered.expect("a size from 6000² up renders in 1 GB");
+    assert!(side < 9000, "9000² is refused");
+    assert_eq!(image::image_dimensions(&out).unwrap(), (side, side));
 }
 
 /// A bench whose renders are too large for the memory the process may

@@ -3,13 +3,38 @@
 //! allocation that fails half-way through a render aborts the process,
 //! where a refusal before it can say why.
 
+use std::sync::atomic::{AtomicBool, Ordering};
+
 /// Room kept beyond an image's own buffers (the scene, the threads' stacks).
 const HEADROOM: usize = 64 << 20;
 
-/// Address space each worker thread takes beyond the image: glibc's
-/// malloc maps 128 MiB to carve out a thread's own 64 MiB arena (which
-/// `ulimit -v` counts, touched or not), and its stack takes 2 MiB.
-const PER_THREAD: usize = 130 << 20;
+/// Address space a thread takes: its stack (2 MiB and a guard page) and
+/// its thread-locals.
+const PER_THREAD: usize = 4 << 20;
+
+/// Address space a thread's own malloc arena takes where the threads do
+/// not share one (see [`share_one_arena_under_address_limit`]): glibc maps
+/// 128 MiB to carve out a 64 MiB arena, which `ulimit -v` counts, touched
+/// or not.
+const PER_ARENA: usize = 128 << 20;
+
+/// Whether [`share_one_arena_under_address_limit`] took effect.
+static ONE_ARENA: AtomicBool = AtomicBool::new(false);
+
+/// Under a limit on the address space (`ulimit -v`), makes every thread
+/// allocate from the process's one main arena. Each thread's own arena
+/// would take 64–128 MiB of the limit, and how many threads have made one
+/// by the time a large buffer is allocated depends on timing: a render
+/// that passed the check could then abort when its film's allocation
+/// failed. Call it first thing in `main`, before any thread starts.
+pub fn share_one_arena_under_address_limit() {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    if address_space_limited() {
+        // SAFETY: mallopt only sets a malloc parameter; no thread allocates yet.
+        let set = unsafe { libc::mallopt(libc::M_ARENA_MAX, 1) } == 1;
+        ONE_ARENA.store(set, Ordering::Relaxed);
+    }
+}
 
 /// Checks that `width`×`height` pixels of `bytes_per_pixel` each (and some
 /// room) can be allocated now; the error says how much it would take.
@@ -18,19 +43,26 @@ pub fn check_image_memory(width: u32, height: u32, bytes_per_pixel: usize) -> Re
 }
 
 /// As [`check_image_memory`], with room for `threads` worker threads that
-/// are not running yet.
+/// are not running yet, and for the threads beside them (rayon's global
+/// pool, which builds the scene's trees, and the signal watcher).
 pub fn check_render_memory(
     width: u32,
     height: u32,
     bytes_per_pixel: usize,
     threads: usize,
 ) -> Result<(), String> {
-    // The threads' arenas are reserved, not used: they count only against
-    // a limit on the address space. Without one, a probe of their size
-    // could be refused on a many-core machine with little memory (the
-    // kernel's overcommit heuristic) where the render itself fits.
+    // The threads' stacks and arenas are reserved, not used: they count
+    // only against a limit on the address space. Without one, a probe of
+    // their size could be refused on a many-core machine with little
+    // memory (the kernel's overcommit heuristic) where the render fits.
     let thread_room = if address_space_limited() {
-        threads.saturating_mul(PER_THREAD)
+        let beside = std::thread::available_parallelism().map_or(1, |n| n.get()) + 1;
+        let per_thread = if ONE_ARENA.load(Ordering::Relaxed) {
+            PER_THREAD
+        } else {
+            PER_THREAD + PER_ARENA
+        };
+        threads.saturating_add(beside).saturating_mul(per_thread)
     } else {
         0
     };

@@ -1327,9 +1327,9 @@ fn an_image_too_large_for_the_memory_limit_is_refused_with_exit_2() {
         ],
     );
     let err = common::refused(&o, "");
-    // The film and the EXR's buffer (6.4 GB), and room for two threads.
+    // The film and the EXR's buffer (6.4 GB), and room for the threads.
     assert!(
-        err.contains("16384×16384 needs about 6.8 GB of memory"),
+        err.contains("16384×16384 needs about 6.5 GB of memory"),
         "{err}"
     );
     assert_eq!(err.trim().lines().count(), 1, "{err}");
@@ -1752,7 +1752,7 @@ fn a_bench_too_large_for_the_memory_limit_is_refused_with_exit_2() {
         assert!(!String::from_utf8_lossy(&o.stdout).contains("reference"));
     }
     // `--target` renders 1920×1080 whatever the scene's size.
-    let o = penumbra_within_memory(300_000, &["bench", "--target", "--threads", "2"]);
+    let o = penumbra_within_memory(150_000, &["bench", "--target", "--threads", "2"]);
     let err = common::refused(&o, "");
     assert!(err.contains("1920×1080 needs about"), "{err}");
     assert_eq!(files_in(dir.path()), Vec::<String>::new());

@@ -1638,22 +1638,25 @@ fn sigterm_while_render_reads_its_scene_says_so_and_exits_1() {
     assert_eq!(files_in(dir.path()), Vec::<String>::new());
 }
 
-/// A size that passed the memory check aborted (SIGABRT, exit 134) when
-/// the film's allocation failed: the check left out threads' address
-/// space (their malloc arenas, made as they first run). Down from a size
-/// well beyond 1 GB, every size is refused with exit 2 until the largest
-/// that passes the check, which renders: the size at the check's edge.
+/// A size that passed the memory check aborted (SIGABRT, exit 134): the
+/// film's allocation failed when the check left out threads' address
+/// space (their malloc arenas, made as they first run), and a noisy
+/// image's PNG write failed when the encoder held the whole compressed
+/// image (as large as its codes) in memory. Down from a size well beyond
+/// 1 GB, every size is refused with exit 2 until the largest that passes
+/// the check, which renders: the size at the check's edge. Once for a
+/// smooth image, once for a noisy one (one random shadow ray a pixel).
 #[test]
 fn a_render_that_passes_the_memory_check_does_not_abort() {
     let dir = scratch();
     let out = dir.path().join("big.png");
     let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/stress/box-on-floor.json");
-    let render = |side: &str| {
-        penumbra_within_memory(
-            1_000_000,
-            &[
-                "render",
-                scene.to_str().unwrap(),
+    let smooth = ["render", scene.to_str().unwrap()];
+    let noisy = ["render", "--sampling", "random"];
+    for (case, first) in [("smooth", &smooth[..]), ("noisy", &noisy[..])] {
+        let render = |side: &str| {
+            let mut args = first.to_vec();
+            args.extend([
                 "--width",
                 side,
                 "--height",
@@ -1666,29 +1669,34 @@ fn a_render_that_passes_the_memory_check_does_not_abort() {
                 "2",
                 "-o",
                 out.to_str().unwrap(),
-            ],
-        )
-    };
-    // 12 bytes a pixel of film and 3 of PNG codes: 1 GB holds about 8100².
-    let mut rendered = None;
-    for side in (6000..=9000).rev().step_by(25) {
-        let o = render(&side.to_string());
-        match o.status.code() {
-            Some(2) => {
-                let err = stderr(&o);
-                let expected = format!("{side}×{side} needs about");
-                assert!(err.contains(&expected), "{side}: {err}");
+            ]);
+            penumbra_within_memory(1_000_000, &args)
+        };
+        // 12 bytes a pixel of film and 3 of PNG codes: 1 GB holds about 8100².
+        let mut rendered = None;
+        for side in (6000..=9000).rev().step_by(25) {
+            let o = render(&side.to_string());
+            match o.status.code() {
+                Some(2) => {
+                    let err = stderr(&o);
+                    let expected = format!("{side}×{side} needs about");
+                    assert!(err.contains(&expected), "{case} {side}: {err}");
+                }
+                Some(0) => {
+                    rendered = Some(side);
+                    break;
+                }
+                _ => panic!("{case} {side}: {:?}: {}", o.status, stderr(&o)),
             }
-            Some(0) => {
-                rendered = Some(side);
-                break;
-            }
-            _ => panic!("{side}: {:?}: {}", o.status, stderr(&o)),
         }
+        let side = rendered.expect("a size from 6000² up renders in 1 GB");
+        assert!(side < 9000, "{case}: 9000² is refused");
+        assert_eq!(
+            image::image_dimensions(&out).unwrap(),
+            (side, side),
+            "{case}"
+        );
     }
-    let side = rendered.expect("a size from 6000² up renders in 1 GB");
-    assert!(side < 9000, "9000² is refused");
-    assert_eq!(image::image_dimensions(&out).unwrap(), (side, side));
 }
 
 /// A bench whose renders are too large for the memory the process may

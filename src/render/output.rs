@@ -9,8 +9,7 @@ use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, AtomicPtr, Ordering};
 
 use glam::Vec3;
-use image::codecs::png::PngEncoder;
-use image::{ExtendedColorType, ImageDecoder, ImageEncoder, ImageFormat, ImageReader};
+use image::{ImageDecoder, ImageFormat, ImageReader};
 
 use super::display::DisplayTransform;
 use super::error::ImageError;
@@ -529,7 +528,14 @@ impl PngCodes {
     }
 }
 
-/// Writes 8-bit sRGB RGB data as a PNG.
+/// Bytes of compressed data in each of a PNG's IDAT chunks.
+const IDAT_BYTES: usize = 1 << 16;
+
+/// Writes 8-bit sRGB RGB data as a PNG, compressed as it is written: the
+/// encoder's one-call path holds the whole compressed image in memory,
+/// as large as the codes again for a noisy image, which could abort a
+/// render that fit the memory check. The compression and the row filters
+/// are `image`'s defaults (the same pixels and nearly the same bytes).
 pub fn write_rgb8(path: &Path, width: u32, height: u32, rgb: &[u8]) -> Result<(), ImageError> {
     if FileKind::of(path)? != FileKind::Png {
         return Err(ImageError::Format {
@@ -542,9 +548,19 @@ pub fn write_rgb8(path: &Path, width: u32, height: u32, rgb: &[u8]) -> Result<()
         "buffer matches size"
     );
     write_atomic(path, |w| {
-        PngEncoder::new(w)
-            .write_image(rgb, width, height, ExtendedColorType::Rgb8)
-            .map_err(|e| e.to_string())
+        let mut encoder = png::Encoder::new(w, width, height);
+        encoder.set_color(png::ColorType::Rgb);
+        encoder.set_depth(png::BitDepth::Eight);
+        encoder.set_compression(png::Compression::Fast);
+        encoder.set_filter(png::Filter::Adaptive);
+        let mut header = encoder.write_header().map_err(|e| e.to_string())?;
+        let mut stream = header
+            .stream_writer_with_size(IDAT_BYTES)
+            .map_err(|e| e.to_string())?;
+        stream.write_all(rgb).map_err(|e| e.to_string())?;
+        stream.finish().map_err(|e| e.to_string())?;
+        // The end chunk, whose write error the writer's drop would drop.
+        header.finish().map_err(|e| e.to_string())
     })
 }
 

@@ -6,6 +6,15 @@ use penumbra::cli::{self, Cli, CliError, Command};
 
 fn main() {
     penumbra::render::memory::share_one_arena_under_address_limit();
+    // rayon's global pool starts now, while the address space has room:
+    // started on its first use, late in a command under `ulimit -v`, a
+    // thread that could not start panicked.
+    if let Err(e) = rayon::ThreadPoolBuilder::new().build_global() {
+        cli::print_stderr(format_args!(
+            "penumbra: cannot start the worker threads: {e}"
+        ));
+        std::process::exit(1);
+    }
     let cli = Cli::parse();
     let result = match cli.command.unwrap_or(Command::View(cli.view)) {
         Command::View(args) => penumbra::app::run(&args).map_err(CliError::input),

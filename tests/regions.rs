@@ -368,6 +368,75 @@ fn merge_refuses_gaps_and_lack_of_memory_early_and_parts_are_the_same_bytes() {
 }
 
 /// A small part of a `width`×`height` render of the seed room.
+/// Merging to a PNG under every memory limit from ample down to too
+/// little either writes the image or is refused with exit 2: it aborted
+/// (exit 134) where the parts and the merged image fit but not the PNG's
+/// codes as well, and panicked (exit 101) where rayon's pool, first used
+/// by the write, could not start its threads.
+#[test]
+fn a_merge_to_png_under_any_memory_limit_writes_or_is_refused() {
+    let dir = scratch_dir("merge-limits");
+    let halves: Vec<PathBuf> = ["0,0,4000,1500", "0,1500,4000,1500"]
+        .iter()
+        .enumerate()
+        .map(|(k, r)| {
+            let out = dir.join(format!("h{k}.exr"));
+            let o = penumbra(&[
+                "render",
+                SCENE,
+                "-o",
+                out.to_str().unwrap(),
+                "--width",
+                "4000",
+                "--height",
+                "3000",
+                "--region",
+                r,
+                "--terms",
+                "1,0,0",
+                "--depth",
+                "1",
+            ]);
+            assert!(o.status.success(), "{}", stderr(&o));
+            out
+        })
+        .collect();
+    let merged = dir.join("m.png");
+    let (mut written, mut refusals) = (0, 0);
+    for kib in (150_000..=500_000).rev().step_by(10_000) {
+        let kib_text = kib.to_string();
+        let o = penumbra_within_memory(
+            kib,
+            &[
+                "merge",
+                halves[0].to_str().unwrap(),
+                halves[1].to_str().unwrap(),
+                "-o",
+                merged.to_str().unwrap(),
+            ],
+        );
+        match o.status.code() {
+            Some(0) => {
+                written += 1;
+                assert_eq!(image::image_dimensions(&merged).unwrap(), (4000, 3000));
+            }
+            Some(2) => {
+                refusals += 1;
+                let err = stderr(&o);
+                let named =
+                    err.contains("needs about") && err.contains("more than this process can have");
+                assert!(named, "{kib_text}: {err}");
+                assert_eq!(err.trim().lines().count(), 1, "{kib_text}: {err}");
+            }
+            _ => panic!("{kib_text} KiB: {:?}: {}", o.status, stderr(&o)),
+        }
+    }
+    assert!(
+        written > 0 && refusals > 0,
+        "{written} written, {refusals} refused"
+    );
+}
+
 fn small_part(dir: &Path, name: &str, width: &str, height: &str, region: &str) -> PathBuf {
     let out = dir.join(name);
     let o = penumbra(&[

@@ -3,6 +3,7 @@
 
 use super::{CliError, MergeArgs};
 use crate::render::CancelToken;
+use crate::render::ImageError;
 use crate::render::output::{FileKind, write_film};
 use crate::render::region::{merge as merge_parts, read_part};
 
@@ -30,14 +31,18 @@ pub fn merge(args: &MergeArgs) -> Result<(), CliError> {
         parts.push((path.clone(), part));
     }
     let film = merge_parts(&parts).map_err(CliError::input)?;
+    let count = parts.len();
+    // The parts' memory goes to the write (a PNG's codes).
+    drop(parts);
     // The write is stopped as render's is: it fails, the target untouched.
     super::safety::handle_signals(&CancelToken::new());
-    write_film(&film, &args.output).map_err(|e| super::safety::write_failure(e, INTERRUPTED))?;
+    write_film(&film, &args.output).map_err(|e| match e {
+        ImageError::Memory { .. } => CliError::input(e),
+        e => super::safety::write_failure(e, INTERRUPTED),
+    })?;
     super::print_stderr(format_args!(
-        "{}×{} from {} parts",
-        film.width,
-        film.height,
-        parts.len()
+        "{}×{} from {count} parts",
+        film.width, film.height
     ));
     Ok(())
 }

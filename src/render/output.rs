@@ -446,12 +446,22 @@ pub fn write_film_shown(
     let kind = FileKind::of(path)?;
     refuse_non_finite(film, path)?;
     match kind {
-        FileKind::Png => write_rgb8(
-            path,
-            film.width,
-            film.height,
-            &display.encode_all(&film.pixels),
-        ),
+        FileKind::Png => {
+            // Its 8-bit codes are made first, 3 bytes a pixel: an allocation
+            // that failed there aborted (a merge beside its parts).
+            super::memory::check_image_memory(film.width, film.height, 3).map_err(|message| {
+                ImageError::Memory {
+                    path: path.to_owned(),
+                    message,
+                }
+            })?;
+            write_rgb8(
+                path,
+                film.width,
+                film.height,
+                &display.encode_all(&film.pixels),
+            )
+        }
         FileKind::Exr => {
             use exr::prelude::{
                 Encoding, Image, Layer, LayerAttributes, SpecificChannels, Vec2, WritableImage,

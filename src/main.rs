@@ -4,6 +4,9 @@
 use clap::Parser;
 use penumbra::cli::{self, Cli, CliError, Command};
 
+#[global_allocator]
+static ALLOCATOR: cli::out_of_memory::EndWhenExhausted = cli::out_of_memory::EndWhenExhausted;
+
 fn main() {
     penumbra::render::memory::share_one_arena_under_address_limit();
     // rayon's global pool starts now, while the address space has room:

@@ -1699,6 +1699,75 @@ fn a_render_that_passes_the_memory_check_does_not_abort() {
     }
 }
 
+/// A large mesh under any memory limit from ample down to too little
+/// renders or is refused with exit 2 and one line naming the scene (and
+/// the mesh or the scene's trees): its trees, or its parse, aborted
+/// (SIGABRT, exit 134) when an allocation failed.
+#[test]
+fn a_large_mesh_under_any_memory_limit_renders_or_is_refused() {
+    let dir = scratch();
+    let (mesh, scene) = (dir.path().join("torus.obj"), dir.path().join("room.json"));
+    let r = penumbra(&[
+        "generate",
+        "--triangles",
+        "500000",
+        "-o",
+        mesh.to_str().unwrap(),
+    ]);
+    assert!(r.status.success(), "{}", stderr(&r));
+    write_room_with_mesh(&scene, "torus.obj");
+    let out = dir.path().join("x.png");
+    let (mut rendered, mut out_of_memory) = (0, 0);
+    for kib in (40_000..=200_000).rev().step_by(20_000) {
+        let o = penumbra_within_memory(
+            kib,
+            &[
+                "render",
+                scene.to_str().unwrap(),
+                "--width",
+                "64",
+                "--height",
+                "36",
+                "-o",
+                out.to_str().unwrap(),
+            ],
+        );
+        let err = stderr(&o);
+        match o.status.code() {
+            Some(0) => rendered += 1,
+            Some(2) => {
+                // After the mesh's count ("triangles: …"), one error line.
+                let errors: Vec<&str> = err
+                    .lines()
+                    .filter(|l| l.starts_with("penumbra: "))
+                    .collect();
+                assert_eq!(errors.len(), 1, "{kib} KiB: {err}");
+                assert_eq!(
+                    err.trim().lines().last(),
+                    Some(errors[0]),
+                    "{kib} KiB: {err}"
+                );
+                assert!(
+                    err.contains("more than this process can have"),
+                    "{kib} KiB: {err}"
+                );
+                if err.contains("out of memory") {
+                    out_of_memory += 1;
+                    assert!(err.contains("room.json: "), "{kib} KiB: {err}");
+                    let named = err.contains(".file \"torus.obj\"") || err.contains("the trees of");
+                    assert!(named, "{kib} KiB: {err}");
+                }
+            }
+            _ => panic!("{kib} KiB: {:?}: {err}", o.status),
+        }
+    }
+    assert!(
+        rendered > 0 && out_of_memory > 0,
+        "{rendered} rendered, {out_of_memory} out of memory"
+    );
+    assert_eq!(files_in(dir.path()).len(), 3, "{:?}", files_in(dir.path()));
+}
+
 /// A bench whose renders are too large for the memory the process may
 /// have is refused before any render (exit 2, one line), as `render` is:
 /// it aborted (SIGABRT, exit 134) when a film's allocation failed. Every

@@ -166,8 +166,7 @@ fn crop_of(
     // The crop's buffer may not fit beside the two images: refused, where
     // its allocation would abort.
     let mut pixels = Vec::new();
-    pixels
-        .try_reserve_exact(r.w as usize * r.h as usize)
+    crate::render::memory::probing(|| pixels.try_reserve_exact(r.w as usize * r.h as usize))
         .map_err(|_| {
             CliError::input(format!(
                 "{}: {}×{} needs about {} to compare, more than this process can have",

@@ -14,6 +14,7 @@
 pub mod bench;
 mod compare_cmd;
 mod merge_cmd;
+pub mod out_of_memory;
 mod render_cmd;
 pub mod safety;
 

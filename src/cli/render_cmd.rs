@@ -36,6 +36,13 @@ pub fn load_scene(
         )));
     }
     before_load(&desc)?;
+    let _working = crate::render::memory::working(
+        crate::render::memory::Work::File,
+        match path {
+            Some(p) => p.display().to_string(),
+            None => "the built-in seed room".to_string(),
+        },
+    );
     let o = overrides;
     // --scale and --translate go through the same validation as the file;
     // the message says that they made the scene what it is.

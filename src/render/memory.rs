@@ -3,7 +3,8 @@
 //! allocation that fails half-way through a render aborts the process,
 //! where a refusal before it can say why.
 
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::cell::Cell;
+use std::sync::atomic::{AtomicBool, AtomicPtr, AtomicUsize, Ordering};
 
 /// Room kept beyond an image's own buffers (the scene, the threads' stacks).
 const HEADROOM: usize = 64 << 20;
@@ -98,21 +99,93 @@ pub fn check_read_memory(width: u64, height: u64, bytes: u64) -> Result<(), Stri
 /// larger than the memory the process may have is refused.
 pub fn reserve_for_file(bytes: &mut Vec<u8>, size: u64) -> Result<(), String> {
     let size = usize::try_from(size).unwrap_or(usize::MAX);
-    bytes
-        .try_reserve_exact(size.saturating_sub(bytes.len()))
-        .map_err(|_| {
-            format!(
-                "reading its {size} bytes needs about {}, more than this process can have",
-                amount(size)
-            )
-        })
+    probing(|| bytes.try_reserve_exact(size.saturating_sub(bytes.len()))).map_err(|_| {
+        format!(
+            "reading its {size} bytes needs about {}, more than this process can have",
+            amount(size)
+        )
+    })
 }
 
 /// Whether `bytes` can be allocated now. Reserved and given back at once,
 /// never touched: no page is faulted in.
 fn fits(bytes: usize) -> Result<(), ()> {
     let mut probe: Vec<u8> = Vec::new();
-    probe.try_reserve_exact(bytes).map_err(drop)
+    probing(|| probe.try_reserve_exact(bytes)).map_err(drop)
+}
+
+thread_local! {
+    static PROBING: Cell<bool> = const { Cell::new(false) };
+}
+
+/// Runs `f`, whose failed allocations are its own to handle (a probe, a
+/// `try_reserve`): the binary's allocator ends the process on any other
+/// (see `cli::out_of_memory`).
+pub fn probing<T>(f: impl FnOnce() -> T) -> T {
+    let before = PROBING.replace(true);
+    let result = f();
+    PROBING.set(before);
+    result
+}
+
+/// Whether this thread is inside [`probing`].
+pub fn is_probing() -> bool {
+    PROBING.get()
+}
+
+/// What the process is reading or building, for the line that says it ran
+/// out of memory: the file, then the part of it. Static text, read
+/// without allocating.
+static WORK: [AtomicPtr<u8>; 2] = [const { AtomicPtr::new(std::ptr::null_mut()) }; 2];
+static WORK_LEN: [AtomicUsize; 2] = [const { AtomicUsize::new(0) }; 2];
+
+/// Which of the two parts of the work [`working_on`] names.
+#[derive(Debug, Clone, Copy)]
+pub enum Work {
+    /// The file being read (a scene).
+    File = 0,
+    /// The part of it (a mesh, the scene's trees).
+    Part = 1,
+}
+
+/// Names what the process is working on until the next call (`None`: not
+/// that). The text is kept for the rest of the process.
+pub fn working_on(level: Work, what: Option<String>) {
+    let (ptr, len) = match what {
+        Some(text) => {
+            let text: &'static str = Box::leak(text.into_boxed_str());
+            (text.as_ptr() as *mut u8, text.len())
+        }
+        None => (std::ptr::null_mut(), 0),
+    };
+    WORK[level as usize].store(std::ptr::null_mut(), Ordering::SeqCst);
+    WORK_LEN[level as usize].store(len, Ordering::SeqCst);
+    WORK[level as usize].store(ptr, Ordering::SeqCst);
+}
+
+/// Names `what` as the process's work at `level` until the guard drops.
+pub fn working(level: Work, what: String) -> Working {
+    working_on(level, Some(what));
+    Working(level)
+}
+
+/// Clears the work [`working`] named when dropped.
+pub struct Working(Work);
+
+impl Drop for Working {
+    fn drop(&mut self) {
+        working_on(self.0, None);
+    }
+}
+
+/// The work [`working_on`] named, the file first.
+pub fn work() -> [Option<&'static [u8]>; 2] {
+    std::array::from_fn(|i| {
+        let ptr = WORK[i].load(Ordering::SeqCst);
+        let len = WORK_LEN[i].load(Ordering::SeqCst);
+        // SAFETY: a stored pointer is a leaked `str` of that length.
+        (!ptr.is_null()).then(|| unsafe { std::slice::from_raw_parts(ptr, len) })
+    })
 }
 
 /// `bytes` of memory in words: GB to a tenth, or MB below 0.1 GB (where a

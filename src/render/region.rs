@@ -426,7 +426,10 @@ pub fn merge(parts: &[(PathBuf, Part)]) -> Result<Film, MergeError> {
     };
     // Which part (index + 1) gave each pixel; 0: none yet.
     let mut owner: Vec<u16> = Vec::new();
-    if film.pixels.try_reserve_exact(pixels).is_err() || owner.try_reserve_exact(pixels).is_err() {
+    let reserved = super::memory::probing(|| {
+        film.pixels.try_reserve_exact(pixels).is_ok() && owner.try_reserve_exact(pixels).is_ok()
+    });
+    if !reserved {
         return err(format!(
             "the merged {width}×{height} image needs about {} beyond its parts, more than this process can have",
             super::memory::amount(pixels.saturating_mul(14))

@@ -173,6 +173,10 @@ impl Scene {
                 }
                 ObjectDesc::Mesh(m) => {
                     let budget = mesh::limits::MAX_TRIANGLES.saturating_sub(triangles);
+                    let _working = super::memory::working(
+                        super::memory::Work::Part,
+                        format!("objects[{index}].file {}", mesh::quoted_file(&m.file)),
+                    );
                     let part = mesh::load(m, desc.base_dir.as_deref(), budget)
                         .map_err(|e| SceneError::new(format!("objects[{index}].file"), e))?;
                     let first = meshes.len();
@@ -202,6 +206,14 @@ impl Scene {
         }
         let objects: Arc<[Object]> = objects.into();
         let meshes = Arc::new(meshes);
+        let _working = super::memory::working(
+            super::memory::Work::Part,
+            format!(
+                "the trees of {} objects and {} triangles",
+                objects.len(),
+                meshes.len()
+            ),
+        );
 
         let n = objects.len() as u32;
         let mut unbounded = Vec::new();

@@ -94,6 +94,12 @@ pub fn check_read_memory(width: u64, height: u64, bytes: u64) -> Result<(), Stri
     })
 }
 
+/// Checks that `bytes` more can be allocated now: "about X of memory,
+/// more than this process can have" if not (the caller says for what).
+pub fn check_build_memory(bytes: usize) -> Result<(), String> {
+    fits(bytes).map_err(|()| format!("about {}, more than this process can have", amount(bytes)))
+}
+
 /// Reserves room in `bytes` for a file of `size` bytes (beyond what it
 /// holds), or says why not: where `Vec::with_capacity` would abort, a file
 /// larger than the memory the process may have is refused.

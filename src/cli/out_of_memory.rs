@@ -6,9 +6,13 @@
 //! catches the rest (a mesh whose trees do not fit, say).
 
 use std::alloc::{GlobalAlloc, Layout, System};
+use std::sync::atomic::{AtomicBool, Ordering};
 
 use crate::render::memory::{is_probing, work};
 use crate::render::output::remove_temp_files;
+
+/// Set by the first thread whose allocation fails.
+static ENDING: AtomicBool = AtomicBool::new(false);
 
 /// The allocator `main` installs.
 pub struct EndWhenExhausted;
@@ -56,6 +60,14 @@ unsafe impl GlobalAlloc for EndWhenExhausted {
 fn exhausted(size: usize) {
     if is_probing() {
         return;
+    }
+    // One line, whichever threads fail together: the first ends the
+    // process, the others wait for it.
+    if ENDING.swap(true, Ordering::SeqCst) {
+        loop {
+            // SAFETY: pause(2) only waits; the first thread's _exit ends it.
+            unsafe { libc::pause() };
+        }
     }
     remove_temp_files();
     let mut line = Line::default();

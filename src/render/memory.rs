@@ -4,7 +4,7 @@
 //! where a refusal before it can say why.
 
 use std::cell::Cell;
-use std::sync::atomic::{AtomicBool, AtomicPtr, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicPtr, Ordering};
 
 /// Room kept beyond an image's own buffers (the scene, the threads' stacks).
 const HEADROOM: usize = 64 << 20;
@@ -140,10 +140,9 @@ pub fn is_probing() -> bool {
 }
 
 /// What the process is reading or building, for the line that says it ran
-/// out of memory: the file, then the part of it. Static text, read
-/// without allocating.
-static WORK: [AtomicPtr<u8>; 2] = [const { AtomicPtr::new(std::ptr::null_mut()) }; 2];
-static WORK_LEN: [AtomicUsize; 2] = [const { AtomicUsize::new(0) }; 2];
+/// out of memory: the file, then the part of it. Each a leaked text behind
+/// one pointer, read without allocating.
+static WORK: [AtomicPtr<&'static str>; 2] = [const { AtomicPtr::new(std::ptr::null_mut()) }; 2];
 
 /// Which of the two parts of the work [`working_on`] names.
 #[derive(Debug, Clone, Copy)]
@@ -157,16 +156,11 @@ pub enum Work {
 /// Names what the process is working on until the next call (`None`: not
 /// that). The text is kept for the rest of the process.
 pub fn working_on(level: Work, what: Option<String>) {
-    let (ptr, len) = match what {
-        Some(text) => {
-            let text: &'static str = Box::leak(text.into_boxed_str());
-            (text.as_ptr() as *mut u8, text.len())
-        }
-        None => (std::ptr::null_mut(), 0),
-    };
-    WORK[level as usize].store(std::ptr::null_mut(), Ordering::SeqCst);
-    WORK_LEN[level as usize].store(len, Ordering::SeqCst);
-    WORK[level as usize].store(ptr, Ordering::SeqCst);
+    let text = what.map_or(std::ptr::null_mut(), |text| {
+        let text: &'static str = Box::leak(text.into_boxed_str());
+        Box::into_raw(Box::new(text))
+    });
+    WORK[level as usize].store(text, Ordering::SeqCst);
 }
 
 /// Names `what` as the process's work at `level` until the guard drops.
@@ -187,10 +181,9 @@ impl Drop for Working {
 /// The work [`working_on`] named, the file first.
 pub fn work() -> [Option<&'static [u8]>; 2] {
     std::array::from_fn(|i| {
-        let ptr = WORK[i].load(Ordering::SeqCst);
-        let len = WORK_LEN[i].load(Ordering::SeqCst);
-        // SAFETY: a stored pointer is a leaked `str` of that length.
-        (!ptr.is_null()).then(|| unsafe { std::slice::from_raw_parts(ptr, len) })
+        let text = WORK[i].load(Ordering::SeqCst);
+        // SAFETY: a stored pointer is a leaked `&'static str`, never freed.
+        (!text.is_null()).then(|| unsafe { (*text).as_bytes() })
     })
 }
 

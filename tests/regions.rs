@@ -312,31 +312,7 @@ fn merge_refuses_gaps_and_lack_of_memory_early_and_parts_are_the_same_bytes() {
 
     // Two halves of a 4000×3000 image under a limit that holds them but
     // not the merged image as well.
-    let halves: Vec<PathBuf> = ["0,0,4000,1500", "0,1500,4000,1500"]
-        .iter()
-        .enumerate()
-        .map(|(k, r)| {
-            let out = dir.join(format!("h{k}.exr"));
-            let o = penumbra(&[
-                "render",
-                SCENE,
-                "-o",
-                out.to_str().unwrap(),
-                "--width",
-                "4000",
-                "--height",
-                "3000",
-                "--region",
-                r,
-                "--terms",
-                "1,0,0",
-                "--depth",
-                "1",
-            ]);
-            assert!(o.status.success(), "{}", stderr(&o));
-            out
-        })
-        .collect();
+    let halves = ambient_halves(&dir);
     let o = penumbra_within_memory(
         250_000,
         &[
@@ -367,7 +343,6 @@ fn merge_refuses_gaps_and_lack_of_memory_early_and_parts_are_the_same_bytes() {
     );
 }
 
-/// A small part of a `width`×`height` render of the seed room.
 /// Merging to a PNG under every memory limit from ample down to too
 /// little either writes the image or is refused with exit 2: it aborted
 /// (exit 134) where the parts and the merged image fit but not the PNG's
@@ -376,31 +351,7 @@ fn merge_refuses_gaps_and_lack_of_memory_early_and_parts_are_the_same_bytes() {
 #[test]
 fn a_merge_to_png_under_any_memory_limit_writes_or_is_refused() {
     let dir = scratch_dir("merge-limits");
-    let halves: Vec<PathBuf> = ["0,0,4000,1500", "0,1500,4000,1500"]
-        .iter()
-        .enumerate()
-        .map(|(k, r)| {
-            let out = dir.join(format!("h{k}.exr"));
-            let o = penumbra(&[
-                "render",
-                SCENE,
-                "-o",
-                out.to_str().unwrap(),
-                "--width",
-                "4000",
-                "--height",
-                "3000",
-                "--region",
-                r,
-                "--terms",
-                "1,0,0",
-                "--depth",
-                "1",
-            ]);
-            assert!(o.status.success(), "{}", stderr(&o));
-            out
-        })
-        .collect();
+    let halves = ambient_halves(&dir);
     let merged = dir.join("m.png");
     let (mut written, mut refusals) = (0, 0);
     for kib in (150_000..=500_000).rev().step_by(10_000) {
@@ -437,6 +388,37 @@ fn a_merge_to_png_under_any_memory_limit_writes_or_is_refused() {
     );
 }
 
+/// The top and bottom halves of a 4000×3000 render of the seed room, its
+/// ambient term alone, as parts in `dir` (h0.exr, h1.exr).
+fn ambient_halves(dir: &Path) -> Vec<PathBuf> {
+    ["0,0,4000,1500", "0,1500,4000,1500"]
+        .iter()
+        .enumerate()
+        .map(|(k, r)| {
+            let out = dir.join(format!("h{k}.exr"));
+            let o = penumbra(&[
+                "render",
+                SCENE,
+                "-o",
+                out.to_str().unwrap(),
+                "--width",
+                "4000",
+                "--height",
+                "3000",
+                "--region",
+                r,
+                "--terms",
+                "1,0,0",
+                "--depth",
+                "1",
+            ]);
+            assert!(o.status.success(), "{}", stderr(&o));
+            out
+        })
+        .collect()
+}
+
+/// A small part of a `width`×`height` render of the seed room.
 fn small_part(dir: &Path, name: &str, width: &str, height: &str, region: &str) -> PathBuf {
     let out = dir.join(name);
     let o = penumbra(&[

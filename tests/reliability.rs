@@ -493,13 +493,13 @@ fn write_room_with_mesh(scene: &Path, mesh: &str) {
     std::fs::write(scene, json.to_string()).unwrap();
 }
 
-/// A generated 18-triangle mesh at `mesh` and the seed room with it at
-/// `scene` (the mesh named by its file name, beside the scene).
-fn generated_mesh_room(mesh: &Path, scene: &Path) {
+/// A generated mesh of about `triangles` at `mesh` and the seed room with
+/// it at `scene` (the mesh named by its file name, beside the scene).
+fn generated_mesh_room(triangles: &str, mesh: &Path, scene: &Path) {
     let r = penumbra(&[
         "generate",
         "--triangles",
-        "18",
+        triangles,
         "-o",
         mesh.to_str().unwrap(),
     ]);
@@ -512,7 +512,7 @@ fn an_output_that_is_a_mesh_of_the_scene_is_refused() {
     let dir = scratch();
     let d = dir.path();
     let (mesh, scene) = (d.join("gm.obj"), d.join("gsc.json"));
-    generated_mesh_room(&mesh, &scene);
+    generated_mesh_room("18", &mesh, &scene);
     let before = std::fs::read(&mesh).unwrap();
     std::os::unix::fs::symlink(&mesh, d.join("mesh-link.png")).unwrap();
     std::os::unix::fs::symlink(&mesh, d.join("mesh-link.csv")).unwrap();
@@ -560,7 +560,7 @@ fn an_output_that_is_a_mesh_is_refused_before_the_meshes_load() {
     let dir = scratch();
     let d = dir.path();
     let (mesh, scene) = (d.join("gm.obj"), d.join("two.json"));
-    generated_mesh_room(&mesh, &scene);
+    generated_mesh_room("18", &mesh, &scene);
     std::fs::write(d.join("bad.obj"), "v 1 2\n").unwrap();
     let mut json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&scene).unwrap()).unwrap();
@@ -1708,15 +1708,7 @@ fn a_render_that_passes_the_memory_check_does_not_abort() {
 fn a_large_mesh_under_any_memory_limit_renders_or_is_refused() {
     let dir = scratch();
     let (mesh, scene) = (dir.path().join("torus.obj"), dir.path().join("room.json"));
-    let r = penumbra(&[
-        "generate",
-        "--triangles",
-        "500000",
-        "-o",
-        mesh.to_str().unwrap(),
-    ]);
-    assert!(r.status.success(), "{}", stderr(&r));
-    write_room_with_mesh(&scene, "torus.obj");
+    generated_mesh_room("500000", &mesh, &scene);
     let out = dir.path().join("x.png");
     let (mut rendered, mut out_of_memory, mut trees) = (0, 0, 0);
     for kib in (40_000..=200_000).rev().step_by(10_000) {

@@ -8,7 +8,7 @@
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use crate::render::memory::{is_probing, work};
+use crate::render::memory::{each_work, is_probing};
 use crate::render::output::remove_temp_files;
 
 /// Set by the first thread whose allocation fails.
@@ -72,10 +72,10 @@ fn exhausted(size: usize) {
     remove_temp_files();
     let mut line = Line::default();
     line.push(b"penumbra: ");
-    for part in work().into_iter().flatten() {
+    each_work(|part| {
         line.push_cut(part);
         line.push(b": ");
-    }
+    });
     line.push(b"out of memory: an allocation of ");
     line.push_number(size);
     line.push(b" bytes failed, more than this process can have\n");

@@ -1,10 +1,13 @@
 //! Whether an image's buffers fit in the memory the process may take. The
 //! bytes are asked of the allocator up front and given back at once: an
 //! allocation that fails half-way through a render aborts the process,
-//! where a refusal before it can say why.
+//! where a refusal before it can say why. Also what the binary's
+//! allocator needs to end the process in one line when one fails anyway
+//! ([`probing`], [`working`]).
 
 use std::cell::Cell;
-use std::sync::atomic::{AtomicBool, AtomicPtr, Ordering};
+use std::sync::Mutex;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 /// Room kept beyond an image's own buffers (the scene, the threads' stacks).
 const HEADROOM: usize = 64 << 20;
@@ -140,11 +143,11 @@ pub fn is_probing() -> bool {
 }
 
 /// What the process is reading or building, for the line that says it ran
-/// out of memory: the file, then the part of it. Each a leaked text behind
-/// one pointer, read without allocating.
-static WORK: [AtomicPtr<&'static str>; 2] = [const { AtomicPtr::new(std::ptr::null_mut()) }; 2];
+/// out of memory: the file, then the part of it. Replaced under the lock
+/// and freed after it, so that no allocation happens while it is held.
+static WORK: [Mutex<Option<Box<str>>>; 2] = [const { Mutex::new(None) }; 2];
 
-/// Which of the two parts of the work [`working_on`] names.
+/// Which of the two parts of the work [`working`] names.
 #[derive(Debug, Clone, Copy)]
 pub enum Work {
     /// The file being read (a scene).
@@ -153,19 +156,9 @@ pub enum Work {
     Part = 1,
 }
 
-/// Names what the process is working on until the next call (`None`: not
-/// that). The text is kept for the rest of the process.
-pub fn working_on(level: Work, what: Option<String>) {
-    let text = what.map_or(std::ptr::null_mut(), |text| {
-        let text: &'static str = Box::leak(text.into_boxed_str());
-        Box::into_raw(Box::new(text))
-    });
-    WORK[level as usize].store(text, Ordering::SeqCst);
-}
-
 /// Names `what` as the process's work at `level` until the guard drops.
 pub fn working(level: Work, what: String) -> Working {
-    working_on(level, Some(what));
+    replace_work(level, Some(what.into_boxed_str()));
     Working(level)
 }
 
@@ -174,17 +167,30 @@ pub struct Working(Work);
 
 impl Drop for Working {
     fn drop(&mut self) {
-        working_on(self.0, None);
+        replace_work(self.0, None);
     }
 }
 
-/// The work [`working_on`] named, the file first.
-pub fn work() -> [Option<&'static [u8]>; 2] {
-    std::array::from_fn(|i| {
-        let text = WORK[i].load(Ordering::SeqCst);
-        // SAFETY: a stored pointer is a leaked `&'static str`, never freed.
-        (!text.is_null()).then(|| unsafe { (*text).as_bytes() })
-    })
+fn replace_work(level: Work, text: Option<Box<str>>) {
+    let before = {
+        let mut slot = WORK[level as usize]
+            .lock()
+            .unwrap_or_else(|e| e.into_inner());
+        std::mem::replace(&mut *slot, text)
+    };
+    drop(before);
+}
+
+/// Hands each part of the work [`working`] named to `push`, the file
+/// first; a part being replaced right now is left out (never waited for).
+pub fn each_work(mut push: impl FnMut(&[u8])) {
+    for slot in &WORK {
+        if let Ok(text) = slot.try_lock()
+            && let Some(text) = text.as_deref()
+        {
+            push(text.as_bytes());
+        }
+    }
 }
 
 /// `bytes` of memory in words: GB to a tenth, or MB below 0.1 GB (where a

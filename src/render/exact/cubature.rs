@@ -1942,6 +1942,51 @@ mod tests {
         (in_front && n.dot(v) > 0.0).then_some((lobe, depth, lo, size))
     }
 
+    /// `Ctx::nearest` against the nearest of a 65² grid of the cell's
+    /// points (and no farther than the grid's spacing from it), on the
+    /// square light and on a sheared one (a parallelogram, whose nearest
+    /// point is not the foot clamped to the cell).
+    #[test]
+    fn a_cell_s_nearest_point_is_its_nearest() {
+        let mut rng = Rng::new(18);
+        let mut next = || rng.next_f64();
+        let (mut tried, mut inside) = (0, 0);
+        while tried < 2_000 {
+            let Some((mut lobe, _, lo, size)) = random_cell(tried, &mut next) else {
+                continue;
+            };
+            tried += 1;
+            if tried % 2 == 0 {
+                lobe.edge_v = DVec3::new(1.4 * (next() - 0.5), 0.0, 2.0);
+            }
+            let none = Pieces::default();
+            let ctx = Ctx::new(&lobe, &LightSpan::new(lobe.edge_u, lobe.edge_v), &none);
+            let got = ctx.nearest(lo, size);
+            const STEPS: usize = 64;
+            let mut grid = f64::INFINITY;
+            for i in 0..=STEPS {
+                for j in 0..=STEPS {
+                    let (a, b) = (i as f64 / STEPS as f64, j as f64 / STEPS as f64);
+                    grid = grid.min(lobe.direction(lo.x + a * size, lo.y + b * size).length());
+                }
+            }
+            let spacing = size / STEPS as f64 * (lobe.edge_u.length() + lobe.edge_v.length());
+            assert!(
+                got <= grid * (1.0 + 1e-12),
+                "case {tried}: {got} beyond the grid's {grid}"
+            );
+            assert!(
+                got >= grid - spacing,
+                "case {tried}: {got} below the grid's {grid} by more than {spacing}"
+            );
+            if (got - ctx.height).abs() <= 1e-12 * got {
+                inside += 1;
+            }
+        }
+        // Some cells hold the point's foot, most do not.
+        assert!(inside > 20 && inside < tried / 2, "{inside} of {tried}");
+    }
+
     #[test]
     fn nested_rules_of_a_whole_cell_keep_their_estimate() {
         let mut rng = Rng::new(15);

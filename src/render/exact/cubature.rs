@@ -1893,6 +1893,37 @@ mod tests {
         );
     }
 
+    /// ∫ f over the convex polygon `poly` by a dense rule: its fan
+    /// triangles each split `splits` times in four by their midpoints, and
+    /// the collapsed-square product of the Gauss–Legendre rule `g` on each.
+    fn dense_over(poly: &[DVec2], splits: u32, g: &[(f64, f64)], f: impl Fn(DVec2) -> f64) -> f64 {
+        let mut triangles: Vec<[DVec2; 3]> = (1..poly.len() - 1)
+            .map(|i| [poly[0], poly[i], poly[i + 1]])
+            .collect();
+        for _ in 0..splits {
+            triangles = triangles
+                .iter()
+                .flat_map(|&[a, b, c]| {
+                    let (ab, bc, ca) = ((a + b) * 0.5, (b + c) * 0.5, (c + a) * 0.5);
+                    [[a, ab, ca], [ab, b, bc], [ca, bc, c], [ab, bc, ca]]
+                })
+                .collect();
+        }
+        let mut sum = 0.0;
+        for [a, b, c] in &triangles {
+            let area = 0.5 * (*b - *a).perp_dot(*c - *a).abs();
+            for &(ti, wi) in g {
+                let u = (ti + 1.0) * 0.5;
+                for &(tj, wj) in g {
+                    let w = (tj + 1.0) * 0.5;
+                    let p = *a + (*b - *a) * u + (*c - *b) * (u * w);
+                    sum += f(p) * wi * wj * 0.25 * u * 2.0 * area;
+                }
+            }
+        }
+        sum
+    }
+
     /// A random lobe of the 2 × 2 light seen from 0.2 to 8.2 below it
     /// (views near the mirror direction, anywhere, and grazing; shininess
     /// 1 to 2000) and a random cell of it down to the deepest level, or
@@ -2102,31 +2133,8 @@ mod tests {
                 }
                 sum
             };
-            let mut triangles: Vec<[DVec2; 3]> = (1..part.len() - 1)
-                .map(|i| [part[0], part[i], part[i + 1]])
-                .collect();
-            for _ in 0..3 {
-                triangles = triangles
-                    .iter()
-                    .flat_map(|&[a, b, c]| {
-                        let (ab, bc, ca) = ((a + b) * 0.5, (b + c) * 0.5, (c + a) * 0.5);
-                        [[a, ab, ca], [ab, b, bc], [ca, bc, c], [ab, bc, ca]]
-                    })
-                    .collect();
-            }
-            let mut difference = 0.0;
-            for [a, b, c] in &triangles {
-                let area = 0.5 * (*b - *a).perp_dot(*c - *a).abs();
-                for &(ti, wi) in &g {
-                    let u = (ti + 1.0) * 0.5;
-                    for &(tj, wj) in &g {
-                        let w = (tj + 1.0) * 0.5;
-                        let p = *a + (*b - *a) * u + (*c - *b) * (u * w);
-                        let weight = wi * wj * 0.25 * u * 2.0 * area;
-                        difference += (fit_at(p) - lobe_at(p)) * weight;
-                    }
-                }
-            }
+            // Both by the same dense rule: the fit's error over the part.
+            let difference = dense_over(&part, 3, &g, |p| fit_at(p) - lobe_at(p));
             let err = difference.abs();
             assert!(
                 err <= (estimate + 5e-6) * covered,
@@ -2224,30 +2232,7 @@ mod tests {
                 let h = (l + v).normalize_or_zero();
                 n.dot(h).max(0.0).powf(shininess)
             };
-            let mut triangles: Vec<[DVec2; 3]> = (1..poly.len() - 1)
-                .map(|i| [poly[0], poly[i], poly[i + 1]])
-                .collect();
-            for _ in 0..5 {
-                triangles = triangles
-                    .iter()
-                    .flat_map(|&[a, b, c]| {
-                        let (ab, bc, ca) = ((a + b) * 0.5, (b + c) * 0.5, (c + a) * 0.5);
-                        [[a, ab, ca], [ab, b, bc], [ca, bc, c], [ab, bc, ca]]
-                    })
-                    .collect();
-            }
-            let mut dense = 0.0;
-            for [a, b, c] in &triangles {
-                let area = 0.5 * (*b - *a).perp_dot(*c - *a).abs();
-                for &(ti, wi) in &g {
-                    let u = (ti + 1.0) * 0.5;
-                    for &(tj, wj) in &g {
-                        let w = (tj + 1.0) * 0.5;
-                        let p = *a + (*b - *a) * u + (*c - *b) * (u * w);
-                        dense += f(p) * wi * wj * 0.25 * u * 2.0 * area;
-                    }
-                }
-            }
+            let dense = dense_over(&poly, 5, &g, f);
             let err = (value - dense).abs();
             checked += 1;
             assert!(

@@ -249,16 +249,7 @@ fn compare_takes_a_part_against_its_region_of_the_whole_image() {
     let (code, _, err) = run(&part, &other);
     assert_eq!(code, Some(2), "{err}");
     assert!(err.contains("parts of different regions"), "{err}");
-    let small = dir.join("small.exr");
-    let o = penumbra(&[
-        "render",
-        SCENE,
-        "-o",
-        small.to_str().unwrap(),
-        "--width",
-        "16",
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    let small = rendered(&dir, "small.exr", &["--width", "16"]);
     let (code, _, err) = run(&part, &small);
     assert_eq!(code, Some(2), "{err}");
     assert!(
@@ -395,47 +386,43 @@ fn ambient_halves(dir: &Path) -> Vec<PathBuf> {
         .iter()
         .enumerate()
         .map(|(k, r)| {
-            let out = dir.join(format!("h{k}.exr"));
-            let o = penumbra(&[
-                "render",
-                SCENE,
-                "-o",
-                out.to_str().unwrap(),
-                "--width",
-                "4000",
-                "--height",
-                "3000",
-                "--region",
-                r,
-                "--terms",
-                "1,0,0",
-                "--depth",
-                "1",
-            ]);
-            assert!(o.status.success(), "{}", stderr(&o));
-            out
+            rendered(
+                dir,
+                &format!("h{k}.exr"),
+                &[
+                    "--width", "4000", "--height", "3000", "--region", r, "--terms", "1,0,0",
+                    "--depth", "1",
+                ],
+            )
         })
         .collect()
 }
 
 /// A small part of a `width`×`height` render of the seed room.
 fn small_part(dir: &Path, name: &str, width: &str, height: &str, region: &str) -> PathBuf {
+    rendered(
+        dir,
+        name,
+        &[
+            "--width",
+            width,
+            "--height",
+            height,
+            "--shadow-rays",
+            "1",
+            "--region",
+            region,
+        ],
+    )
+}
+
+/// `dir/name`, the seed room rendered with `args`.
+fn rendered(dir: &Path, name: &str, args: &[&str]) -> PathBuf {
     let out = dir.join(name);
-    let o = penumbra(&[
-        "render",
-        SCENE,
-        "-o",
-        out.to_str().unwrap(),
-        "--width",
-        width,
-        "--height",
-        height,
-        "--shadow-rays",
-        "1",
-        "--region",
-        region,
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    let mut all = vec!["render", SCENE, "-o", out.to_str().unwrap()];
+    all.extend_from_slice(args);
+    let o = penumbra(&all);
+    assert!(o.status.success(), "{name}: {}", stderr(&o));
     out
 }
 
